@@ -1,0 +1,89 @@
+#pragma once
+/// @file
+/// The one exception type of nlid.
+///
+/// Every failure that a user can cause (a bad file, a bad cell, a parameter out of range, an
+/// experiment too short) is reported as `nlid::Error`. Its message always says *what* went wrong
+/// and *where*: the file, row and column of a data file, the experiment index of a data set, or
+/// the name of a parameter. `where()` gives the same location as structured fields so a program
+/// can react to it (e.g. highlight the bad cell) without parsing the text.
+
+#include <stdexcept>
+#include <string>
+#include <utility>
+
+namespace nlid {
+
+/// Where an error happened. Fields that do not apply stay at their "unset" value (-1 / empty).
+/// Rows and columns are 1-based, as a spreadsheet or text editor shows them.
+struct Location {
+  std::string file;         ///< data or model file
+  long row = -1;            ///< 1-based line number in `file`
+  long column = -1;         ///< 1-based column (field) number in `file`
+  std::string column_name;  ///< header name of that column, when known
+  long experiment = -1;     ///< 0-based experiment index in a data set
+  std::string parameter;    ///< parameter or option name
+
+  /// Human-readable form, e.g. `file 'a.csv', row 12, column 3 ('y')`.
+  [[nodiscard]] std::string str() const {
+    std::string s;
+    auto add = [&s](const std::string& part) {
+      if (!s.empty()) s += ", ";
+      s += part;
+    };
+    if (!file.empty()) add("file '" + file + "'");
+    if (row >= 0) add("row " + std::to_string(row));
+    if (column >= 0 || !column_name.empty()) {
+      std::string c = "column";
+      if (column >= 0) c += " " + std::to_string(column);
+      if (!column_name.empty()) c += " ('" + column_name + "')";
+      add(c);
+    }
+    if (experiment >= 0) add("experiment " + std::to_string(experiment));
+    if (!parameter.empty()) add("parameter '" + parameter + "'");
+    return s;
+  }
+};
+
+/// The exception thrown for every user-caused failure. `what()` = "nlid: <message> [at <where>]".
+class Error : public std::runtime_error {
+ public:
+  explicit Error(const std::string& message, Location where = {})
+      : std::runtime_error(compose(message, where)), message_(message), where_(std::move(where)) {}
+
+  /// The message without the location suffix.
+  [[nodiscard]] const std::string& message() const noexcept { return message_; }
+  /// Structured location of the failure.
+  [[nodiscard]] const Location& where() const noexcept { return where_; }
+
+ private:
+  static std::string compose(const std::string& message, const Location& where) {
+    std::string s = "nlid: " + message;
+    const std::string w = where.str();
+    if (!w.empty()) s += " [at " + w + "]";
+    return s;
+  }
+  std::string message_;
+  Location where_;
+};
+
+/// Throws `Error(message, where)` unless `condition` holds. Used at API boundaries.
+inline void require(bool condition, const std::string& message, const Location& where = {}) {
+  if (!condition) throw Error(message, where);
+}
+
+/// Shorthand for a parameter-named location.
+inline Location at_parameter(std::string name) {
+  Location l;
+  l.parameter = std::move(name);
+  return l;
+}
+
+/// Shorthand for an experiment-indexed location.
+inline Location at_experiment(long index) {
+  Location l;
+  l.experiment = index;
+  return l;
+}
+
+}  // namespace nlid
