@@ -9,7 +9,9 @@
 /// can react to it (e.g. highlight the bad cell) without parsing the text.
 
 #include <stdexcept>
+#include <initializer_list>
 #include <string>
+#include <string_view>
 #include <utility>
 
 namespace nlid {
@@ -26,21 +28,26 @@ struct Location {
 
   /// Human-readable form, e.g. `file 'a.csv', row 12, column 3 ('y')`.
   [[nodiscard]] std::string str() const {
+    // Built with append() rather than operator+ chains: GCC 12 reports a false -Wrestrict on
+    // `"literal" + std::string` at -O2.
     std::string s;
-    auto add = [&s](const std::string& part) {
-      if (!s.empty()) s += ", ";
-      s += part;
+    auto add = [&s](std::initializer_list<std::string_view> parts) {
+      if (!s.empty()) s.append(", ");
+      for (std::string_view p : parts) s.append(p);
     };
-    if (!file.empty()) add("file '" + file + "'");
-    if (row >= 0) add("row " + std::to_string(row));
+    if (!file.empty()) add({"file '", file, "'"});
+    if (row >= 0) add({"row ", std::to_string(row)});
     if (column >= 0 || !column_name.empty()) {
-      std::string c = "column";
-      if (column >= 0) c += " " + std::to_string(column);
-      if (!column_name.empty()) c += " ('" + column_name + "')";
-      add(c);
+      const std::string num = column >= 0 ? std::to_string(column) : std::string();
+      const std::string_view sep = column >= 0 ? " " : "";
+      if (column_name.empty()) {
+        add({"column", sep, num});
+      } else {
+        add({"column", sep, num, " ('", column_name, "')"});
+      }
     }
-    if (experiment >= 0) add("experiment " + std::to_string(experiment));
-    if (!parameter.empty()) add("parameter '" + parameter + "'");
+    if (experiment >= 0) add({"experiment ", std::to_string(experiment)});
+    if (!parameter.empty()) add({"parameter '", parameter, "'"});
     return s;
   }
 };
@@ -58,9 +65,10 @@ class Error : public std::runtime_error {
 
  private:
   static std::string compose(const std::string& message, const Location& where) {
-    std::string s = "nlid: " + message;
+    std::string s("nlid: ");
+    s.append(message);
     const std::string w = where.str();
-    if (!w.empty()) s += " [at " + w + "]";
+    if (!w.empty()) s.append(" [at ").append(w).append("]");
     return s;
   }
   std::string message_;

@@ -1,0 +1,22 @@
+# Drives the consumer test: (find_package) install nlid into a scratch prefix, then configure,
+# build and run the consumer against it; (subdirectory) build the consumer with add_subdirectory.
+set(work "${BINARY_DIR}/consumer-${MODE}")
+file(REMOVE_RECURSE "${work}")
+file(MAKE_DIRECTORY "${work}")
+function(run)
+  execute_process(COMMAND ${ARGV} RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+  if(NOT rc EQUAL 0)
+    message(FATAL_ERROR "command failed (${rc}): ${ARGV}\n${out}\n${err}")
+  endif()
+  message(STATUS "${out}")
+endfunction()
+set(args -DNLID_CONSUMER_MODE=${MODE} -DNLID_SOURCE_DIR=${SOURCE_DIR})
+if(MODE STREQUAL "find_package")
+  run(${CMAKE_COMMAND} -S "${SOURCE_DIR}" -B "${work}/nlid-build" -DNLID_BUILD_TESTS=OFF
+      -DNLID_BUILD_EXAMPLES=OFF -DNLID_BUILD_TOOLS=OFF -DNLID_INSTALL=ON -DCMAKE_INSTALL_PREFIX=${work}/prefix)
+  run(${CMAKE_COMMAND} --install "${work}/nlid-build")
+  list(APPEND args -DCMAKE_PREFIX_PATH=${work}/prefix)
+endif()
+run(${CMAKE_COMMAND} -S "${SOURCE_DIR}/tests/consumer" -B "${work}/build" ${args})
+run(${CMAKE_COMMAND} --build "${work}/build")
+run("${work}/build/consumer")
