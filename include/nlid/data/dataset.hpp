@@ -1,0 +1,174 @@
+#pragma once
+/// @file
+/// `Dataset`: several experiments of one system, used together (multi-experiment data).
+///
+/// Identification criteria over several records simply add up (Ljung 1999, sec. 14.3 "merging
+/// experiments"): with experiments e = 1…E of lengths N_e,
+///
+///     V(θ) = Σ_e Σ_{k} ‖ y_e(t_k) − ŷ_e(t_k | θ) ‖²,
+///
+/// where every predictor or simulation restarts at the beginning of each record; the records are
+/// never glued end to end, which would create a fake jump at the seam. The throttle study
+/// estimates on data1 + data2 merged this way and validates on data3…data5.
+///
+/// For the sum to mean one model, all experiments must share the sample time (delays are counted
+/// in samples) and the channel counts. `Dataset` enforces both when an experiment is added: equal
+/// `ts` within a relative 1e-9, equal n_u and n_y. Errors name the experiment index (0-based, as
+/// `operator[]` takes it) and the record's name.
+
+#include <Eigen/Core>
+#include <cmath>
+#include <cstddef>
+#include <cstdio>
+#include <initializer_list>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "nlid/core/error.hpp"
+#include "nlid/data/experiment.hpp"
+
+namespace nlid {
+
+/// Relative tolerance for "same sample time" across the experiments of a `Dataset`.
+inline constexpr double dataset_ts_tolerance = 1e-9;
+
+/// An ordered collection of experiments with a common sample time and common channel counts.
+/// Invariant: every experiment satisfies `Experiment::validate(true)`; all have the `ts`,
+/// `num_inputs()` and `num_outputs()` of the first one.
+class Dataset {
+ public:
+  using iterator = std::vector<Experiment>::iterator;              ///< mutable iteration
+  using const_iterator = std::vector<Experiment>::const_iterator;  ///< read-only iteration
+
+  /// No experiments.
+  Dataset() = default;
+  /// A data set of one experiment; implicit, so a single `Experiment` can be passed wherever a
+  /// `Dataset` is expected.
+  Dataset(const Experiment& e) { add(e); }  // NOLINT(google-explicit-constructor)
+  /// Takes the experiments in order; throws on the first one that does not match the first.
+  explicit Dataset(std::vector<Experiment> experiments) {
+    for (auto& e : experiments) add(std::move(e));
+  }
+  /// `Dataset{e1, e2}`.
+  Dataset(std::initializer_list<Experiment> experiments) {
+    for (const auto& e : experiments) add(e);
+  }
+
+  /// Appends an experiment. Throws `nlid::Error` (naming the index it would get) if its sample
+  /// time differs from the others by more than a relative 1e-9, or its channel counts differ.
+  void add(Experiment e) {
+    const long index = static_cast<long>(experiments_.size());
+    try {
+      e.validate(true);
+    } catch (const Error& err) {
+      Location l = err.where();
+      l.experiment = index;
+      throw Error(err.message(), l);
+    }
+    if (!experiments_.empty()) {
+      const Experiment& first = experiments_.front();
+      const double rel = std::abs(e.ts() - first.ts()) / first.ts();
+      if (rel > dataset_ts_tolerance) {
+        throw Error(label(e) + "has sample time " + number(e.ts()) + " but the data set has " +
+                        number(first.ts()) + " (relative difference " + number(rel) +
+                        "); resample or decimate it first",
+                    at_experiment(index));
+      }
+      if (e.num_inputs() != first.num_inputs() || e.num_outputs() != first.num_outputs()) {
+        throw Error(label(e) + "has " + std::to_string(e.num_inputs()) + " inputs and " +
+                        std::to_string(e.num_outputs()) + " outputs but the data set has " +
+                        std::to_string(first.num_inputs()) + " inputs and " +
+                        std::to_string(first.num_outputs()) + " outputs",
+                    at_experiment(index));
+      }
+    }
+    experiments_.push_back(std::move(e));
+  }
+
+  /// Number of experiments.
+  [[nodiscard]] std::size_t size() const { return experiments_.size(); }
+  /// True if there are no experiments.
+  [[nodiscard]] bool empty() const { return experiments_.empty(); }
+
+  /// Experiment `i` (0-based); throws `nlid::Error` if out of range.
+  [[nodiscard]] const Experiment& operator[](std::size_t i) const {
+    check_index(i);
+    return experiments_[i];
+  }
+  /// Mutable experiment `i`. Changing its `ts` or channel counts through this reference breaks the
+  /// invariant; preprocessing re-validates and will report it.
+  [[nodiscard]] Experiment& operator[](std::size_t i) {
+    check_index(i);
+    return experiments_[i];
+  }
+
+  /// Iteration over the experiments in order.
+  [[nodiscard]] iterator begin() { return experiments_.begin(); }
+  /// End of iteration.
+  [[nodiscard]] iterator end() { return experiments_.end(); }
+  /// Read-only iteration.
+  [[nodiscard]] const_iterator begin() const { return experiments_.begin(); }
+  /// End of read-only iteration.
+  [[nodiscard]] const_iterator end() const { return experiments_.end(); }
+  /// The experiments as a vector.
+  [[nodiscard]] const std::vector<Experiment>& experiments() const { return experiments_; }
+
+  /// Common sample time. Throws if the data set is empty (there is no sample time to report).
+  [[nodiscard]] double ts() const { return first("ts").ts(); }
+  /// Common number of inputs n_u. Throws if empty.
+  [[nodiscard]] int num_inputs() const { return first("num_inputs").num_inputs(); }
+  /// Common number of outputs n_y. Throws if empty.
+  [[nodiscard]] int num_outputs() const { return first("num_outputs").num_outputs(); }
+  /// Σ N_e over all experiments (0 if empty).
+  [[nodiscard]] Eigen::Index total_samples() const {
+    Eigen::Index n = 0;
+    for (const auto& e : experiments_) n += e.size();
+    return n;
+  }
+  /// Names of the experiments in order.
+  [[nodiscard]] std::vector<std::string> names() const {
+    std::vector<std::string> v;
+    v.reserve(experiments_.size());
+    for (const auto& e : experiments_) v.push_back(e.name());
+    return v;
+  }
+
+  // ---- Implementation details below ----------------------------------------------------------
+
+ private:
+  static std::string number(double x) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.17g", x);
+    return buf;
+  }
+  static std::string label(const Experiment& e) {
+    return e.name().empty() ? std::string("experiment ") : "experiment '" + e.name() + "' ";
+  }
+  void check_index(std::size_t i) const {
+    if (i >= experiments_.size()) {
+      throw Error("experiment index " + std::to_string(i) + " out of range: the data set has " +
+                      std::to_string(experiments_.size()) + " experiment(s)",
+                  at_experiment(static_cast<long>(i)));
+    }
+  }
+  const Experiment& first(const char* what) const {
+    if (experiments_.empty()) {
+      throw Error(std::string("empty data set has no ") + what, at_parameter(what));
+    }
+    return experiments_.front();
+  }
+
+  std::vector<Experiment> experiments_;
+};
+
+/// Multi-experiment merge: the experiments of `a` followed by those of `b` (MATLAB `merge`).
+/// Throws `nlid::Error` naming the index (in the merged set) of the first experiment whose sample
+/// time or channel counts differ.
+inline Dataset merge(const Dataset& a, const Dataset& b) {
+  Dataset out = a;
+  for (const auto& e : b) out.add(e);
+  return out;
+}
+
+}  // namespace nlid
