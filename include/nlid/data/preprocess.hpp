@@ -1,0 +1,292 @@
+#pragma once
+/// @file
+/// Preprocessing of experiments: offsets, means, linear trends, time windows; plus (through
+/// resample.hpp) decimation and resampling. Every function returns a new experiment and leaves a
+/// note in its history; every one has a `Dataset` overload applied per experiment whose errors
+/// name the experiment index.
+///
+/// Offsets and trends (Ljung 1999, sec. 14.1, "Slow disturbances: offsets, trends and drift").
+/// A linear model describes deviations from an operating point, so levels that the model cannot
+/// produce must go first: the throttle rests at 15° with zero command, which a linear ARX model
+/// without a constant term would have to explain as dynamics. Per channel x, a trend is
+///
+///     x̄(t) = o + s·(t − t_ref),
+///
+/// and removing it gives x(t_k) − x̄(t_k). `remove_mean` uses s = 0, o = mean; `detrend` fits o, s
+/// by least squares with t_ref = mean(t_k), where the two unknowns decouple:
+///
+///     s = Σ (t_k − t̄)(x_k − x̄) / Σ (t_k − t̄)²,   o = x̄.
+///
+/// The fitted `Trend` is returned by `mean_trend` / `linear_trend`, so the *same* offsets can be
+/// removed from validation data (`remove_trend`) and added back to simulated outputs
+/// (`add_trend`), as MATLAB's `getTrend` / `retrend` do. Removing each record's own mean from
+/// validation data would hide an offset error of the model.
+///
+/// Time windows. `select(e, t_begin, t_end)` keeps the samples with t_begin ≤ t_k ≤ t_end (with a
+/// 1e-9·T_s rounding allowance) and keeps their original times (t_0 becomes the first kept t_k),
+/// so a window of a record still lines up with the record.
+
+#include <Eigen/Core>
+#include <cmath>
+#include <cstdio>
+#include <string>
+#include <utility>
+
+#include "nlid/core/error.hpp"
+#include "nlid/data/dataset.hpp"
+#include "nlid/data/detail/per_experiment.hpp"
+#include "nlid/data/experiment.hpp"
+#include "nlid/data/resample.hpp"
+
+namespace nlid {
+
+/// Offsets and slopes per channel: x̄(t) = offset + slope·(t − t_ref).
+struct Trend {
+  Eigen::VectorXd input_offset;   ///< n_u values at t_ref
+  Eigen::VectorXd output_offset;  ///< n_y values at t_ref
+  Eigen::VectorXd input_slope;    ///< n_u slopes per unit time
+  Eigen::VectorXd output_slope;   ///< n_y slopes per unit time
+  double t_ref = 0.0;             ///< reference time of the offsets
+
+  /// Constant offsets only (slopes zero).
+  static Trend constant(Eigen::VectorXd input_offset, Eigen::VectorXd output_offset) {
+    Trend t;
+    t.input_slope = Eigen::VectorXd::Zero(input_offset.size());
+    t.output_slope = Eigen::VectorXd::Zero(output_offset.size());
+    t.input_offset = std::move(input_offset);
+    t.output_offset = std::move(output_offset);
+    return t;
+  }
+};
+
+namespace detail {
+
+inline void check_trend(const Experiment& e, const Trend& t) {
+  auto check = [](Eigen::Index got, int want, const char* name) {
+    if (got != want) {
+      throw Error(std::string(name) + " has " + std::to_string(got) +
+                      " entries but the experiment has " + std::to_string(want) + " channels",
+                  at_parameter(name));
+    }
+  };
+  check(t.input_offset.size(), e.num_inputs(), "input_offset");
+  check(t.output_offset.size(), e.num_outputs(), "output_offset");
+  check(t.input_slope.size(), e.num_inputs(), "input_slope");
+  check(t.output_slope.size(), e.num_outputs(), "output_slope");
+  if (!t.input_offset.allFinite() || !t.output_offset.allFinite() || !t.input_slope.allFinite() ||
+      !t.output_slope.allFinite() || !std::isfinite(t.t_ref)) {
+    throw Error("trend has non-finite offsets, slopes or t_ref", at_parameter("trend"));
+  }
+}
+
+/// x − sign·(o + s(t − t_ref)) column by column.
+inline Eigen::MatrixXd apply_trend(const Eigen::MatrixXd& x, const Eigen::VectorXd& o,
+                                   const Eigen::VectorXd& s, const Eigen::VectorXd& dt,
+                                   double sign) {
+  Eigen::MatrixXd out = x;
+  for (Eigen::Index c = 0; c < x.cols(); ++c) {
+    if (s(c) == 0.0) {
+      out.col(c).array() -= sign * o(c);  // no dt term: exact for constant trends
+    } else {
+      out.col(c).array() -= sign * (o(c) + s(c) * dt.array());
+    }
+  }
+  return out;
+}
+
+inline Experiment trend_applied(const Experiment& e, const Trend& t, double sign,
+                                const std::string& note) {
+  e.validate(true);
+  check_trend(e, t);
+  const Eigen::VectorXd dt = e.time().array() - t.t_ref;
+  Experiment out =
+      with_samples(e, apply_trend(e.u(), t.input_offset, t.input_slope, dt, sign),
+                   apply_trend(e.y(), t.output_offset, t.output_slope, dt, sign), e.ts(), e.t0());
+  out.add_note(note);
+  return out;
+}
+
+inline std::string vec_str(const Eigen::VectorXd& v) {
+  std::string s = "[";
+  for (Eigen::Index i = 0; i < v.size(); ++i) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.6g", v(i));
+    s += (i ? ", " : "") + std::string(buf);
+  }
+  return s + "]";
+}
+
+inline void require_samples(const Experiment& e, Eigen::Index n, const char* what) {
+  if (e.size() < n) {
+    throw Error(std::string(what) + " needs at least " + std::to_string(n) +
+                    " sample(s), the experiment has " + std::to_string(e.size()),
+                at_parameter("experiment"));
+  }
+}
+
+}  // namespace detail
+
+/// The channel means as a constant `Trend` (t_ref = t_0). Throws on an empty or incomplete record.
+inline Trend mean_trend(const Experiment& e) {
+  e.validate(false);
+  detail::require_samples(e, 1, "mean_trend");
+  Trend t = Trend::constant(e.u().colwise().mean().transpose(), e.y().colwise().mean().transpose());
+  t.t_ref = e.t0();
+  return t;
+}
+
+/// Least-squares line per channel, t_ref = mean sample time (see the file comment).
+inline Trend linear_trend(const Experiment& e) {
+  e.validate(false);
+  detail::require_samples(e, 2, "linear_trend");
+  const Eigen::VectorXd t = e.time();
+  const double tm = t.mean();
+  const Eigen::VectorXd dt = t.array() - tm;
+  const double sxx = dt.squaredNorm();
+  Trend tr;
+  tr.t_ref = tm;
+  tr.input_offset = e.u().colwise().mean().transpose();
+  tr.output_offset = e.y().colwise().mean().transpose();
+  tr.input_slope = (e.u().transpose() * dt) / sxx;
+  tr.output_slope = (e.y().transpose() * dt) / sxx;
+  return tr;
+}
+
+/// x(t) − x̄(t) for every channel. Missing samples stay missing.
+inline Experiment remove_trend(const Experiment& e, const Trend& trend) {
+  return detail::trend_applied(e, trend, 1.0,
+                               "removed trend: input offset " +
+                                   detail::vec_str(trend.input_offset) + ", output offset " +
+                                   detail::vec_str(trend.output_offset));
+}
+
+/// x(t) + x̄(t): undoes `remove_trend` (e.g. to put a simulated output back in physical units).
+inline Experiment add_trend(const Experiment& e, const Trend& trend) {
+  return detail::trend_applied(e, trend, -1.0,
+                               "added trend: input offset " + detail::vec_str(trend.input_offset) +
+                                   ", output offset " + detail::vec_str(trend.output_offset));
+}
+
+/// Subtracts the constants `u_off` (n_u) and `y_off` (n_y) from the channels.
+inline Experiment remove_offset(const Experiment& e, const Eigen::VectorXd& u_off,
+                                const Eigen::VectorXd& y_off) {
+  return remove_trend(e, Trend::constant(u_off, y_off));
+}
+
+/// Subtracts `u_off` from every input and `y_off` from every output.
+inline Experiment remove_offset(const Experiment& e, double u_off, double y_off) {
+  return remove_offset(e, Eigen::VectorXd::Constant(e.num_inputs(), u_off),
+                       Eigen::VectorXd::Constant(e.num_outputs(), y_off));
+}
+
+/// Subtracts each channel's mean (MATLAB `detrend(data, 0)`).
+inline Experiment remove_mean(const Experiment& e) { return remove_trend(e, mean_trend(e)); }
+
+/// Subtracts each channel's least-squares line (MATLAB `detrend(data, 1)`).
+inline Experiment detrend(const Experiment& e) { return remove_trend(e, linear_trend(e)); }
+
+/// Samples `first` … `first + count − 1` (0-based), keeping their times.
+inline Experiment select_samples(const Experiment& e, Eigen::Index first, Eigen::Index count) {
+  e.validate(true);
+  if (first < 0 || count < 1 || first > e.size() - count) {
+    throw Error("sample range [" + std::to_string(first) + ", " + std::to_string(first + count) +
+                    ") is empty or outside the record of " + std::to_string(e.size()) + " samples",
+                at_parameter("first"));
+  }
+  Experiment out =
+      detail::with_samples(e, e.u().middleRows(first, count), e.y().middleRows(first, count),
+                           e.ts(), e.t0() + static_cast<double>(first) * e.ts());
+  out.add_note("selected samples " + std::to_string(first) + ".." +
+               std::to_string(first + count - 1));
+  return out;
+}
+
+/// Samples with t_begin ≤ t_k ≤ t_end. Throws if the window is reversed, reaches outside the
+/// record [t_0, t_end] by more than half a sample, or contains no sample.
+inline Experiment select(const Experiment& e, double t_begin, double t_end) {
+  e.validate(true);
+  const std::string range = "[" + detail::fmt_g(t_begin) + ", " + detail::fmt_g(t_end) + "]";
+  const std::string rec = "[" + detail::fmt_g(e.t0()) + ", " + detail::fmt_g(e.t_end()) + "]";
+  if (!std::isfinite(t_begin) || !std::isfinite(t_end) || t_begin > t_end) {
+    throw Error("time window " + range + " is not a finite, ordered interval",
+                at_parameter("t_begin"));
+  }
+  if (e.empty()) throw Error("cannot select from an empty experiment", at_parameter("t_begin"));
+  const double half = 0.5 * e.ts();
+  if (t_begin < e.t0() - half || t_end > e.t_end() + half) {
+    throw Error("time window " + range + " reaches outside the record " + rec,
+                at_parameter(t_begin < e.t0() - half ? "t_begin" : "t_end"));
+  }
+  const double eps = 1e-9;
+  const auto k0 = static_cast<Eigen::Index>(std::ceil((t_begin - e.t0()) / e.ts() - eps));
+  const auto k1 = static_cast<Eigen::Index>(std::floor((t_end - e.t0()) / e.ts() + eps));
+  const Eigen::Index first = std::max<Eigen::Index>(k0, 0);
+  const Eigen::Index last = std::min<Eigen::Index>(k1, e.size() - 1);
+  if (last < first) {
+    throw Error(
+        "time window " + range + " contains no sample (sample time " + detail::fmt_g(e.ts()) + ")",
+        at_parameter("t_begin"));
+  }
+  Experiment out = select_samples(e, first, last - first + 1);
+  out.add_note("selected time window " + range);
+  return out;
+}
+
+/// Same offsets removed from every experiment.
+inline Dataset remove_offset(const Dataset& d, const Eigen::VectorXd& u_off,
+                             const Eigen::VectorXd& y_off) {
+  return detail::per_experiment(
+      d, [&](const Experiment& e) { return remove_offset(e, u_off, y_off); });
+}
+/// Same scalar offsets removed from every channel of every experiment.
+inline Dataset remove_offset(const Dataset& d, double u_off, double y_off) {
+  return detail::per_experiment(
+      d, [&](const Experiment& e) { return remove_offset(e, u_off, y_off); });
+}
+/// Each experiment's own means removed.
+inline Dataset remove_mean(const Dataset& d) {
+  return detail::per_experiment(d, [](const Experiment& e) { return remove_mean(e); });
+}
+/// Each experiment's own linear trend removed.
+inline Dataset detrend(const Dataset& d) {
+  return detail::per_experiment(d, [](const Experiment& e) { return detrend(e); });
+}
+/// The same trend removed from every experiment.
+inline Dataset remove_trend(const Dataset& d, const Trend& trend) {
+  return detail::per_experiment(d, [&](const Experiment& e) { return remove_trend(e, trend); });
+}
+/// The same trend added to every experiment.
+inline Dataset add_trend(const Dataset& d, const Trend& trend) {
+  return detail::per_experiment(d, [&](const Experiment& e) { return add_trend(e, trend); });
+}
+/// The same time window cut from every experiment.
+inline Dataset select(const Dataset& d, double t_begin, double t_end) {
+  return detail::per_experiment(d, [&](const Experiment& e) { return select(e, t_begin, t_end); });
+}
+
+/// Pooled channel means over all samples of all experiments, as a constant trend: the one
+/// operating point to remove from estimation and validation data alike.
+inline Trend mean_trend(const Dataset& d) {
+  if (d.empty()) throw Error("empty data set has no mean", at_parameter("dataset"));
+  Eigen::VectorXd su = Eigen::VectorXd::Zero(d.num_inputs());
+  Eigen::VectorXd sy = Eigen::VectorXd::Zero(d.num_outputs());
+  Eigen::Index n = 0;
+  for (std::size_t i = 0; i < d.size(); ++i) {
+    try {
+      d[i].validate(false);
+    } catch (const Error& err) {
+      Location l = err.where();
+      l.experiment = static_cast<long>(i);
+      throw Error(err.message(), l);
+    }
+    su += d[i].u().colwise().sum().transpose();
+    sy += d[i].y().colwise().sum().transpose();
+    n += d[i].size();
+  }
+  if (n == 0) throw Error("data set has no samples", at_parameter("dataset"));
+  Trend t = Trend::constant(su / static_cast<double>(n), sy / static_cast<double>(n));
+  t.t_ref = d[0].t0();
+  return t;
+}
+
+}  // namespace nlid
