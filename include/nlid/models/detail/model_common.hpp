@@ -1,0 +1,143 @@
+#pragma once
+/// @file
+/// Shared pieces of the user-level models (Nlarx, HammersteinWiener): the estimation report,
+/// experiment checks with located messages, and helpers generic over the scalar.
+
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <span>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "nlid/ad/dual.hpp"
+#include "nlid/core/error.hpp"
+#include "nlid/core/initial_condition.hpp"
+#include "nlid/data/experiment.hpp"
+
+namespace nlid {
+
+/// What an estimation did, kept in the model so that `describe()` can tell it.
+struct EstimationReport {
+  bool estimated = false;                  ///< false until an estimator filled this in
+  std::string focus;                       ///< "prediction" or "simulation"
+  std::string initial_condition;           ///< initial condition used during estimation
+  int iterations = 0;                      ///< Levenberg–Marquardt iterations (all stages)
+  double initial_cost = std::numeric_limits<double>::quiet_NaN();  ///< ½Σρ(r²) at the start
+  double final_cost = std::numeric_limits<double>::quiet_NaN();    ///< ½Σρ(r²) at the end
+  double seconds = 0.0;                    ///< wall-clock time of the whole estimation
+  std::string status;                      ///< solver's stopping message
+  std::vector<std::string> data_names;     ///< estimation experiments
+  std::vector<double> fit_percent;         ///< simulation fit (%) on each estimation experiment
+  std::vector<Eigen::VectorXd> initial_states;  ///< estimated x0 per experiment (if estimated)
+};
+
+/// Readable name of an initial-condition policy.
+inline const char* to_string(InitialCondition ic) {
+  switch (ic) {
+    case InitialCondition::zero: return "zero";
+    case InitialCondition::estimate: return "estimate";
+    case InitialCondition::equilibrium: return "equilibrium";
+    case InitialCondition::measured: return "measured";
+  }
+  return "?";
+}
+
+namespace detail {
+
+/// "experiment 'data3'" or "experiment 2" — how messages name an experiment.
+inline std::string experiment_label(const Experiment& e, long index) {
+  if (!e.name().empty()) return "experiment '" + e.name() + "'";
+  if (index >= 0) return "experiment " + std::to_string(index);
+  return "experiment";
+}
+
+/// Location of an experiment in a data set (index −1: a lone experiment).
+inline Location experiment_location(long index) {
+  Location l;
+  l.experiment = index;
+  return l;
+}
+
+/// Checks that an experiment fits a single-output model with `num_inputs` inputs, enough
+/// samples (> `min_history`) and a matching sample time (`model_ts` 0: any). Throws naming it.
+inline void check_experiment(const Experiment& e, long index, int num_inputs, int min_history,
+                             double model_ts, const char* model_kind) {
+  const Location where = experiment_location(index);
+  const std::string who = experiment_label(e, index);
+  require(e.num_outputs() == 1,
+          who + " has " + std::to_string(e.num_outputs()) + " outputs; a " + model_kind +
+              " model has one output (estimate one model per output)",
+          where);
+  require(e.num_inputs() == num_inputs,
+          who + " has " + std::to_string(e.num_inputs()) + " input(s) but the " + model_kind +
+              " model reads " + std::to_string(num_inputs),
+          where);
+  require(e.size() > min_history,
+          who + " has " + std::to_string(e.size()) + " samples, not more than the " +
+              std::to_string(min_history) + " needed by the model's lags",
+          where);
+  if (model_ts > 0.0) {
+    require(std::abs(e.ts() - model_ts) <= 1e-9 * model_ts,
+            who + " has sample time " + std::to_string(e.ts()) + " s but the model's is " +
+                std::to_string(model_ts) + " s (resample the data or re-estimate)",
+            where);
+  }
+}
+
+/// Finite check on a scalar including a dual's derivatives (a NaN Jacobian is as bad as a
+/// NaN value for the solver).
+template <class T>
+bool is_finite_scalar(const T& x) {
+  if constexpr (is_dual_v<T>) {
+    return isfinite(x);
+  } else {
+    return std::isfinite(x);
+  }
+}
+
+/// θ (double) as scalar T: constants with zero derivative.
+template <class T>
+std::vector<T> cast_parameters(std::span<const double> theta) {
+  std::vector<T> out;
+  out.reserve(theta.size());
+  for (double v : theta) out.push_back(T(v));
+  return out;
+}
+
+/// std::span over an Eigen vector.
+template <class V>
+auto as_span(V& v) {
+  return std::span<typename V::Scalar>(v.data(), static_cast<std::size_t>(v.size()));
+}
+template <class V>
+auto as_const_span(const V& v) {
+  return std::span<const typename V::Scalar>(v.data(), static_cast<std::size_t>(v.size()));
+}
+
+/// Formats a number for reports (4 significant digits in fixed or scientific form).
+inline std::string format_value(double v, int digits = 4) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.*g", digits, v);
+  return buf;
+}
+
+/// The estimation part of a model's `describe()`.
+inline std::string describe_report(const EstimationReport& r) {
+  if (!r.estimated) return "  not estimated (parameters set by hand or at their initial values)\n";
+  std::string s = "  estimated with " + r.focus + " focus, initial condition " + r.initial_condition + ": " +
+                  std::to_string(r.iterations) + " iterations, " + format_value(r.seconds, 3) + " s, cost " +
+                  format_value(r.initial_cost) + " -> " + format_value(r.final_cost) + "\n";
+  if (!r.status.empty()) s += "    solver: " + r.status + "\n";
+  for (std::size_t i = 0; i < r.fit_percent.size(); ++i) {
+    const std::string name = i < r.data_names.size() && !r.data_names[i].empty() ? r.data_names[i]
+                                                                                  : "experiment " + std::to_string(i);
+    s += "    fit to " + name + " (simulation): " + format_value(r.fit_percent[i], 4) + " %\n";
+  }
+  return s;
+}
+
+}  // namespace detail
+}  // namespace nlid
