@@ -33,9 +33,11 @@
 
 #include <Eigen/Core>
 #include <algorithm>
+#include <bit>
 #include <charconv>
 #include <cmath>
 #include <cstddef>
+#include <cstdint>
 #include <cstdio>
 #include <filesystem>
 #include <limits>
@@ -221,7 +223,7 @@ inline CsvText tokenize_csv(const std::string& path, char delimiter) {
   std::string text = read_file(path);  // names the file if missing / a directory
   std::string_view s(text);
   if (s.size() >= 3 && s.substr(0, 3) == "\xEF\xBB\xBF") s.remove_prefix(3);  // UTF-8 BOM
-  if (trim_blanks(s, true).find_first_not_of("\r\n") == std::string_view::npos) {
+  if (s.find_first_not_of(" \t\r\n") == std::string_view::npos) {
     throw Error("file is empty", csv_at(path));
   }
   std::vector<std::string> fields;
@@ -390,30 +392,63 @@ inline std::string quote_if_needed(const std::string& s, char delim) {
   return q + "\"";
 }
 
-/// The sample time whose grid t0 + k·ts reproduces `t` best, searched within a few ulps of the
-/// endpoint estimate. Makes write → read of `ts` exact; harmless otherwise.
+/// The sample time whose grid t0 + k·ts reproduces `t` exactly, if there is one near the endpoint
+/// estimate (t_{N−1} − t_0)/(N−1); otherwise that estimate. Makes write → read of `ts` exact.
+///
+/// fl(t_0 + fl(k·ts)) is monotone in ts, so the doubles that reproduce the last time stamp form an
+/// interval, found by bisection over the (ordered) bit patterns of positive doubles. Candidates in
+/// it are checked against every time stamp, shortest decimals first: when t_0 is large several
+/// doubles reproduce the column, and the shortest (0.001 rather than 0.0010000000000004686) is the
+/// one a person or a writer used.
 inline double snap_sample_time(const Eigen::VectorXd& t) {
   const Eigen::Index n = t.size();
-  const double t0 = t(0);
-  const double est = (t(n - 1) - t0) / static_cast<double>(n - 1);
-  auto worst = [&](double ts) {
-    double w = 0.0;
-    for (Eigen::Index k = 0; k < n; ++k) {
-      w = std::max(w, std::abs(t(k) - (t0 + static_cast<double>(k) * ts)));
+  const double t0 = t(0), tl = t(n - 1);
+  const double est = (tl - t0) / static_cast<double>(n - 1);
+  const auto last = static_cast<double>(n - 1);
+  auto grid_last = [&](double ts) { return t0 + last * ts; };
+  auto bits = [](double x) { return std::bit_cast<std::uint64_t>(x); };
+  auto from = [](std::uint64_t b) { return std::bit_cast<double>(b); };
+  std::uint64_t lo = bits(est * (1.0 - 1e-9)), hi = bits(est * (1.0 + 1e-9));
+  if (!(grid_last(from(lo)) < tl && grid_last(from(hi)) > tl)) return est;
+  // L = first double with grid_last >= tl.
+  std::uint64_t a = lo, b = hi;
+  while (b - a > 1) {
+    const std::uint64_t m = a + (b - a) / 2;
+    (grid_last(from(m)) < tl ? a : b) = m;
+  }
+  const std::uint64_t first = b;
+  // U = last double with grid_last <= tl.
+  a = lo, b = hi;
+  while (b - a > 1) {
+    const std::uint64_t m = a + (b - a) / 2;
+    (grid_last(from(m)) <= tl ? a : b) = m;
+  }
+  const std::uint64_t final_ = a;
+  if (final_ < first) return est;
+  auto exact = [&](double ts) {
+    for (Eigen::Index k = 1; k < n; ++k) {
+      if (t0 + static_cast<double>(k) * ts != t(k)) return false;
     }
-    return w;
+    return true;
   };
-  double best = est, best_err = worst(est);
-  double up = est, down = est;
-  for (int i = 0; i < 4 && best_err > 0.0; ++i) {
-    up = std::nextafter(up, std::numeric_limits<double>::infinity());
-    down = std::nextafter(down, 0.0);
-    for (double c : {up, down}) {
-      const double e = worst(c);
-      if (e < best_err) best = c, best_err = e;
+  const double fa = from(first), fb = from(final_);
+  // Shortest decimals first: round the interval's ends and middle to 1, 2, … significant digits.
+  for (int d = 1; d <= 17; ++d) {
+    for (double x : {fa + (fb - fa) / 2, fa, fb}) {
+      char buf[64];
+      std::snprintf(buf, sizeof buf, "%.*e", d - 1, x);
+      double c = 0.0;
+      std::from_chars(buf, buf + std::char_traits<char>::length(buf), c);
+      if (c >= fa && c <= fb && exact(c)) return c;
     }
   }
-  return best;
+  // Otherwise the exact candidate nearest to the estimate (at most 256 tried).
+  const std::uint64_t c = std::clamp(bits(est), first, final_);
+  for (std::uint64_t i = 0; i <= 128; ++i) {
+    if (c - first >= i && exact(from(c - i))) return from(c - i);
+    if (final_ - c >= i && exact(from(c + i))) return from(c + i);
+  }
+  return est;
 }
 
 inline std::string percent(double x) {
@@ -572,20 +607,27 @@ inline Experiment read_csv(const std::string& path, const CsvReadOptions& option
             "set CsvReadOptions::ts",
             at_row(0));
       }
-      ts = detail::snap_sample_time(time);
+      // Steps are checked against the median step, so the message points at the odd step
+      // (e.g. a dropped sample) rather than at whichever step the outlier-biased mean disfavours.
+      Eigen::VectorXd steps = time.tail(n - 1) - time.head(n - 1);
+      std::vector<double> sorted(steps.data(), steps.data() + steps.size());
+      std::nth_element(sorted.begin(),
+                       sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2),
+                       sorted.end());
+      const double typical = sorted[sorted.size() / 2];
       for (Eigen::Index k = 1; k < n; ++k) {
-        const double step = time(k) - time(k - 1);
-        const double dev = std::abs(step - ts) / ts;
+        const double dev = std::abs(steps(k - 1) - typical) / typical;
         if (dev > options.time_tolerance) {
-          throw Error("non-uniform time column: step " + detail::num(step) + " from row " +
+          throw Error("non-uniform time column: step " + detail::num(steps(k - 1)) + " from row " +
                           std::to_string(t.lines[static_cast<std::size_t>(k - 1)]) +
-                          " deviates by " + detail::percent(dev) + " from the sample time " +
-                          detail::num(ts) + " (tolerance " +
+                          " deviates by " + detail::percent(dev) + " from the typical step " +
+                          detail::num(typical) + " (tolerance " +
                           detail::percent(options.time_tolerance) +
                           "); missing samples? resample first or set CsvReadOptions::ts",
                       at_row(k));
         }
       }
+      ts = detail::snap_sample_time(time);
     } else if (n >= 2) {
       const double implied = (time(n - 1) - t0) / static_cast<double>(n - 1);
       if (std::abs(implied - ts) > options.time_tolerance * ts) {

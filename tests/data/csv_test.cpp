@@ -1,0 +1,408 @@
+// CSV reading and writing: the throttle files, exact round trips, tolerated formatting, and one
+// test per user error checking that the message names the file, row and column.
+#include "nlid/data/csv.hpp"
+
+#include <catch2/catch.hpp>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <random>
+#include <string>
+
+namespace {
+
+namespace fs = std::filesystem;
+using Catch::Matchers::Contains;
+
+// A fresh directory per test case, removed afterwards.
+struct TempDir {
+  fs::path path;
+  TempDir() {
+    std::random_device rd;
+    path = fs::temp_directory_path() /
+           ("nlid_csv_test_" + std::to_string(rd()) + std::to_string(rd()));
+    fs::create_directories(path);
+  }
+  ~TempDir() {
+    std::error_code ec;
+    fs::remove_all(path, ec);
+  }
+  // Writes `text` byte for byte (no newline translation) and returns the file path.
+  std::string write(const std::string& name, const std::string& text) const {
+    const fs::path p = path / name;
+    std::ofstream out(p, std::ios::binary);
+    out << text;
+    return p.string();
+  }
+  std::string file(const std::string& name) const { return (path / name).string(); }
+};
+
+template <class F>
+nlid::Error error_of(F&& f) {
+  try {
+    f();
+  } catch (const nlid::Error& e) {
+    return e;
+  }
+  FAIL("expected nlid::Error");
+  return nlid::Error("unreachable");
+}
+
+std::string throttle(int i) {
+  return std::string(NLID_TEST_DATA_DIR) + "/throttle/data" + std::to_string(i) + ".csv";
+}
+
+}  // namespace
+
+TEST_CASE("read_csv reads the throttle recordings", "[data][csv]") {
+  const nlid::Experiment e = nlid::read_csv(throttle(1));
+  CHECK(e.size() == 20001);
+  CHECK(e.ts() == 0.001);  // inferred from the time column, exactly
+  CHECK(e.t0() == 0.0);
+  CHECK(e.name() == "data1");
+  CHECK(e.input_names() == std::vector<std::string>{"u"});
+  CHECK(e.output_names() == std::vector<std::string>{"y"});
+  CHECK(e.y()(0, 0) == 14.9);
+  CHECK(e.y()(1, 0) == 15.1);
+  CHECK(e.y()(20000, 0) == 23.4);
+  CHECK(e.u()(20000, 0) == 0.172605);
+  CHECK_FALSE(e.has_missing());
+  REQUIRE_FALSE(e.notes().empty());
+  CHECK_THAT(e.notes()[0], Contains("data1.csv"));
+
+  const nlid::Dataset d = nlid::read_csv_dataset({throttle(1), throttle(2)});
+  CHECK(d.size() == 2);
+  CHECK(d[1].name() == "data2");
+  CHECK(d.total_samples() == 40002);
+}
+
+TEST_CASE("write_csv -> read_csv is exact", "[data][csv]") {
+  TempDir dir;
+  std::mt19937 rng(42);
+  std::normal_distribution<double> g(0.0, 1.0);
+  Eigen::MatrixXd u(257, 2), y(257, 3);
+  for (Eigen::Index k = 0; k < u.size(); ++k) u.data()[k] = g(rng) * std::pow(10.0, g(rng) * 3);
+  for (Eigen::Index k = 0; k < y.size(); ++k) y.data()[k] = g(rng) / 3.0;
+  y(0, 0) = 1e-300;
+  y(1, 1) = -0.0;
+  y(2, 2) = std::numeric_limits<double>::max();
+  y(3, 0) = std::numeric_limits<double>::denorm_min();
+  nlid::Experiment e(u, y, 1.0 / 3.0, "rt");
+  e.set_t0(-7.1);
+  e.set_input_names({"cmd", "load, N"});  // a name with the delimiter is quoted
+  e.set_output_names({"a", "b", "c"});
+  const std::string path = dir.file("rt.csv");
+  nlid::write_csv(path, e);
+
+  nlid::CsvReadOptions opt;
+  opt.inputs = {"cmd", "load, N"};
+  opt.outputs = {"a", "b", "c"};
+  const nlid::Experiment r = nlid::read_csv(path, opt);
+  CHECK(r.ts() == e.ts());
+  CHECK(r.t0() == e.t0());
+  CHECK(r.u() == e.u());
+  CHECK(r.y() == e.y());
+  CHECK(std::signbit(r.y()(1, 1)));
+  CHECK(r.input_names() == e.input_names());
+
+  SECTION("sample times survive the round trip") {
+    // Decimal sample times come back bit for bit even with a large t0; for any sample time the
+    // grid t0 + k ts reproduces every written time stamp exactly.
+    for (double ts : {1e-3, 2.5e-4, 0.1, 0.3, 123.456, 1.0 / 7.0}) {
+      nlid::Experiment s(u.topRows(100), y.topRows(100).leftCols(1), ts);
+      s.set_t0(1000.0 + ts);
+      nlid::write_csv(path, s);
+      nlid::CsvReadOptions o;
+      o.inputs = {"u1", "u2"};
+      const nlid::Experiment back = nlid::read_csv(path, o);
+      CHECK(back.t0() == s.t0());
+      CHECK((back.time().array() == s.time().array()).all());
+      CHECK(back.ts() == Approx(ts).epsilon(1e-14));
+      if (ts != 1.0 / 7.0) CHECK(back.ts() == ts);
+    }
+    nlid::Experiment s(u.topRows(100), y.topRows(100).leftCols(1), 1.0 / 7.0);
+    nlid::write_csv(path, s);
+    nlid::CsvReadOptions o;
+    o.inputs = {"u1", "u2"};
+    CHECK(nlid::read_csv(path, o).ts() == 1.0 / 7.0);  // t0 = 0: the only exact candidate
+  }
+  SECTION("missing samples are written as nan and kept on request") {
+    Eigen::MatrixXd y1 = y.leftCols(1);
+    y1(5, 0) = std::numeric_limits<double>::quiet_NaN();
+    const nlid::Experiment m(u.leftCols(1), y1, 0.5, "m", nlid::NonFinitePolicy::keep);
+    nlid::write_csv(path, m);
+    nlid::CsvReadOptions o;
+    o.non_finite = nlid::NonFinitePolicy::keep;
+    const nlid::Experiment back = nlid::read_csv(path, o);
+    CHECK(std::isnan(back.y()(5, 0)));
+    CHECK(back.y()(6, 0) == y1(6, 0));
+    CHECK_THROWS_WITH(nlid::read_csv(path), Contains("non-finite value 'nan'"));
+  }
+}
+
+TEST_CASE("write_csv_table -> read_csv_table is exact", "[data][csv]") {
+  TempDir dir;
+  Eigen::MatrixXd m(4, 3);
+  m << 0.1, 1e20, -3, 1.0 / 3.0, 2e-308, 4, 5, 6, 7, 8, 9, 10;
+  const std::string path = dir.file("table.csv");
+  nlid::write_csv_table(path, {"a", " spaced ", "q\"uote"}, m);
+  const nlid::CsvTable t = nlid::read_csv_table(path);
+  CHECK(t.header == std::vector<std::string>{"a", " spaced ", "q\"uote"});
+  CHECK(t.data == m);
+  CHECK(t.column("q\"uote") == 2);
+  CHECK(t.col(" spaced ")(1) == 2e-308);
+  CHECK_THROWS_WITH(t.column("zz"), Contains("available columns: 'a', ' spaced ', 'q\"uote'"));
+  CHECK_THROWS_WITH(nlid::write_csv_table(path, {"a"}, m),
+                    Contains("1 names but the matrix has 3"));
+}
+
+TEST_CASE("read_csv tolerates CRLF, BOM, blanks, quotes, comments and a missing final newline",
+          "[data][csv]") {
+  TempDir dir;
+  const std::string text =
+      "\xEF\xBB\xBF# exported by a logger\r\n"
+      " \"t\" ;  u ; y \r\n"
+      "\r\n"
+      "0,0 ; 1 ; 10,5\r\n"
+      "  0,5;2;+11\r\n"
+      "# pause\r\n"
+      "1,0 ; 3 ; \"12\"";
+  nlid::CsvReadOptions opt;
+  opt.delimiter = ';';
+  opt.decimal_point = ',';
+  const nlid::Experiment e = nlid::read_csv(dir.write("eu.csv", text), opt);
+  REQUIRE(e.size() == 3);
+  CHECK(e.ts() == 0.5);
+  CHECK(e.u()(2, 0) == 3.0);
+  CHECK(e.y()(0, 0) == 10.5);
+  CHECK(e.y()(1, 0) == 11.0);
+  CHECK(e.y()(2, 0) == 12.0);
+
+  SECTION("whitespace- and tab-delimited files") {
+    nlid::CsvReadOptions ws;
+    ws.delimiter = ' ';
+    const nlid::Experiment a =
+        nlid::read_csv(dir.write("ws.txt", "t   u y\n0 1\t2\n  1   3  4  \n"), ws);
+    CHECK(a.y()(1, 0) == 4.0);
+    nlid::CsvReadOptions tab;
+    tab.delimiter = '\t';
+    const nlid::Experiment b =
+        nlid::read_csv(dir.write("tab.tsv", "t\tu\ty\n0\t 1\t2\n1\t3\t4\n\n\n"), tab);
+    CHECK(b.u()(0, 0) == 1.0);
+  }
+  SECTION("unrequested columns may hold text; the column order is free") {
+    const nlid::Experiment c =
+        nlid::read_csv(dir.write("extra.csv", "note,y,t,u\nstart,1,0,5\n,2,1,6\nend,3,2,7\n"));
+    CHECK(c.u()(2, 0) == 7.0);
+    CHECK(c.y()(1, 0) == 2.0);
+  }
+}
+
+TEST_CASE("read_csv options: several channels, no time column, ts override", "[data][csv]") {
+  TempDir dir;
+  const std::string p =
+      dir.write("multi.csv", "time,u1,u2,y1,y2\n10,1,2,3,4\n10.1,5,6,7,8\n10.2,9,10,11,12\n");
+  nlid::CsvReadOptions opt;
+  opt.time_column = "time";
+  opt.inputs = {"u2", "u1"};
+  opt.outputs = {"y2"};
+  const nlid::Experiment e = nlid::read_csv(p, opt);
+  CHECK(e.num_inputs() == 2);
+  CHECK(e.num_outputs() == 1);
+  CHECK(e.u()(1, 0) == 6.0);
+  CHECK(e.u()(1, 1) == 5.0);
+  CHECK(e.t0() == 10.0);
+  CHECK(e.ts() == Approx(0.1).epsilon(1e-12));
+  CHECK(e.input_names() == std::vector<std::string>{"u2", "u1"});
+
+  SECTION("time series (no inputs) without a time column") {
+    nlid::CsvReadOptions o;
+    o.time_column = "";
+    o.inputs = {};
+    o.outputs = {"y1"};
+    o.ts = 0.25;
+    const nlid::Experiment t = nlid::read_csv(p, o);
+    CHECK(t.num_inputs() == 0);
+    CHECK(t.ts() == 0.25);
+    CHECK(t.t0() == 0.0);
+    o.ts = 0;
+    CHECK_THROWS_WITH(nlid::read_csv(p, o),
+                      Contains("no time column (time_column is empty) and no sample time"));
+  }
+  SECTION("an override that disagrees with the time column is noted, not silent") {
+    opt.ts = 0.2;
+    const nlid::Experiment o = nlid::read_csv(p, opt);
+    CHECK(o.ts() == 0.2);
+    CHECK_THAT(o.notes().back(), Contains("the time column implies 0.1"));
+  }
+}
+
+TEST_CASE("read_csv reports file-level errors with the file name", "[data][csv]") {
+  TempDir dir;
+  auto err = error_of([&] { (void)nlid::read_csv(dir.file("nope.csv")); });
+  CHECK(err.where().file == dir.file("nope.csv"));
+  CHECK_THAT(err.what(), Contains("file not found"));
+  CHECK_THAT(err.what(), Contains("nope.csv"));
+
+  err = error_of([&] { (void)nlid::read_csv(dir.path.string()); });
+  CHECK_THAT(err.what(), Contains("directory"));
+
+  err = error_of([&] { (void)nlid::read_csv(dir.write("empty.csv", "")); });
+  CHECK_THAT(err.what(), Contains("file is empty"));
+  err = error_of([&] { (void)nlid::read_csv(dir.write("blank.csv", "\r\n  \n")); });
+  CHECK_THAT(err.what(), Contains("file is empty"));
+
+  err = error_of([&] { (void)nlid::read_csv(dir.write("header.csv", "t,u,y\r\n")); });
+  CHECK_THAT(err.what(), Contains("header but no data rows"));
+  CHECK(err.where().row == 1);
+}
+
+TEST_CASE("read_csv reports header errors", "[data][csv]") {
+  TempDir dir;
+  auto err =
+      error_of([&] { (void)nlid::read_csv(dir.write("m.csv", "t,u,angle\n0,1,2\n1,1,2\n")); });
+  CHECK_THAT(err.what(),
+             Contains("output column 'y' not found; available columns: 't', 'u', 'angle'"));
+  CHECK(err.where().column_name == "y");
+
+  err = error_of([&] { (void)nlid::read_csv(dir.write("d.csv", "t,u,y,u\n0,1,2,3\n")); });
+  CHECK_THAT(err.what(), Contains("duplicate column name 'u' (also column 2)"));
+  CHECK(err.where().column == 4);
+  CHECK(err.where().row == 1);
+
+  nlid::CsvReadOptions twice;
+  twice.outputs = {"u"};
+  err = error_of([&] { (void)nlid::read_csv(dir.write("t.csv", "t,u,y\n0,1,2\n1,1,2\n"), twice); });
+  CHECK_THAT(err.what(), Contains("column 'u' is requested twice (input 1 and output 1)"));
+
+  err = error_of([&] { (void)nlid::read_csv(dir.write("q.csv", "t,\"u,y\n0,1,2\n")); });
+  CHECK_THAT(err.what(), Contains("unterminated quoted field"));
+}
+
+TEST_CASE("read_csv reports cell errors with row and column", "[data][csv]") {
+  TempDir dir;
+  auto err = error_of(
+      [&] { (void)nlid::read_csv(dir.write("n.csv", "t,u,y\n0,1,2\n0.1,1,abc\n0.2,1,2\n")); });
+  CHECK_THAT(err.what(), Contains("non-numeric cell 'abc'"));
+  CHECK(err.where().row == 3);
+  CHECK(err.where().column == 3);
+  CHECK(err.where().column_name == "y");
+  CHECK_THAT(err.what(), Contains("row 3, column 3 ('y')"));
+
+  err = error_of([&] { (void)nlid::read_csv(dir.write("n2.csv", "t,u,y\n0,1,2\n0.1,1.5.2,2\n")); });
+  CHECK_THAT(err.what(), Contains("non-numeric cell '1.5.2'"));
+  CHECK(err.where().column_name == "u");
+
+  err = error_of([&] { (void)nlid::read_csv(dir.write("big.csv", "t,u,y\n0,1,2\n1,1,1e999\n")); });
+  CHECK_THAT(err.what(), Contains("out of the range of double: '1e999'"));
+
+  err = error_of(
+      [&] { (void)nlid::read_csv(dir.write("r.csv", "# c\nt,u,y\n0,1,2\n1,1\n2,1,2\n")); });
+  CHECK_THAT(err.what(),
+             Contains("ragged row: expected 3 fields (as in the header on row 2), found 2"));
+  CHECK(err.where().row == 4);
+  err = error_of([&] { (void)nlid::read_csv(dir.write("r2.csv", "t,u,y\n0,1,2,\n")); });
+  CHECK_THAT(err.what(), Contains("found 4"));
+}
+
+TEST_CASE("read_csv applies the non-finite policy", "[data][csv]") {
+  TempDir dir;
+  const std::string p =
+      dir.write("gaps.csv", "t,u,y\n0,0,0\n1,1,nan\n2,2,\n3,3,inf\n4,4,4\n5,5,-Inf\n6,6,6\n");
+  auto err = error_of([&] { (void)nlid::read_csv(p); });
+  CHECK_THAT(err.what(), Contains("non-finite value 'nan' under NonFinitePolicy::error"));
+  CHECK(err.where().row == 3);
+  CHECK(err.where().column_name == "y");
+
+  nlid::CsvReadOptions keep;
+  keep.non_finite = nlid::NonFinitePolicy::keep;
+  const nlid::Experiment k = nlid::read_csv(p, keep);
+  CHECK(std::isnan(k.y()(2, 0)));  // empty cell = missing
+  CHECK(std::isinf(k.y()(5, 0)));
+  CHECK(k.has_missing());
+
+  nlid::CsvReadOptions interp;
+  interp.non_finite = nlid::NonFinitePolicy::interpolate;
+  const nlid::Experiment i = nlid::read_csv(p, interp);
+  CHECK(i.y()(1, 0) == Approx(1.0));
+  CHECK(i.y()(2, 0) == Approx(2.0));
+  CHECK(i.y()(3, 0) == Approx(3.0));
+  CHECK(i.y()(5, 0) == Approx(5.0));
+  CHECK_FALSE(i.has_missing());
+  CHECK_THAT(
+      i.notes().back(),
+      Contains(
+          "filled 4 missing value(s) of column 'y' by linear interpolation (rows 3-5, row 7)"));
+
+  interp.max_gap = 2;
+  err = error_of([&] { (void)nlid::read_csv(p, interp); });
+  CHECK_THAT(err.what(), Contains("gap of 3 missing values (rows 3-5) is longer than max_gap = 2"));
+
+  interp.max_gap = 10;
+  err = error_of(
+      [&] { (void)nlid::read_csv(dir.write("lead.csv", "t,u,y\n0,nan,0\n1,1,1\n"), interp); });
+  CHECK_THAT(err.what(),
+             Contains("cannot interpolate missing values at the start of the data (row 2)"));
+  CHECK(err.where().column_name == "u");
+
+  err =
+      error_of([&] { (void)nlid::read_csv(dir.write("empty_cell.csv", "t,u,y\n0,,0\n1,1,1\n")); });
+  CHECK_THAT(err.what(), Contains("empty cell (missing value)"));
+}
+
+TEST_CASE("read_csv checks the time column", "[data][csv]") {
+  TempDir dir;
+  auto err = error_of([&] {
+    (void)nlid::read_csv(
+        dir.write("gap.csv", "t,u,y\n0,0,0\n0.001,0,0\n0.002,0,0\n0.004,0,0\n0.005,0,0\n"));
+  });
+  CHECK_THAT(err.what(), Contains("non-uniform time column"));
+  CHECK_THAT(err.what(), Contains("from row 4"));
+  CHECK(err.where().row == 5);
+  CHECK(err.where().column_name == "t");
+
+  err =
+      error_of([&] { (void)nlid::read_csv(dir.write("dec.csv", "t,u,y\n0,0,0\n1,0,0\n1,0,0\n")); });
+  CHECK_THAT(err.what(), Contains("time column is not increasing: t = 1 follows t = 1 on row 3"));
+  CHECK(err.where().row == 4);
+
+  err = error_of([&] { (void)nlid::read_csv(dir.write("one.csv", "t,u,y\n0,0,0\n")); });
+  CHECK_THAT(err.what(), Contains("too few rows to infer the sample time"));
+
+  err = error_of([&] { (void)nlid::read_csv(dir.write("nant.csv", "t,u,y\n0,0,0\nnan,0,0\n")); });
+  CHECK_THAT(err.what(), Contains("non-finite time stamp 'nan'"));
+
+  nlid::CsvReadOptions neg;
+  neg.ts = -0.1;
+  err = error_of([&] { (void)nlid::read_csv(dir.write("ok.csv", "t,u,y\n0,0,0\n1,0,0\n"), neg); });
+  CHECK_THAT(err.what(), Contains("sample time override must be positive"));
+  CHECK(err.where().parameter == "ts");
+
+  // Jitter within the 1 % tolerance is accepted; the sample time is the mean step.
+  const nlid::Experiment j =
+      nlid::read_csv(dir.write("jit.csv", "t,u,y\n0,0,0\n1.004,0,0\n1.998,0,0\n3,0,0\n"));
+  CHECK(j.ts() == Approx(1.0));
+  nlid::CsvReadOptions strict;
+  strict.time_tolerance = 1e-3;
+  CHECK_THROWS_WITH(
+      nlid::read_csv(dir.file("jit.csv"), strict),
+      Contains("step 1.004 from row 2 deviates by 0.2 % from the typical step 1.002"));
+}
+
+TEST_CASE("write_csv refuses unreadable headers and bad paths", "[data][csv]") {
+  TempDir dir;
+  nlid::Experiment e(Eigen::MatrixXd::Zero(3, 1), Eigen::MatrixXd::Zero(3, 1), 1.0);
+  e.set_input_names({"t"});
+  CHECK_THROWS_WITH(nlid::write_csv(dir.file("x.csv"), e), Contains("duplicate column name 't'"));
+  e.set_input_names({""});
+  CHECK_THROWS_WITH(nlid::write_csv(dir.file("x.csv"), e), Contains("empty name"));
+  e.set_input_names({"u"});
+  CHECK_THROWS_WITH(nlid::write_csv(dir.file("no/such/dir/x.csv"), e),
+                    Contains("directory does not exist"));
+  CHECK_FALSE(fs::exists(dir.file("x.csv")));
+  nlid::write_csv(dir.file("x.csv"), e, {"time", ';'});
+  nlid::CsvReadOptions o;
+  o.time_column = "time";
+  o.delimiter = ';';
+  CHECK(nlid::read_csv(dir.file("x.csv"), o).size() == 3);
+}
