@@ -1,0 +1,290 @@
+#pragma once
+/// @file
+/// `PwLinear<Breakpoints>`: a one-dimensional piecewise-linear map through n breakpoints
+/// (toolbox `pwlinear` / idPiecewiseLinear), the workhorse input and output block of
+/// Hammerstein–Wiener models (`nlhw2` of the throttle study uses it on both sides).
+///
+/// Math. Breakpoints (x₀, y₀), …, (x_{n−1}, y_{n−1}) with x₀ < x₁ < … < x_{n−1}. Between two
+/// breakpoints g interpolates linearly; beyond the ends it extrapolates the first and last
+/// segments (so an input outside the estimation range gets a sensible, not a constant, answer):
+///
+///     g(x) = yₖ + (y_{k+1} − yₖ)(x − xₖ)/(x_{k+1} − xₖ),   k = segment containing x
+///                                                          (k = 0 below x₀, n−2 above x_{n−1}).
+///
+/// Parametrisation that keeps the breakpoints sorted. Breakpoint positions are estimated, and an
+/// unconstrained optimiser must never make them cross (crossing would make g discontinuous and
+/// the segment slopes infinite). θ therefore holds the first position and the logarithms of the
+/// gaps,
+///
+///     θ = [x₀, γ₁, …, γ_{n−1}, y₀, …, y_{n−1}],     xₖ = x_{k−1} + exp(γₖ),
+///
+/// so every θ ∈ R²ⁿ gives strictly increasing positions, and the map is smooth in θ away from
+/// the breakpoints. Fixing the first n parameters (LmOptions::fixed) keeps the positions where
+/// they are and estimates only the values, which is a linear problem. `theta_from_breakpoints`
+/// and `breakpoints` convert between θ and the (x, y) table.
+///
+/// Initialisation (deterministic, no random restarts):
+/// 1. positions: given to the constructor, or chosen by forward selection of hinge functions
+///    max(0, x − c) over candidate knots c at quantiles of x and on a uniform grid (orthogonal
+///    least squares, Chen et al. 1991): span{1, x, hinges at c₁…c_{n−2}} is exactly the set of
+///    piecewise-linear maps with breakpoints {min x, c₁, …, c_{n−2}, max x}, so the greedy picks
+///    the knots where the data bend. A data set that bends in fewer places gets its remaining
+///    breakpoints in the middle of the widest gaps;
+/// 2. values: linear least squares on the "hat function" basis of the interpolant, plus a tiny
+///    penalty on slope changes that only decides values the data leave undetermined (a segment
+///    without samples, e.g. a step input that takes few levels) — they become the linear
+///    interpolation of their neighbours instead of arbitrary numbers.
+
+#include <algorithm>
+#include <cmath>
+#include <span>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "nlid/core/error.hpp"
+#include "nlid/core/sizes.hpp"
+#include "nlid/nonlinearities/detail/common.hpp"
+#include "nlid/nonlinearities/detail/forward_selection.hpp"
+
+namespace nlid {
+
+/// Piecewise-linear map of one input through n breakpoints, θ = [x₀, γ₁…γ_{n−1}, y₀…y_{n−1}]
+/// with xₖ = x_{k−1} + exp(γₖ); p = 2n.
+/// Invariant: n ≥ 2 and equals Breakpoints when fixed; given initial positions (if any) are
+/// finite and strictly increasing.
+template <int Breakpoints>
+  requires(Breakpoints == Dynamic || Breakpoints >= 2)
+class PwLinear {
+ public:
+  /// m = 1.
+  static constexpr int num_inputs = 1;
+  /// p = 2n (or Dynamic).
+  static constexpr int num_params = size_product(2, Breakpoints);
+
+  /// n = Breakpoints, positions estimated from data.
+  PwLinear()
+    requires(Breakpoints != Dynamic)
+  = default;
+  /// n breakpoints (≥ 2, must equal Breakpoints when fixed), positions estimated from data.
+  /// Throws naming "breakpoints".
+  explicit PwLinear(int breakpoints)
+      : n_(detail::checked_size(breakpoints, Breakpoints, 2, "breakpoints", "PwLinear")) {}
+  /// Breakpoints at the given positions; `initialize` keeps them and fits the values.
+  /// Throws naming "breakpoints" (and the offending index) if they are not strictly increasing
+  /// or not finite, or their count contradicts Breakpoints.
+  explicit PwLinear(std::vector<double> positions)
+      : n_(detail::checked_size(static_cast<int>(positions.size()), Breakpoints, 2, "breakpoints",
+                                "PwLinear")) {
+    for (std::size_t k = 0; k < positions.size(); ++k) {
+      if (!std::isfinite(positions[k])) {
+        throw Error("PwLinear: breakpoint " + std::to_string(k) + " is not finite",
+                    at_parameter("breakpoints"));
+      }
+      if (k > 0 && !(positions[k] > positions[k - 1])) {
+        throw Error("PwLinear: breakpoints must be strictly increasing, but breakpoint " +
+                        std::to_string(k) + " (" + detail::fmt_num(positions[k]) +
+                        ") is not greater than breakpoint " + std::to_string(k - 1) + " (" +
+                        detail::fmt_num(positions[k - 1]) + ")",
+                    at_parameter("breakpoints"));
+      }
+    }
+    given_ = std::move(positions);
+  }
+
+  /// Number of breakpoints n.
+  [[nodiscard]] int num_breakpoints() const { return n_; }
+  /// Initial positions given to the constructor (empty if they are estimated).
+  [[nodiscard]] const std::vector<double>& given_positions() const { return given_; }
+  /// Number of inputs (1).
+  [[nodiscard]] int input_dimension() const { return 1; }
+  /// Number of parameters 2n.
+  [[nodiscard]] int num_parameters() const { return 2 * n_; }
+
+  /// Interpolates (extrapolates beyond the ends). Throws if a span has the wrong length.
+  template <class T>
+  [[nodiscard]] T operator()(std::span<const T> x, std::span<const T> theta) const {
+    using std::exp;
+    if (x.size() != 1) detail::check_size(x.size(), 1, "x", "PwLinear");
+    if (static_cast<int>(theta.size()) != 2 * n_) detail::check_size(theta.size(), 2 * n_, "theta", "PwLinear");
+    const auto n = static_cast<std::size_t>(n_);
+    const T& xv = x[0];
+    T xk = theta[0];
+    // Walk the segments until x lies left of the segment's right end; the last segment also
+    // takes everything beyond it (extrapolation), the first everything before x₀.
+    for (std::size_t k = 0; k + 1 < n; ++k) {
+      const T gap = exp(theta[1 + k]);
+      const T xn = xk + gap;
+      if (xv < xn || k + 2 == n) {
+        const T slope = (theta[n + k + 1] - theta[n + k]) / gap;
+        return theta[n + k] + slope * (xv - xk);
+      }
+      xk = xn;
+    }
+    return theta[n];  // unreachable: n ≥ 2
+  }
+
+  /// Breakpoint positions (given, or by hinge forward selection) and least-squares values.
+  void initialize(const Eigen::MatrixXd& X, const Eigen::VectorXd& y, std::span<double> theta) {
+    detail::check_init_data(X, y, theta.size(), 1, 2 * n_, 2, "PwLinear");
+    const Eigen::VectorXd x = X.col(0);
+    std::vector<double> pos = given_.empty() ? select_positions(x, y) : given_;
+    const Eigen::VectorXd values = fit_values(x, y, pos);
+    std::vector<double> vals(values.data(), values.data() + values.size());
+    theta_from_breakpoints(pos, vals, theta);
+  }
+
+  /// Writes θ for breakpoints (x, y); x strictly increasing. Throws naming "breakpoints".
+  void theta_from_breakpoints(std::span<const double> xs, std::span<const double> ys,
+                              std::span<double> theta) const {
+    detail::check_size(xs.size(), n_, "breakpoints", "PwLinear");
+    detail::check_size(ys.size(), n_, "values", "PwLinear");
+    detail::check_size(theta.size(), 2 * n_, "theta", "PwLinear");
+    theta[0] = xs[0];
+    for (std::size_t k = 1; k < xs.size(); ++k) {
+      if (!(xs[k] > xs[k - 1])) {
+        throw Error("PwLinear: breakpoints must be strictly increasing at index " + std::to_string(k),
+                    at_parameter("breakpoints"));
+      }
+      theta[k] = std::log(xs[k] - xs[k - 1]);
+    }
+    for (std::size_t k = 0; k < ys.size(); ++k) theta[xs.size() + k] = ys[k];
+  }
+
+  /// The breakpoint table (positions, values) encoded by θ.
+  [[nodiscard]] std::pair<std::vector<double>, std::vector<double>> breakpoints(
+      std::span<const double> theta) const {
+    detail::check_size(theta.size(), 2 * n_, "theta", "PwLinear");
+    const auto n = static_cast<std::size_t>(n_);
+    std::vector<double> xs(n), ys(n);
+    xs[0] = theta[0];
+    for (std::size_t k = 1; k < n; ++k) xs[k] = xs[k - 1] + std::exp(theta[k]);
+    for (std::size_t k = 0; k < n; ++k) ys[k] = theta[n + k];
+    return {xs, ys};
+  }
+
+  /// "x[0]", "log_gap[1]" … "log_gap[n−1]", "y[0]" … "y[n−1]".
+  [[nodiscard]] std::vector<std::string> parameter_names() const {
+    std::vector<std::string> s{"x[0]"};
+    for (int k = 1; k < n_; ++k) s.push_back("log_gap[" + std::to_string(k) + "]");
+    for (int k = 0; k < n_; ++k) s.push_back("y[" + std::to_string(k) + "]");
+    return s;
+  }
+
+  /// The breakpoint table with the slope of each segment.
+  [[nodiscard]] std::string describe(std::span<const double> theta) const {
+    const auto [xs, ys] = breakpoints(theta);
+    std::string s = "piecewise linear (" + std::to_string(n_) +
+                    " breakpoints, linear extrapolation beyond the ends): g(x) through\n";
+    for (std::size_t k = 0; k < xs.size(); ++k) {
+      s += "  (" + detail::fmt_num(xs[k]) + ", " + detail::fmt_num(ys[k]) + ")";
+      if (k + 1 < xs.size()) {
+        s += "   slope to next: " + detail::fmt_num((ys[k + 1] - ys[k]) / (xs[k + 1] - xs[k]));
+      }
+      s += "\n";
+    }
+    return s;
+  }
+
+  // ---- Implementation details below ----------------------------------------------------------
+ private:
+  std::vector<double> select_positions(const Eigen::VectorXd& x, const Eigen::VectorXd& y) const {
+    const double xmin = x.minCoeff();
+    const double xmax = x.maxCoeff();
+    if (!(xmax > xmin)) {
+      throw Error("PwLinear: column 1 of X is constant (" + detail::fmt_num(xmin) +
+                      "); breakpoints cannot be placed — give them to the constructor",
+                  at_parameter("X"));
+    }
+    const double range = xmax - xmin;
+    const int interior = n_ - 2;
+    std::vector<double> knots;
+    if (interior > 0) {
+      const auto rows = detail::subsample_rows(x.size(), 4000);
+      const auto nr = static_cast<Eigen::Index>(rows.size());
+      Eigen::VectorXd xs(nr), ys(nr);
+      for (Eigen::Index i = 0; i < nr; ++i) {
+        xs(i) = x(rows[static_cast<std::size_t>(i)]);
+        ys(i) = y(rows[static_cast<std::size_t>(i)]);
+      }
+      // Candidate knots: quantiles (dense where data are) and a uniform grid (covers sparse
+      // regions), strictly inside the range and distinct.
+      const auto sorted = detail::sorted_copy(xs);
+      std::vector<double> cand;
+      constexpr int kQuantiles = 64, kGrid = 32;
+      for (int i = 0; i < kQuantiles; ++i) cand.push_back(detail::quantile_sorted(sorted, (i + 0.5) / kQuantiles));
+      for (int i = 1; i < kGrid; ++i) cand.push_back(xmin + range * i / kGrid);
+      std::sort(cand.begin(), cand.end());
+      std::vector<double> uniq;
+      for (double c : cand) {
+        if (c <= xmin + 1e-6 * range || c >= xmax - 1e-6 * range) continue;
+        if (!uniq.empty() && c - uniq.back() <= 1e-6 * range) continue;
+        uniq.push_back(c);
+      }
+      Eigen::MatrixXd H(nr, static_cast<Eigen::Index>(uniq.size()));
+      for (std::size_t j = 0; j < uniq.size(); ++j) {
+        H.col(static_cast<Eigen::Index>(j)) = (xs.array() - uniq[j]).max(0.0).matrix();
+      }
+      detail::ForwardSelector sel(ys, std::move(H), 1);
+      sel.add_fixed(Eigen::VectorXd::Ones(nr));
+      sel.add_fixed(xs);
+      const double sst = (ys.array() - ys.mean()).square().sum();
+      while (static_cast<int>(knots.size()) < interior) {
+        double explained = 0;
+        const int j = sel.select(explained);
+        if (j < 0 || !(explained > 1e-12 * sst)) break;
+        knots.push_back(uniq[static_cast<std::size_t>(j)]);
+      }
+    }
+    std::vector<double> pos{xmin, xmax};
+    pos.insert(pos.end(), knots.begin(), knots.end());
+    std::sort(pos.begin(), pos.end());
+    // Breakpoints the data do not ask for: halve the widest gap, repeatedly.
+    while (static_cast<int>(pos.size()) < n_) {
+      std::size_t w = 0;
+      for (std::size_t k = 1; k + 1 < pos.size(); ++k) {
+        if (pos[k + 1] - pos[k] > pos[w + 1] - pos[w]) w = k;
+      }
+      pos.insert(pos.begin() + static_cast<std::ptrdiff_t>(w + 1), 0.5 * (pos[w] + pos[w + 1]));
+    }
+    return pos;
+  }
+
+  Eigen::VectorXd fit_values(const Eigen::VectorXd& x, const Eigen::VectorXd& y,
+                             const std::vector<double>& pos) const {
+    const auto n = static_cast<Eigen::Index>(pos.size());
+    const Eigen::Index N = x.size();
+    const Eigen::Index penalties = n - 2;
+    Eigen::MatrixXd A = Eigen::MatrixXd::Zero(N + penalties, n);
+    Eigen::VectorXd b = Eigen::VectorXd::Zero(N + penalties);
+    for (Eigen::Index i = 0; i < N; ++i) {
+      Eigen::Index k = 0;
+      while (k + 2 < n && x(i) >= pos[static_cast<std::size_t>(k + 1)]) ++k;
+      const double x0 = pos[static_cast<std::size_t>(k)], x1 = pos[static_cast<std::size_t>(k + 1)];
+      const double t = (x(i) - x0) / (x1 - x0);
+      A(i, k) = 1 - t;
+      A(i, k + 1) = t;
+      b(i) = y(i);
+    }
+    // Second-difference (slope change) penalty, in units of y, weighted so that it matters only
+    // where the data determine nothing.
+    const double hbar = (pos.back() - pos.front()) / static_cast<double>(n - 1);
+    const double w = 1e-5 * std::sqrt(static_cast<double>(N));
+    for (Eigen::Index k = 1; k + 1 < n; ++k) {
+      const double hl = pos[static_cast<std::size_t>(k)] - pos[static_cast<std::size_t>(k - 1)];
+      const double hr = pos[static_cast<std::size_t>(k + 1)] - pos[static_cast<std::size_t>(k)];
+      const Eigen::Index r = N + k - 1;
+      A(r, k - 1) = w * hbar / hl;
+      A(r, k) = -w * hbar * (1 / hl + 1 / hr);
+      A(r, k + 1) = w * hbar / hr;
+    }
+    return detail::least_squares(A, b);
+  }
+
+  int n_ = Breakpoints;
+  std::vector<double> given_;
+};
+
+}  // namespace nlid

@@ -1,0 +1,301 @@
+#pragma once
+/// @file
+/// `SigmoidNet<M, Units, LinearTerm>`: a one-hidden-layer sigmoid network with a linear term —
+/// the toolbox's `sigmoidnet` / idSigmoidNetwork, the nonlinearity of the study's best black-box
+/// model `nlarx5` (5 units on the regressors of orders [3 3 0]).
+///
+/// Math (Sjöberg et al. 1995, Automatica 31(12), eqs. (8), (19); Ljung 1999, Sec. 5.4):
+///
+///     z    = (x − r) ⊘ s                                  standardised regressors
+///     g(x) = zᵀL + d + Σₖ aₖ σ(zᵀbₖ + cₖ),  k = 0 … n−1,   σ(t) = 1/(1 + e^(−t)).
+///
+/// r is the regressor mean and s the regressor standard deviation, both learned by `initialize`
+/// and kept as structure (not parameters). In the toolbox notation g = (x−r)ᵀPL + d +
+/// Σ aₖσ((x−r)ᵀQbₖ + cₖ) this is P = Q = diag(1/s); `set_standardize(false)` gives s = 1, i.e.
+/// P = Q = I as in MATLAB. Standardising makes one set of initial slopes fit data in any units
+/// (degrees next to a normalised command) and conditions the Jacobian. `describe` also prints L
+/// converted back to the units of x (Lⱼ/sⱼ).
+///
+/// Parameter vector (linear-in-θ parameters first, so a caller can solve them by least squares):
+///
+///     θ = [ L[0..m−1] (only if LinearTerm),  d,  a[0..n−1],  b[0][0..m−1] … b[n−1][0..m−1],  c[0..n−1] ]
+///
+/// p = (LinearTerm ? m : 0) + 1 + n(m + 2).
+///
+/// Initialisation (deterministic; no random restarts):
+/// 1. r, s from the data; Z = standardised regressors;
+/// 2. a dictionary of candidate units σ(β(vᵀz − q)/σ_v): directions v = principal axes of Z,
+///    coordinate axes and quasi-random (low-discrepancy) directions; for each, offsets q at
+///    quantiles of the projection vᵀz (so the transition of every candidate lies inside the data)
+///    and slopes β ∈ {1, 2.5, 6} relative to the projection's spread σ_v;
+/// 3. forward selection by orthogonal least squares (Chen, Cowan & Grant 1991): with the offset
+///    and the linear term already in the model, repeatedly add the candidate that explains most
+///    of the remaining residual, n times;
+/// 4. with the unit parameters b, c fixed, L, d and a by linear least squares on all samples.
+/// The result is already a good fit (the dictionary covers the directions and places where the
+/// data bend), and a local optimiser (Levenberg–Marquardt) refines all of θ from there.
+///
+/// Sizes: M (inputs) and Units may each be fixed or `nlid::Dynamic` (runtime arguments of the
+/// constructor). With both fixed, evaluation uses stack storage only.
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <span>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "nlid/core/error.hpp"
+#include "nlid/core/sizes.hpp"
+#include "nlid/nonlinearities/detail/common.hpp"
+#include "nlid/nonlinearities/detail/forward_selection.hpp"
+#include "nlid/nonlinearities/detail/regressor_cloud.hpp"
+#include "nlid/nonlinearities/detail/standardizer.hpp"
+
+namespace nlid {
+
+/// Sigmoid network g(x) = zᵀL + d + Σₖ aₖ σ(zᵀbₖ + cₖ), z = (x − r) ⊘ s (see file comment).
+/// Invariants: input_dimension() ≥ 1, num_units() ≥ 1, each equal to M / Units when fixed;
+/// the scale s is positive.
+template <int M, int Units, bool LinearTerm = true>
+  requires((M == Dynamic || M >= 1) && (Units == Dynamic || Units >= 1))
+class SigmoidNet {
+ public:
+  /// m (or Dynamic).
+  static constexpr int num_inputs = M;
+  /// n (or Dynamic).
+  static constexpr int num_units = Units;
+  /// Whether the linear term zᵀL is present.
+  static constexpr bool has_linear_term = LinearTerm;
+  /// p = (LinearTerm ? m : 0) + 1 + n(m + 2), or Dynamic.
+  static constexpr int num_params =
+      (M == Dynamic || Units == Dynamic) ? Dynamic : (LinearTerm ? M : 0) + 1 + Units * (M + 2);
+
+  /// Fixed sizes; normalisation r = 0, s = 1 until `initialize`.
+  SigmoidNet()
+    requires(M != Dynamic && Units != Dynamic)
+  = default;
+  /// m inputs and n units (each must match the compile-time value when fixed). Throws naming
+  /// "m" or "units" if a value is < 1 or contradicts the template argument.
+  SigmoidNet(int m, int units)
+      : m_(detail::checked_size(m, M, 1, "m", "SigmoidNet")),
+        units_(detail::checked_size(units, Units, 1, "units", "SigmoidNet")),
+        norm_(m_) {}
+
+  /// Number of inputs m.
+  [[nodiscard]] int input_dimension() const { return m_; }
+  /// Number of sigmoid units n (runtime).
+  [[nodiscard]] int units() const { return units_; }
+  /// Number of parameters p.
+  [[nodiscard]] int num_parameters() const { return off_c() + units_; }
+
+  /// Regressor centre r.
+  [[nodiscard]] const Eigen::Matrix<double, M, 1>& center() const { return norm_.center(); }
+  /// Regressor scale s.
+  [[nodiscard]] Eigen::Matrix<double, M, 1> scale() const { return norm_.scale(); }
+  /// True (default) if `initialize` sets s to the standard deviation; false: s = 1.
+  [[nodiscard]] bool standardize() const { return norm_.standardize(); }
+  /// See `standardize()`; takes effect at the next `initialize`.
+  void set_standardize(bool on) { norm_.set_standardize(on); }
+  /// Sets r and s directly (loading a saved model). Throws naming "normalization".
+  void set_normalization(const Eigen::VectorXd& center, const Eigen::VectorXd& scale) {
+    norm_.set_normalization(center, scale, "SigmoidNet");
+  }
+
+  /// Index of the first entry of each parameter block in θ (layout in the file comment).
+  [[nodiscard]] int offset_L() const { return 0; }
+  /// Index of d in θ.
+  [[nodiscard]] int offset_d() const { return LinearTerm ? m_ : 0; }
+  /// Index of a[0] in θ.
+  [[nodiscard]] int offset_a() const { return offset_d() + 1; }
+  /// Index of b[0][0] in θ (b[k][j] at offset_b() + k·m + j).
+  [[nodiscard]] int offset_b() const { return offset_a() + units_; }
+  /// Index of c[0] in θ.
+  [[nodiscard]] int offset_c() const { return off_c(); }
+
+  /// g(x). Throws `nlid::Error` if x or θ has the wrong length.
+  template <class T>
+  [[nodiscard]] T operator()(std::span<const T> x, std::span<const T> theta) const {
+    if (static_cast<int>(x.size()) != m_) detail::check_size(x.size(), m_, "x", "SigmoidNet");
+    if (static_cast<int>(theta.size()) != num_parameters()) {
+      detail::check_size(theta.size(), num_parameters(), "theta", "SigmoidNet");
+    }
+    if constexpr (M != Dynamic) {
+      std::array<T, static_cast<std::size_t>(M)> z;
+      for (int j = 0; j < M; ++j) z[static_cast<std::size_t>(j)] = norm_.z(x[static_cast<std::size_t>(j)], j);
+      return evaluate(theta, [&z](int j) -> const T& { return z[static_cast<std::size_t>(j)]; });
+    } else {
+      // No buffer for a runtime m (it would allocate); zⱼ is recomputed per unit instead.
+      return evaluate(theta, [&](int j) { return norm_.z(x[static_cast<std::size_t>(j)], j); });
+    }
+  }
+
+  /// Data-driven start (see file comment). X is N × m, y has N entries, θ has p entries.
+  void initialize(const Eigen::MatrixXd& X, const Eigen::VectorXd& y, std::span<double> theta) {
+    detail::check_init_data(X, y, theta.size(), m_, num_parameters(), 2, "SigmoidNet");
+    const Eigen::MatrixXd Z = norm_.fit(X);
+    const auto rows = detail::subsample_rows(Z.rows(), 2000);
+    const Eigen::MatrixXd Zs = detail::take_rows(Z, rows);
+    Eigen::VectorXd ys(static_cast<Eigen::Index>(rows.size()));
+    for (std::size_t i = 0; i < rows.size(); ++i) ys(static_cast<Eigen::Index>(i)) = y(rows[i]);
+
+    // Candidate dictionary.
+    const auto dirs = detail::projection_directions(Zs, std::min(48, std::max(16, 4 * m_)));
+    const std::array<double, 3> slopes{1.0, 2.5, 6.0};
+    const int per_dir = static_cast<int>(slopes.size());
+    const int levels = std::max(7, 2 * units_ / (per_dir * static_cast<int>(dirs.size())) + 2);
+    std::vector<Eigen::VectorXd> cand_b;
+    std::vector<double> cand_c;
+    for (const auto& v : dirs) {
+      const Eigen::VectorXd p = Zs * v;
+      const double sd = std::sqrt((p.array() - p.mean()).square().mean());
+      if (!(sd > 1e-12)) continue;
+      const auto sorted = detail::sorted_copy(p);
+      for (double beta : slopes) {
+        for (int l = 0; l < levels; ++l) {
+          const double q = detail::quantile_sorted(sorted, (l + 0.5) / levels);
+          cand_b.push_back(v * (beta / sd));
+          cand_c.push_back(-beta * q / sd);
+        }
+      }
+    }
+    const auto nc = static_cast<Eigen::Index>(cand_b.size());
+    Eigen::MatrixXd H(Zs.rows(), nc);
+    for (Eigen::Index j = 0; j < nc; ++j) {
+      const Eigen::VectorXd s = Zs * cand_b[static_cast<std::size_t>(j)];
+      for (Eigen::Index i = 0; i < Zs.rows(); ++i) H(i, j) = detail::logistic(s(i) + cand_c[static_cast<std::size_t>(j)]);
+    }
+    detail::ForwardSelector sel(ys, std::move(H), 1);
+    sel.add_fixed(Eigen::VectorXd::Ones(Zs.rows()));
+    if constexpr (LinearTerm) {
+      for (int j = 0; j < m_; ++j) sel.add_fixed(Zs.col(j));
+    }
+    if (nc == 0) {
+      throw Error("SigmoidNet: the regressors do not vary; no sigmoid unit can be placed",
+                  at_parameter("X"));
+    }
+    std::vector<int> chosen;
+    for (int k = 0; k < units_; ++k) {
+      const int j = sel.select();
+      if (j < 0) break;
+      chosen.push_back(j);
+    }
+    // A dictionary smaller than n (tiny data sets) repeats units with shifted offsets, keeping
+    // them distinct; their weights come out of the least-squares fit below.
+    for (int k = static_cast<int>(chosen.size()); k < units_; ++k) chosen.push_back(k % static_cast<int>(nc));
+
+    for (int k = 0; k < units_; ++k) {
+      const auto j = static_cast<std::size_t>(chosen[static_cast<std::size_t>(k)]);
+      const double shift = k < static_cast<int>(nc) ? 0.0 : 0.5 * (k / static_cast<int>(nc));
+      for (int i = 0; i < m_; ++i) theta[static_cast<std::size_t>(offset_b() + k * m_ + i)] = cand_b[j](i);
+      theta[static_cast<std::size_t>(off_c() + k)] = cand_c[j] + shift;
+    }
+    solve_linear(Z, y, theta);
+  }
+
+  /// With the unit parameters b, c in θ held fixed, sets L, d and a to their least-squares
+  /// values for (X, y) under the current normalisation: the linear sub-problem of the fit
+  /// (useful after changing units by hand, or for separable least squares).
+  void fit_linear_parameters(const Eigen::MatrixXd& X, const Eigen::VectorXd& y, std::span<double> theta) const {
+    detail::check_init_data(X, y, theta.size(), m_, num_parameters(), 1, "SigmoidNet");
+    solve_linear(norm_.transform(X), y, theta);
+  }
+
+  /// "L[j]", "d", "a[k]", "b[k][j]", "c[k]" in θ order.
+  [[nodiscard]] std::vector<std::string> parameter_names() const {
+    std::vector<std::string> n;
+    if constexpr (LinearTerm) {
+      for (int j = 0; j < m_; ++j) n.push_back("L[" + std::to_string(j) + "]");
+    }
+    n.emplace_back("d");
+    for (int k = 0; k < units_; ++k) n.push_back("a[" + std::to_string(k) + "]");
+    for (int k = 0; k < units_; ++k) {
+      for (int j = 0; j < m_; ++j) n.push_back("b[" + std::to_string(k) + "][" + std::to_string(j) + "]");
+    }
+    for (int k = 0; k < units_; ++k) n.push_back("c[" + std::to_string(k) + "]");
+    return n;
+  }
+
+  /// The equation, the normalisation and all parameter values.
+  [[nodiscard]] std::string describe(std::span<const double> theta) const { return describe(theta, {}); }
+
+  /// As `describe(theta)`, naming the inputs (e.g. regressor names); `input_names` empty or m.
+  [[nodiscard]] std::string describe(std::span<const double> theta, const std::vector<std::string>& input_names) const {
+    detail::check_size(theta.size(), num_parameters(), "theta", "SigmoidNet");
+    const auto names = detail::input_names_or_default(input_names, m_, "SigmoidNet");
+    const auto th = [&](int i) { return theta[static_cast<std::size_t>(i)]; };
+    const Eigen::VectorXd r = norm_.center(), s = norm_.scale();
+    std::string o = "sigmoid network (" + std::to_string(m_) + " inputs, " + std::to_string(units_) + " units" +
+                    (LinearTerm ? ", linear term" : "") + "):\n";
+    o += std::string("  g(x) = ") + (LinearTerm ? "z'L + " : "") +
+         "d + sum_k a[k]*sigma(z'b[k] + c[k]),  sigma(t) = 1/(1+exp(-t)),  z = (x - r)./s\n";
+    o += "  input            r (centre)    s (scale)";
+    if constexpr (LinearTerm) o += "     L[j]          L[j]/s (per unit of x)";
+    o += "\n";
+    for (int j = 0; j < m_; ++j) {
+      o += "  " + pad(names[static_cast<std::size_t>(j)], 16) + " " + pad(detail::fmt_num(r(j)), 13) + " " +
+           pad(detail::fmt_num(s(j)), 13);
+      if constexpr (LinearTerm) o += " " + pad(detail::fmt_num(th(j)), 13) + " " + detail::fmt_num(th(j) / s(j));
+      o += "\n";
+    }
+    o += "  d = " + detail::fmt_num(th(offset_d())) + "\n";
+    o += "  unit  a[k]          c[k]          b[k]\n";
+    for (int k = 0; k < units_; ++k) {
+      o += "  " + pad(std::to_string(k), 5) + " " + pad(detail::fmt_num(th(offset_a() + k)), 13) + " " +
+           pad(detail::fmt_num(th(off_c() + k)), 13) + " [";
+      for (int j = 0; j < m_; ++j) o += (j ? ", " : "") + detail::fmt_num(th(offset_b() + k * m_ + j));
+      o += "]\n";
+    }
+    return o;
+  }
+
+  // ---- Implementation details below ----------------------------------------------------------
+ private:
+  [[nodiscard]] int off_c() const { return offset_b() + units_ * m_; }
+
+  static std::string pad(std::string s, std::size_t w) {
+    if (s.size() < w) s.append(w - s.size(), ' ');
+    return s;
+  }
+
+  template <class T, class Z>
+  T evaluate(std::span<const T> theta, Z&& z) const {
+    const auto at = [&theta](int i) -> const T& { return theta[static_cast<std::size_t>(i)]; };
+    T g = at(offset_d());
+    if constexpr (LinearTerm) {
+      for (int j = 0; j < m_; ++j) g += at(j) * z(j);
+    }
+    const int ob = offset_b(), oa = offset_a(), oc = off_c();
+    for (int k = 0; k < units_; ++k) {
+      T s = at(oc + k);
+      for (int j = 0; j < m_; ++j) s += at(ob + k * m_ + j) * z(j);
+      g += at(oa + k) * detail::logistic(s);
+    }
+    return g;
+  }
+
+  void solve_linear(const Eigen::MatrixXd& Z, const Eigen::VectorXd& y, std::span<double> theta) const {
+    const int nl = LinearTerm ? m_ : 0;
+    Eigen::MatrixXd A(Z.rows(), nl + 1 + units_);
+    if constexpr (LinearTerm) A.leftCols(m_) = Z;
+    A.col(nl).setOnes();
+    for (int k = 0; k < units_; ++k) {
+      Eigen::VectorXd b(m_);
+      for (int j = 0; j < m_; ++j) b(j) = theta[static_cast<std::size_t>(offset_b() + k * m_ + j)];
+      const double c = theta[static_cast<std::size_t>(off_c() + k)];
+      const Eigen::VectorXd s = Z * b;
+      for (Eigen::Index i = 0; i < Z.rows(); ++i) A(i, nl + 1 + k) = detail::logistic(s(i) + c);
+    }
+    const Eigen::VectorXd w = detail::least_squares(A, y);
+    for (int i = 0; i < nl + 1 + units_; ++i) theta[static_cast<std::size_t>(i)] = w(i);
+  }
+
+  int m_ = M;
+  int units_ = Units;
+  detail::Standardizer<M> norm_;
+};
+
+}  // namespace nlid
