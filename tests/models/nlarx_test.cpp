@@ -1,0 +1,218 @@
+// Nlarx: simulation/prediction semantics, scalar genericity (double/float/Dual), Jacobian through
+// the recursion vs finite differences, fixed vs Dynamic twin, initial conditions, bad input.
+#include <catch2/catch.hpp>
+
+#include <cmath>
+
+#include "nlid/models/nlarx.hpp"
+#include "nlid/nonlinearities/linear.hpp"
+#include "nlid/regressors.hpp"
+
+using nlid::Dynamic;
+
+namespace {
+// y(t) = a1 y(t-1) + a2 y(t-2) + b u(t) + c·tanh(y(t-1))·u(t) + d: nonlinear in the past output,
+// so the Jacobian of the free run is a genuine recursion.
+auto coupling() {
+  return nlid::custom_regressor<nlid::OutputLag<1>, nlid::InputLag<0>>(
+      "tanh(y1(t-1))*u1(t)", [](auto y1, auto u) { using nlid::tanh; using std::tanh; return tanh(y1) * u; });
+}
+using Regs = nlid::RegressorSet<nlid::LaggedRegressors<2, 1, 0>, decltype(coupling())>;
+using Model = nlid::Nlarx<Regs, nlid::LinearMap<4>>;
+
+Model make_model() {
+  Model m(Regs(nlid::LaggedRegressors<2, 1, 0>{}, coupling()), nlid::LinearMap<4>{}, 0.01);
+  Eigen::VectorXd theta(5);
+  theta << 1.2, -0.4, 0.3, 0.15, 0.05;
+  m.set_parameters(theta);
+  return m;
+}
+
+Eigen::MatrixXd inputs(int n) {
+  Eigen::MatrixXd u(n, 1);
+  for (int t = 0; t < n; ++t) u(t, 0) = std::sin(0.05 * t) + (t / 40 % 2 ? 0.8 : -0.3);
+  return u;
+}
+
+// Plain re-implementation of the model equation, used as the reference.
+Eigen::VectorXd reference(const Eigen::MatrixXd& u, const Eigen::VectorXd& th, double ym1, double ym2) {
+  Eigen::VectorXd y(u.rows());
+  double y1 = ym1, y2 = ym2;
+  for (int t = 0; t < u.rows(); ++t) {
+    const double yt = th(0) * y1 + th(1) * y2 + th(2) * u(t, 0) + th(3) * std::tanh(y1) * u(t, 0) + th(4);
+    y(t) = yt;
+    y2 = y1;
+    y1 = yt;
+  }
+  return y;
+}
+
+template <class T>
+std::span<const T> cspan(const std::vector<T>& v) { return {v.data(), v.size()}; }
+}  // namespace
+
+TEST_CASE("Nlarx static sizes and structure", "[models][nlarx]") {
+  static_assert(Model::num_params == 5 && Model::num_regressors == 4);
+  static_assert(nlid::ModelStructure<Model>);
+  static_assert(nlid::Model<Model>);
+  const Model m = make_model();
+  CHECK(m.state_dimension() == 2);  // y(t-1), y(t-2); u(t) needs no past
+  CHECK(m.history_length() == 2);
+  CHECK(m.regressor_names() ==
+        std::vector<std::string>{"y1(t-1)", "y1(t-2)", "u1(t)", "tanh(y1(t-1))*u1(t)"});
+}
+
+TEST_CASE("free-run simulation equals the model equation from zero and from a given past", "[models][nlarx]") {
+  const Model m = make_model();
+  const Eigen::MatrixXd u = inputs(300);
+  const Eigen::VectorXd th = m.parameters();
+  Eigen::VectorXd y(300);
+  REQUIRE(m.simulate<double>(u, nlid::detail::as_const_span(th), {}, nlid::detail::as_span(y)));
+  CHECK((y - reference(u, th, 0, 0)).cwiseAbs().maxCoeff() < 1e-12);
+  const Eigen::Vector2d x0(0.7, -0.2);  // y(-1), y(-2)
+  REQUIRE(m.simulate<double>(u, nlid::detail::as_const_span(th), nlid::detail::as_const_span(x0), nlid::detail::as_span(y)));
+  CHECK((y - reference(u, th, 0.7, -0.2)).cwiseAbs().maxCoeff() < 1e-12);
+}
+
+TEST_CASE("simulation on double, float and Dual gives the same values", "[models][nlarx]") {
+  const Model m = make_model();
+  const Eigen::MatrixXd u = inputs(200);
+  const Eigen::VectorXd th = m.parameters();
+  Eigen::VectorXd y(200);
+  REQUIRE(m.simulate<double>(u, nlid::detail::as_const_span(th), {}, nlid::detail::as_span(y)));
+
+  using D = nlid::Dual<double, 5>;
+  std::vector<D> thd(5), yd(200);
+  for (int i = 0; i < 5; ++i) thd[i] = D::variable(th(i), i);
+  REQUIRE(m.simulate<D>(u, cspan(thd), {}, yd));
+  for (int t = 0; t < 200; ++t) CHECK(yd[t].a == y(t));  // bit-identical values
+
+  std::vector<float> thf(th.data(), th.data() + 5), yf(200);
+  REQUIRE(m.simulate<float>(u, cspan(thf), {}, yf));
+  for (int t = 0; t < 200; ++t) CHECK(yf[t] == Approx(y(t)).margin(1e-3));
+}
+
+TEST_CASE("Dual Jacobian of the simulation matches central finite differences", "[models][nlarx]") {
+  const Model m = make_model();
+  const Eigen::MatrixXd u = inputs(250);
+  const Eigen::VectorXd th = m.parameters();
+  using D = nlid::Dual<double, 7>;  // 5 parameters + 2 initial outputs
+  std::vector<D> thd(5), x0d(2), yd(250);
+  for (int i = 0; i < 5; ++i) thd[i] = D::variable(th(i), i);
+  x0d[0] = D::variable(0.4, 5);
+  x0d[1] = D::variable(0.1, 6);
+  REQUIRE(m.simulate<D>(u, cspan(thd), cspan(x0d), yd));
+  const double h = 1e-6;
+  for (int i = 0; i < 7; ++i) {
+    Eigen::VectorXd tp = th, tm = th;
+    Eigen::Vector2d xp(0.4, 0.1), xm(0.4, 0.1);
+    if (i < 5) {
+      tp(i) += h;
+      tm(i) -= h;
+    } else {
+      xp(i - 5) += h;
+      xm(i - 5) -= h;
+    }
+    const Eigen::VectorXd fd = (reference(u, tp, xp(0), xp(1)) - reference(u, tm, xm(0), xm(1))) / (2 * h);
+    double worst = 0;
+    for (int t = 0; t < 250; ++t) worst = std::max(worst, std::abs(yd[t].v[i] - fd(t)) / (1.0 + std::abs(fd(t))));
+    CHECK(worst < 1e-6);
+  }
+}
+
+TEST_CASE("fixed and Dynamic variants of the same model simulate identically", "[models][nlarx]") {
+  const Model fixed = make_model();
+  using DynRegs = nlid::RegressorSet<nlid::LaggedRegressors<Dynamic, Dynamic, Dynamic>, decltype(coupling())>;
+  nlid::Nlarx<DynRegs, nlid::LinearMap<Dynamic>> dyn(
+      DynRegs(nlid::LaggedRegressors<Dynamic, Dynamic, Dynamic>(2, 1, 0), coupling()), nlid::LinearMap<Dynamic>(4), 0.01);
+  static_assert(decltype(dyn)::num_params == Dynamic);
+  dyn.set_parameters(fixed.parameters());
+  const Eigen::MatrixXd u = inputs(400);
+  const nlid::Experiment e(u, reference(u, fixed.parameters(), 0, 0), 0.01, "ref");
+  for (auto ic : {nlid::InitialCondition::zero, nlid::InitialCondition::measured, nlid::InitialCondition::equilibrium}) {
+    CHECK((fixed.simulate(e, ic) - dyn.simulate(e, ic)).cwiseAbs().maxCoeff() < 1e-12);
+  }
+  CHECK((fixed.predict(e, 1) - dyn.predict(e, 1)).cwiseAbs().maxCoeff() < 1e-12);
+}
+
+TEST_CASE("one-step prediction is F on measured regressors; long horizons give the simulation", "[models][nlarx]") {
+  const Model m = make_model();
+  const Eigen::MatrixXd u = inputs(300);
+  Eigen::VectorXd y = reference(u, m.parameters(), 0, 0);
+  for (int t = 0; t < 300; ++t) y(t) += 0.05 * std::sin(1.3 * t);  // the data are not the model
+  const nlid::Experiment e(u, y, 0.01, "noisy");
+  const Eigen::MatrixXd p1 = m.predict(e, 1);
+  const Eigen::MatrixXd x = m.regressor_values(e);
+  for (int t = 2; t < 300; ++t) {
+    const Eigen::VectorXd th = m.parameters();
+    CHECK(p1(t, 0) == Approx(x.row(t - 2).dot(th.head(4)) + th(4)).epsilon(1e-12));
+  }
+  CHECK(p1(0, 0) == y(0));
+  const Eigen::MatrixXd sim = m.simulate(e, nlid::InitialCondition::measured);
+  const Eigen::MatrixXd pinf = m.predict(e, 1000);
+  CHECK((sim - pinf).cwiseAbs().maxCoeff() < 1e-12);
+  // k = 3: ŷ(t|t-3) = model run 3 steps from the measured past at t-3.
+  const Eigen::MatrixXd p3 = m.predict(e, 3);
+  const int t = 150;
+  Eigen::VectorXd buf(3);
+  const Eigen::VectorXd x0 = m.measured_state(u, y, t - 2);
+  REQUIRE(m.simulate<double>(u.middleRows(t - 2, 3), nlid::detail::as_const_span(m.parameters()),
+                             nlid::detail::as_const_span(x0), nlid::detail::as_span(buf)));
+  CHECK(p3(t, 0) == buf(2));
+}
+
+TEST_CASE("equilibrium initial condition starts the model at rest", "[models][nlarx]") {
+  const Model m = make_model();
+  Eigen::MatrixXd u = Eigen::MatrixXd::Constant(100, 1, 0.5);
+  const nlid::Experiment e(u, Eigen::VectorXd::Constant(100, 1.0), 0.01);
+  const Eigen::MatrixXd y = m.simulate(e, nlid::InitialCondition::equilibrium);
+  CHECK((y.array() - y(0, 0)).abs().maxCoeff() < 1e-9);
+  const Eigen::VectorXd th = m.parameters();
+  const double ys = y(0, 0);
+  CHECK(ys == Approx(th(0) * ys + th(1) * ys + th(2) * 0.5 + th(3) * std::tanh(ys) * 0.5 + th(4)).epsilon(1e-10));
+}
+
+TEST_CASE("bad data are reported naming the experiment", "[models][nlarx]") {
+  const Model m = make_model();
+  const nlid::Experiment short_data(inputs(2), Eigen::VectorXd::Zero(2), 0.01, "tiny");
+  CHECK_THROWS_WITH(m.simulate(short_data), Catch::Contains("experiment 'tiny' has 2 samples") &&
+                                                Catch::Contains("needed by the model's lags"));
+  Eigen::MatrixXd u2(50, 2);
+  u2.setOnes();
+  const nlid::Experiment two_inputs(u2, Eigen::VectorXd::Zero(50), 0.01, "wide");
+  CHECK_THROWS_WITH(m.simulate(two_inputs), Catch::Contains("experiment 'wide' has 2 input(s) but the nonlinear ARX model reads 1"));
+  const nlid::Experiment wrong_ts(inputs(50), Eigen::VectorXd::Zero(50), 0.001, "fast");
+  CHECK_THROWS_WITH(m.simulate(wrong_ts), Catch::Contains("sample time 0.001") && Catch::Contains("'fast'"));
+  CHECK_THROWS_WITH(m.predict(wrong_ts, 0), Catch::Contains("horizon k must be >= 1"));
+  Model unstable = make_model();
+  Eigen::VectorXd th = unstable.parameters();
+  th(0) = 3.0;  // pole far outside the unit circle
+  unstable.set_parameters(th);
+  const nlid::Experiment long_data(inputs(3000), Eigen::VectorXd::Zero(3000), 0.01, "long");
+  CHECK_THROWS_WITH(unstable.simulate(long_data), Catch::Contains("simulation of experiment 'long' diverges"));
+  CHECK_THROWS_WITH(unstable.set_parameters(Eigen::VectorXd::Zero(3)), Catch::Contains("has 3 values, the model has 5"));
+}
+
+TEST_CASE("a nonlinearity of the wrong size is rejected at construction", "[models][nlarx]") {
+  using DynModel = nlid::Nlarx<nlid::LaggedRegressors<2, 1, 0>, nlid::LinearMap<Dynamic>>;
+  CHECK_THROWS_WITH(DynModel(nlid::LaggedRegressors<2, 1, 0>{}, nlid::LinearMap<Dynamic>(5)),
+                    Catch::Contains("takes 5 inputs but the regressor set has 3"));
+}
+
+TEST_CASE("describe lists regressors, the equation and the parameters", "[models][nlarx]") {
+  Model m = make_model();
+  m.set_channel_names({"cmd"}, "angle");
+  const std::string d = m.describe();
+  CHECK_THAT(d, Catch::Contains("angle(t-1)") && Catch::Contains("cmd(t)") && Catch::Contains("L[3] = 0.15") &&
+                    Catch::Contains("not estimated"));
+}
+
+TEST_CASE("estimated initial condition recovers the true past outputs", "[models][nlarx]") {
+  const Model m = make_model();
+  const Eigen::MatrixXd u = inputs(200);
+  const nlid::Experiment e(u, reference(u, m.parameters(), 0.7, -0.2), 0.01, "x0");
+  const Eigen::VectorXd x0 = m.initial_state(e, nlid::InitialCondition::estimate);
+  CHECK(x0(0) == Approx(0.7).margin(1e-7));
+  CHECK(x0(1) == Approx(-0.2).margin(1e-7));
+  CHECK((m.simulate(e, nlid::InitialCondition::estimate) - e.y()).cwiseAbs().maxCoeff() < 1e-7);
+}
