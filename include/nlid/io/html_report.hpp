@@ -21,7 +21,7 @@
 /// records script errors (`window.onerror`), failed resource loads and CSP violations into
 ///
 ///     <div id="nlid-report-status" hidden data-ready="1" data-charts="N" data-rendered="N"
-///          data-errors="M" data-expected-charts="N">(error messages, one per line)</div>
+///          data-errors="M" data-expected-charts="N">(error messages, separated by " | ")</div>
 ///
 /// `tests/io/render/render_check.sh report.html N` renders a report in headless Chromium and
 /// fails unless data-errors is 0 and the chart counts equal N.
@@ -308,7 +308,7 @@ inline constexpr std::string_view report_status_script = R"(
     s.setAttribute('data-charts', String(charts.length));
     s.setAttribute('data-rendered', String(drawn));
     s.setAttribute('data-errors', String(errors.length));
-    s.textContent = errors.join('\n');
+    s.textContent = errors.join(' | ');
   }
   window.onerror = function (msg, src, line, col) {
     errors.push('script error: ' + msg + ' (line ' + line + ', column ' + col + ')');
