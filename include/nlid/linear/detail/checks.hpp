@@ -1,0 +1,68 @@
+#pragma once
+/// @file
+/// Argument checks shared by the linear models (internal).
+
+#include <cmath>
+#include <cstdio>
+#include <string>
+
+#include <Eigen/Core>
+
+#include "nlid/core/error.hpp"
+#include "nlid/data/experiment.hpp"
+
+namespace nlid::detail {
+
+// "experiment 2 ('data3')" or "experiment 2"; index < 0 gives "experiment 'data3'".
+inline std::string experiment_label(const Experiment& e, long index) {
+  std::string s = "experiment";
+  if (index >= 0) s += " " + std::to_string(index);
+  if (!e.name().empty()) s += index >= 0 ? " ('" + e.name() + "')" : " '" + e.name() + "'";
+  return s;
+}
+
+inline Location experiment_location(long index) {
+  Location l;
+  if (index >= 0) l.experiment = index;
+  return l;
+}
+
+// Checks that `e` can drive a model with `nu` inputs and sample time `ts`; with `need_y` also
+// that it has `ny` finite outputs (for initial-state estimation or fitting).
+inline void check_experiment(const Experiment& e, int nu, int ny, double ts, long index,
+                             const std::string& who, bool need_y) {
+  const Location where = experiment_location(index);
+  if (e.num_inputs() != nu)
+    throw Error(who + ": model has " + std::to_string(nu) + " input(s) but " +
+                    experiment_label(e, index) + " has " + std::to_string(e.num_inputs()),
+                where);
+  if (need_y && e.num_outputs() != ny)
+    throw Error(who + ": model has " + std::to_string(ny) + " output(s) but " +
+                    experiment_label(e, index) + " has " + std::to_string(e.num_outputs()),
+                where);
+  if (ts > 0 && std::abs(e.ts() - ts) > 1e-6 * ts) {
+    char buf[160];
+    std::snprintf(buf, sizeof buf, "model sample time %.9g s differs from the sample time %.9g s of ",
+                  ts, e.ts());
+    throw Error(who + ": " + buf + experiment_label(e, index) +
+                    " (delays are counted in samples; resample the data or the model)",
+                where);
+  }
+  auto check_finite = [&](const Eigen::MatrixXd& m, const char* kind) {
+    for (Eigen::Index c = 0; c < m.cols(); ++c)
+      for (Eigen::Index k = 0; k < m.rows(); ++k)
+        if (!std::isfinite(m(k, c))) {
+          Location l = where;
+          l.row = static_cast<long>(k) + 1;
+          l.column = static_cast<long>(c) + 1;
+          throw Error(who + ": " + experiment_label(e, index) + " has a missing (non-finite) " +
+                          kind + " sample at index " + std::to_string(k) +
+                          "; fill or trim it first (Experiment::fill_missing, select)",
+                      l);
+        }
+  };
+  check_finite(e.u(), "input");
+  if (need_y) check_finite(e.y(), "output");
+}
+
+}  // namespace nlid::detail

@@ -1,0 +1,229 @@
+// ARX: known-answer recovery (SISO, MISO, multi-experiment), prediction, simulation initial
+// conditions, state-space conversion, and located errors for bad input.
+#include <catch2/catch.hpp>
+
+#include <cmath>
+
+#include "linear_test_util.hpp"
+#include "nlid/analysis/fit.hpp"
+#include "nlid/linear/arx.hpp"
+
+using nlid::Arx;
+using nlid::Experiment;
+using nlid::InitialCondition;
+
+namespace {
+Eigen::VectorXd vec(std::initializer_list<double> v) {
+  Eigen::VectorXd x(static_cast<Eigen::Index>(v.size()));
+  Eigen::Index k = 0;
+  for (double d : v) x(k++) = d;
+  return x;
+}
+// A(q) = 1 - 1.5 q^-1 + 0.7 q^-2 (poles 0.75 +/- 0.37i), B(q) = q^-1 (1 + 0.5 q^-1), c = 0.3.
+Arx siso_truth(double c = 0.0) { return Arx(vec({-1.5, 0.7}), {vec({1.0, 0.5})}, {1}, 0.1, c); }
+}  // namespace
+
+TEST_CASE("ARX recovers a SISO system exactly from noise-free data", "[linear][arx]") {
+  const Arx truth = siso_truth();
+  const Experiment e = nlid_test::arx_data(truth, nlid_test::white_noise(400, 1, 1), 0.0, 0);
+  const Arx m = nlid::arx(e, {2, 2, 1});
+  CHECK((m.parameters() - truth.parameters()).cwiseAbs().maxCoeff() < 1e-8);
+  CHECK(m.report().fit_percent == Approx(100.0));
+  CHECK(m.report().num_samples == 398);  // rows t = 2 ... 399
+  CHECK(m.report().num_parameters == 4);
+  CHECK(m.ts() == 0.1);
+  CHECK((m.a_polynomial() - vec({1.0, -1.5, 0.7})).norm() < 1e-8);
+  CHECK((m.b_polynomial() - vec({0.0, 1.0, 0.5})).norm() < 1e-8);
+}
+
+TEST_CASE("ARX with offset recovers the constant", "[linear][arx]") {
+  const Arx truth = siso_truth(0.3);
+  const Experiment e = nlid_test::arx_data(truth, nlid_test::random_steps(300, 1, 2), 0.0, 0);
+  const Arx m = nlid::arx(e, {2, 2, 1}, {.offset = true});
+  REQUIRE(m.has_offset());
+  CHECK(std::abs(m.offset() - 0.3) < 1e-8);
+  CHECK((m.parameters() - truth.parameters()).cwiseAbs().maxCoeff() < 1e-8);
+  CHECK(m.parameter_names() == std::vector<std::string>{"a1", "a2", "b1", "b2", "c"});
+  // Without the offset term the same data cannot be fitted exactly.
+  const Arx biased = nlid::arx(e, {2, 2, 1});
+  CHECK(biased.report().loss > 1e-6);
+}
+
+TEST_CASE("ARX recovers a two-input system with its own nb and nk per input", "[linear][arx]") {
+  const Arx truth(vec({-0.9, 0.2}), {vec({0.5, -0.3, 0.1}), vec({2.0})}, {0, 3}, 0.05);
+  const Experiment e = nlid_test::arx_data(truth, nlid_test::white_noise(500, 2, 5), 0.0, 0);
+  const nlid::ArxOrders o(2, {3, 1}, {0, 3});
+  CHECK(o.str() == "[2 [3 1] [0 3]]");
+  const Arx m = nlid::arx(e, o);
+  CHECK((m.parameters() - truth.parameters()).cwiseAbs().maxCoeff() < 1e-8);
+  CHECK(m.nk(1) == 3);
+  CHECK(m.nb(0) == 3);
+  CHECK(m.parameter_names()[2] == "b1_0");
+  CHECK(m.parameter_names()[5] == "b2_3");
+  CHECK((m.b_polynomial(1) - vec({0, 0, 0, 2.0})).norm() < 1e-8);
+}
+
+TEST_CASE("ARX on multi-experiment data builds regressors per experiment", "[linear][arx]") {
+  const Arx truth = siso_truth();
+  // Two records of one system that start from different (nonzero) past states: the second is
+  // cut from the middle of a longer run.
+  const Experiment e1 = nlid_test::arx_data(truth, nlid_test::white_noise(300, 1, 7), 0.0, 0, "e1");
+  const Experiment long_run = nlid_test::arx_data(truth, nlid_test::white_noise(600, 1, 8), 0.0, 0);
+  const Experiment e2(long_run.u().bottomRows(250), long_run.y().bottomRows(250), 0.1, "e2");
+  const nlid::Dataset data{e1, e2};
+  const Arx m = nlid::arx(data, {2, 2, 1});
+  CHECK((m.parameters() - truth.parameters()).cwiseAbs().maxCoeff() < 1e-8);
+  CHECK(m.report().num_experiments == 2);
+  CHECK(m.report().num_samples == (300 - 2) + (250 - 2));
+  // Gluing the records end to end creates rows that straddle the seam: no longer exact.
+  Eigen::MatrixXd u(550, 1), y(550, 1);
+  u << e1.u(), e2.u();
+  y << e1.y(), e2.y();
+  const Arx glued = nlid::arx(Experiment(u, y, 0.1), {2, 2, 1});
+  CHECK((glued.parameters() - truth.parameters()).cwiseAbs().maxCoeff() > 1e-4);
+}
+
+TEST_CASE("ARX on noisy data: estimates within their standard deviations", "[linear][arx]") {
+  const Arx truth = siso_truth();
+  const Experiment e = nlid_test::arx_data(truth, nlid_test::white_noise(4000, 1, 11), 0.2, 12);
+  const Arx m = nlid::arx(e, {2, 2, 1});
+  const Eigen::VectorXd err = m.parameters() - truth.parameters();
+  const Eigen::VectorXd sd = m.parameter_stddev();
+  for (Eigen::Index k = 0; k < err.size(); ++k) {
+    CHECK(sd(k) > 0.0);
+    CHECK(sd(k) < 0.05);
+    CHECK(std::abs(err(k)) < 4.0 * sd(k));
+  }
+  CHECK(m.report().loss == Approx(0.04).epsilon(0.1));  // V estimates the noise variance 0.2^2
+}
+
+TEST_CASE("ARX one-step prediction of noise-free data equals the measurement", "[linear][arx]") {
+  const Arx truth = siso_truth(0.3);
+  const Experiment e = nlid_test::arx_data(truth, nlid_test::white_noise(200, 1, 21), 0.0, 0);
+  CHECK((truth.predict(e, 1) - e.y()).cwiseAbs().maxCoeff() < 1e-12);
+  CHECK((truth.predict(e, 7) - e.y()).cwiseAbs().maxCoeff() < 1e-10);
+}
+
+TEST_CASE("ARX k-step prediction runs the model k steps from measured data", "[linear][arx]") {
+  const Arx truth = siso_truth();
+  const Experiment e = nlid_test::arx_data(truth, nlid_test::white_noise(120, 1, 31), 0.5, 32);
+  const int k = 4;
+  const Eigen::MatrixXd p = truth.predict(e, k);
+  const int n = 2;
+  CHECK((p.topRows(n) - e.y().topRows(n)).norm() == 0.0);  // measured past data
+  // Independent route: simulate (measured past) a window ending at t that starts n samples
+  // before t - k + 1; its last value is y(t | t - k).
+  for (Eigen::Index t = 10; t < 120; t += 9) {
+    const Eigen::Index s = t - k + 1 - n;
+    const Experiment w(e.u().middleRows(s, n + k), e.y().middleRows(s, n + k), 0.1);
+    const Eigen::MatrixXd sim = truth.simulate(w, InitialCondition::measured);
+    CHECK(p(t, 0) == Approx(sim(n + k - 1, 0)).epsilon(1e-12));
+  }
+  // The one-step predictor is phi(t)' theta.
+  const Eigen::MatrixXd p1 = truth.predict(e, 1);
+  const auto& y = e.y();
+  const auto& u = e.u();
+  for (Eigen::Index t = 2; t < 120; ++t)
+    CHECK(p1(t, 0) == Approx(1.5 * y(t - 1, 0) - 0.7 * y(t - 2, 0) + u(t - 1, 0) + 0.5 * u(t - 2, 0)));
+  // An infinite horizon is the simulation from measured past data; so is k >= N.
+  CHECK((truth.predict(e, nlid::infinite_horizon) - truth.simulate(e, InitialCondition::measured)).norm() == 0.0);
+  CHECK((truth.predict(e, 500) - truth.simulate(e, InitialCondition::measured)).norm() == 0.0);
+  // Prediction gets worse with the horizon on noisy data.
+  CHECK(nlid::fit_percent(e.y().col(0), truth.predict(e, 1).col(0)) >
+        nlid::fit_percent(e.y().col(0), truth.predict(e, 10).col(0)));
+}
+
+TEST_CASE("ARX simulation initial conditions", "[linear][arx]") {
+  const Arx truth = siso_truth(0.3);
+  const Experiment run = nlid_test::arx_data(truth, nlid_test::white_noise(500, 1, 41), 0.0, 0);
+  // A record that starts mid-run: unknown, nonzero past.
+  const Experiment e(run.u().bottomRows(300), run.y().bottomRows(300), 0.1);
+  const Eigen::MatrixXd zero = truth.simulate(e, InitialCondition::zero);
+  const Eigen::MatrixXd est = truth.simulate(e, InitialCondition::estimate);
+  const Eigen::MatrixXd meas = truth.simulate(e, InitialCondition::measured);
+  CHECK((est - e.y()).cwiseAbs().maxCoeff() < 1e-9);
+  CHECK((meas - e.y()).cwiseAbs().maxCoeff() < 1e-9);
+  CHECK((zero - e.y()).cwiseAbs().maxCoeff() > 0.1);  // transient of the wrong start
+  // Equilibrium: a constant input from rest at the matching steady state stays put.
+  const Eigen::MatrixXd uc = Eigen::MatrixXd::Constant(50, 1, 2.0);
+  const Experiment c(uc, Eigen::MatrixXd::Zero(50, 1), 0.1);
+  const Eigen::MatrixXd eq = truth.simulate(c, InitialCondition::equilibrium);
+  const double yss = (2.0 * 1.5 + 0.3) / (1 - 1.5 + 0.7);
+  CHECK((eq.array() - yss).abs().maxCoeff() < 1e-9);
+  CHECK(truth.dc_gain() == Approx(1.5 / 0.2));
+}
+
+TEST_CASE("ARX converts to state space with the same input-output behaviour", "[linear][arx]") {
+  const Arx truth(vec({-0.9, 0.2}), {vec({0.5, -0.3, 0.1}), vec({2.0})}, {0, 3}, 0.05);
+  const nlid::StateSpace ss = truth.to_state_space();
+  CHECK(ss.order() == 3);
+  const Experiment e(nlid_test::white_noise(100, 2, 51), Eigen::MatrixXd::Zero(100, 1), 0.05);
+  CHECK((ss.simulate(e, InitialCondition::zero) - truth.simulate(e, InitialCondition::zero)).cwiseAbs().maxCoeff() < 1e-12);
+  const Eigen::VectorXd w = Eigen::VectorXd::LinSpaced(9, 0.5, 60.0);
+  for (int i = 0; i < 2; ++i)
+    CHECK((ss.frequency_response(w, 0, i) - truth.frequency_response(w, i)).cwiseAbs().maxCoeff() < 1e-10);
+  const nlid::TransferFunction tf = truth.to_transfer_function(1);
+  CHECK((tf.numerator - vec({0, 0, 0, 2.0})).norm() == 0.0);
+}
+
+TEST_CASE("ARX describe prints A(q) and B(q) like the toolbox", "[linear][arx]") {
+  const Experiment e = nlid_test::arx_data(siso_truth(), nlid_test::white_noise(300, 1, 61), 0.0, 0);
+  const std::string d = nlid::arx(e, {2, 2, 1}).describe();
+  CHECK(d.find("orders [na nb nk] = [2 2 1]") != std::string::npos);
+  CHECK(d.find("A(q)y(t) = B(q)u(t) + e(t)") != std::string::npos);
+  CHECK(d.find("A(q) = 1 - 1.5") != std::string::npos);
+  CHECK(d.find("q^-2") != std::string::npos);
+  CHECK(d.find("B(q) = 1 (+/- ") != std::string::npos);
+  CHECK(d.find("Poles: 0.75 +/- 0.3708i") != std::string::npos);
+  CHECK(d.find("Sample time: 0.1 s") != std::string::npos);
+}
+
+TEST_CASE("ARX rejects bad orders and data with located messages", "[linear][arx]") {
+  const Experiment e = nlid_test::arx_data(siso_truth(), nlid_test::white_noise(100, 1, 71), 0.0, 0, "good");
+  SECTION("negative orders") {
+    CHECK_THROWS_WITH(nlid::arx(e, {-1, 2, 1}), Catch::Contains("na must be >= 0"));
+    CHECK_THROWS_WITH(nlid::arx(e, {2, -2, 1}), Catch::Contains("nb must be >= 0"));
+    CHECK_THROWS_WITH(nlid::arx(e, {2, 2, -1}), Catch::Contains("nk must be >= 0"));
+    try {
+      (void)nlid::arx(e, {2, 2, -1});
+    } catch (const nlid::Error& err) {
+      CHECK(err.where().parameter == "nk");
+    }
+  }
+  SECTION("no parameters") { CHECK_THROWS_WITH(nlid::arx(e, {0, 0, 0}), Catch::Contains("no parameter")); }
+  SECTION("data too short names the experiment") {
+    const Experiment s(e.u().topRows(2), e.y().topRows(2), 0.1, "short");
+    try {
+      (void)nlid::arx(nlid::Dataset{e, s}, {2, 2, 1});
+      FAIL("short experiment accepted");
+    } catch (const nlid::Error& err) {
+      CHECK(std::string(err.what()).find("experiment 1 ('short') has 2 samples") != std::string::npos);
+      CHECK(err.where().experiment == 1);
+    }
+  }
+  SECTION("mismatched channel counts") {
+    CHECK_THROWS_WITH(nlid::arx(e, nlid::ArxOrders(2, {1, 1}, {0, 0})),
+                      Catch::Contains("for 2 input(s) but the data have 1"));
+    CHECK_THROWS_WITH(nlid::arx(e, nlid::ArxOrders(2, {1, 1}, {0})), Catch::Contains("nb has 2 entries but nk has 1"));
+    const Experiment two_out(e.u(), Eigen::MatrixXd::Random(100, 2), 0.1);
+    CHECK_THROWS_WITH(nlid::arx(two_out, {2, 2, 1}), Catch::Contains("data have 2"));
+    const Experiment two_in(Eigen::MatrixXd::Random(100, 2), e.y(), 0.1, "two");
+    CHECK_THROWS_WITH(siso_truth().simulate(two_in), Catch::Contains("model has 1 input(s) but experiment 'two' has 2"));
+  }
+  SECTION("not persistently exciting") {
+    const Experiment c(Eigen::MatrixXd::Constant(100, 1, 1.0), e.y(), 0.1);
+    CHECK_THROWS_WITH(nlid::arx(c, {2, 2, 1}), Catch::Contains("rank"));
+  }
+  SECTION("missing samples") {
+    Eigen::MatrixXd y = e.y();
+    y(40, 0) = std::nan("");
+    const Experiment m(e.u(), y, 0.1, "gappy", nlid::NonFinitePolicy::keep);
+    CHECK_THROWS_WITH(nlid::arx(m, {2, 2, 1}), Catch::Contains("missing") && Catch::Contains("index 40"));
+  }
+  SECTION("prediction horizon and sample time") {
+    CHECK_THROWS_WITH(siso_truth().predict(e, 0), Catch::Contains("k must be >= 1"));
+    const Experiment other(e.u(), e.y(), 0.01, "fast");
+    CHECK_THROWS_WITH(siso_truth().simulate(other), Catch::Contains("sample time"));
+  }
+  SECTION("empty data set") { CHECK_THROWS_WITH(nlid::arx(nlid::Dataset{}, {2, 2, 1}), Catch::Contains("empty")); }
+}

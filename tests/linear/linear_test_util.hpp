@@ -1,0 +1,52 @@
+// Shared helpers of the linear-model tests: reproducible inputs and data from known systems.
+#pragma once
+
+#include <random>
+
+#include <Eigen/Core>
+
+#include "nlid/data/experiment.hpp"
+#include "nlid/linear/arx.hpp"
+#include "nlid/linear/polynomial.hpp"
+
+namespace nlid_test {
+
+// N x m white Gaussian input (unit variance), reproducible from `seed`.
+inline Eigen::MatrixXd white_noise(Eigen::Index n, Eigen::Index m, unsigned seed, double sd = 1.0) {
+  std::mt19937 gen(seed);
+  std::normal_distribution<double> dist(0.0, sd);
+  Eigen::MatrixXd x(n, m);
+  for (Eigen::Index j = 0; j < m; ++j)
+    for (Eigen::Index k = 0; k < n; ++k) x(k, j) = dist(gen);
+  return x;
+}
+
+// N x m random binary (+-1) input held for `hold` samples: rich in low frequencies, like the
+// step tests of the study.
+inline Eigen::MatrixXd random_steps(Eigen::Index n, Eigen::Index m, unsigned seed, int hold = 5) {
+  std::mt19937 gen(seed);
+  std::bernoulli_distribution coin(0.5);
+  Eigen::MatrixXd x(n, m);
+  for (Eigen::Index j = 0; j < m; ++j) {
+    double v = 1.0;
+    for (Eigen::Index k = 0; k < n; ++k) {
+      if (k % hold == 0) v = coin(gen) ? 1.0 : -1.0;
+      x(k, j) = v;
+    }
+  }
+  return x;
+}
+
+// Output of `truth` (zero initial conditions) plus ARX equation noise e/A, e ~ N(0, sd^2).
+inline nlid::Experiment arx_data(const nlid::Arx& truth, const Eigen::MatrixXd& u, double sd,
+                                 unsigned seed, const std::string& name = "sim") {
+  const nlid::Experiment blank(u, Eigen::MatrixXd::Zero(u.rows(), 1), truth.ts(), name);
+  Eigen::MatrixXd y = truth.simulate(blank, nlid::InitialCondition::zero);
+  if (sd > 0) {
+    const Eigen::VectorXd e = white_noise(u.rows(), 1, seed, sd);
+    y.col(0) += nlid::filter(Eigen::VectorXd::Ones(1), truth.a_polynomial(), e);
+  }
+  return nlid::Experiment(u, y, truth.ts(), name);
+}
+
+}  // namespace nlid_test

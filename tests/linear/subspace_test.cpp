@@ -1,0 +1,130 @@
+// PO-MOESP subspace identification: exact recovery from noise-free data (MIMO, multi-experiment,
+// feed-through), consistency on noisy data, order indication, and errors.
+#include <catch2/catch.hpp>
+
+#include <algorithm>
+#include <cmath>
+
+#include "linear_test_util.hpp"
+#include "nlid/linear/subspace.hpp"
+
+using nlid::Experiment;
+using nlid::InitialCondition;
+using nlid::StateSpace;
+
+namespace {
+StateSpace three_state(bool feedthrough = false) {
+  Eigen::MatrixXd a(3, 3), b(3, 2), c(2, 3), d = Eigen::MatrixXd::Zero(2, 2);
+  a << 0.8, 0.2, 0.0, -0.2, 0.8, 0.0, 0.0, 0.0, 0.5;
+  b << 1, 0, 0, 1, 1, 1;
+  c << 1, 0, 1, 0, 1, 0;
+  if (feedthrough) d << 0.5, 0.0, 0.0, -0.25;
+  return StateSpace(a, b, c, d, 1.0);
+}
+
+// Sorted pole magnitudes and angles, for comparing pole sets independent of order.
+std::vector<std::pair<double, double>> pole_set(const Eigen::VectorXcd& p) {
+  std::vector<std::pair<double, double>> v;
+  for (Eigen::Index k = 0; k < p.size(); ++k) v.emplace_back(std::abs(p(k)), std::abs(std::arg(p(k))));
+  std::sort(v.begin(), v.end());
+  return v;
+}
+
+double max_pole_error(const StateSpace& m, const StateSpace& truth) {
+  const auto a = pole_set(m.poles()), b = pole_set(truth.poles());
+  double e = 0;
+  for (std::size_t k = 0; k < a.size(); ++k)
+    e = std::max({e, std::abs(a[k].first - b[k].first), std::abs(a[k].second - b[k].second)});
+  return e;
+}
+}  // namespace
+
+TEST_CASE("MOESP recovers a MIMO system from noise-free data", "[linear][subspace]") {
+  const StateSpace truth = three_state();
+  const Eigen::MatrixXd u = nlid_test::white_noise(800, 2, 1);
+  Eigen::VectorXd x0(3);
+  x0 << 1, 2, 3;
+  const Experiment e(u, truth.simulate(u, x0), 1.0);
+  const StateSpace m = nlid::moesp(e, 3);
+  CHECK(max_pole_error(m, truth) < 1e-8);
+  const Eigen::VectorXd w = Eigen::VectorXd::LinSpaced(13, 0.01, 3.1);
+  for (int i = 0; i < 2; ++i)
+    for (int j = 0; j < 2; ++j)
+      CHECK((m.frequency_response(w, i, j) - truth.frequency_response(w, i, j)).cwiseAbs().maxCoeff() < 1e-8);
+  CHECK((m.simulate(e, InitialCondition::estimate) - e.y()).cwiseAbs().maxCoeff() < 1e-8);
+  CHECK(m.report().fit_percent > 99.9999);
+  CHECK(m.report().focus == "simulation");
+  // The singular values drop by many decades after the third.
+  const Eigen::VectorXd sv = nlid::subspace_singular_values(e, 6);
+  CHECK(sv(2) / sv(0) > 1e-3);
+  CHECK(sv(3) / sv(0) < 1e-10);
+}
+
+TEST_CASE("MOESP on multi-experiment data with feed-through", "[linear][subspace]") {
+  const StateSpace truth = three_state(true);
+  const Eigen::MatrixXd u1 = nlid_test::random_steps(500, 2, 2, 3), u2 = nlid_test::white_noise(400, 2, 3);
+  Eigen::VectorXd x1(3), x2(3);
+  x1 << 0, 0, 0;
+  x2 << -2, 1, 0.5;
+  const nlid::Dataset data{Experiment(u1, truth.simulate(u1, x1), 1.0, "a"),
+                           Experiment(u2, truth.simulate(u2, x2), 1.0, "b")};
+  nlid::SubspaceOptions opt;
+  opt.feedthrough = true;
+  const StateSpace m = nlid::moesp(data, 3, opt);
+  CHECK(max_pole_error(m, truth) < 1e-8);
+  CHECK((m.d() - truth.d()).cwiseAbs().maxCoeff() < 1e-8);
+  CHECK((m.dc_gain() - truth.dc_gain()).cwiseAbs().maxCoeff() < 1e-8);
+  CHECK(m.report().num_experiments == 2);
+}
+
+TEST_CASE("MOESP on noisy SISO data: poles and static gain within tolerance", "[linear][subspace]") {
+  // y = B/F u + e with F = 1 - 1.6 q^-1 + 0.68 q^-2; output SNR about 20 dB.
+  Eigen::MatrixXd a(2, 2), b(2, 1), c(1, 2);
+  a << 1.6, 1.0, -0.68, 0.0;  // observer form of F
+  b << 0.5, 0.3;
+  c << 1.0, 0.0;
+  const StateSpace truth(a, b, c, Eigen::MatrixXd::Zero(1, 1), 0.01);
+  const Eigen::MatrixXd u = nlid_test::random_steps(3000, 1, 5, 4);
+  const Eigen::MatrixXd y0 = truth.simulate(u, Eigen::VectorXd::Zero(2));
+  const double sd = 0.1 * std::sqrt((y0.array() - y0.mean()).square().mean());
+  const Experiment e(u, y0 + nlid_test::white_noise(3000, 1, 6, sd), 0.01);
+  const StateSpace m = nlid::moesp(e, 2);
+  CHECK(max_pole_error(m, truth) < 0.02);
+  CHECK(m.dc_gain()(0, 0) == Approx(truth.dc_gain()(0, 0)).epsilon(0.03));
+  CHECK(m.report().fit_percent > 85.0);  // 20 dB noise caps the fit near 90 %
+}
+
+TEST_CASE("MOESP offset option", "[linear][subspace]") {
+  const StateSpace base = three_state();
+  StateSpace truth = base;
+  truth.set_offset(Eigen::Vector2d(15.0, -3.0));
+  const Eigen::MatrixXd u = nlid_test::white_noise(1500, 2, 9);
+  const Experiment e(u, truth.simulate(u, Eigen::VectorXd::Zero(3)), 1.0);
+  nlid::SubspaceOptions opt;
+  opt.offset = true;
+  const StateSpace m = nlid::moesp(e, 3, opt);
+  CHECK((m.offset() - truth.offset()).cwiseAbs().maxCoeff() < 0.05);
+  CHECK(max_pole_error(m, truth) < 0.01);
+  CHECK(m.report().fit_percent > 99.0);
+}
+
+TEST_CASE("MOESP rejects bad orders and short data", "[linear][subspace]") {
+  const StateSpace truth = three_state();
+  const Eigen::MatrixXd u = nlid_test::white_noise(200, 2, 4);
+  const Experiment e(u, truth.simulate(u, Eigen::VectorXd::Zero(3)), 1.0, "ok");
+  CHECK_THROWS_WITH(nlid::moesp(e, 0), Catch::Contains("order must be >= 1"));
+  const Experiment s(u.topRows(12), truth.simulate(u.topRows(12), Eigen::VectorXd::Zero(3)), 1.0, "tiny");
+  try {
+    (void)nlid::moesp(nlid::Dataset{e, s}, 3);
+    FAIL("short experiment accepted");
+  } catch (const nlid::Error& err) {
+    CHECK(std::string(err.what()).find("experiment 1 ('tiny') has 12 samples") != std::string::npos);
+    CHECK(err.where().experiment == 1);
+  }
+  nlid::SubspaceOptions opt;
+  opt.horizon = 2;
+  CHECK_THROWS_WITH(nlid::moesp(e, 5, opt), Catch::Contains("horizon"));
+  opt.horizon = 0;
+  opt.initial_state = InitialCondition::measured;
+  CHECK_THROWS_WITH(nlid::moesp(e, 3, opt), Catch::Contains("initial_state"));
+}
