@@ -16,7 +16,9 @@ std::size_t count(const std::string& s, const std::string& what) {
   return n;
 }
 
-bool contains(const std::string& s, const std::string& what) { return s.find(what) != std::string::npos; }
+bool contains(const std::string& s, const std::string& what) {
+  return s.find(what) != std::string::npos;
+}
 
 nlid::LineChart small_chart(const std::string& title) {
   nlid::LineChart c(title);
@@ -57,23 +59,28 @@ TEST_CASE("HtmlReport writes a self-contained page with every block kind, in ord
     CHECK(count(h, e) == (e == "http://" ? count(h, "xmlns=\"http://www.w3.org/2000/svg\"") : 0));
   }
   // Status element with the expected chart count, filled in by the inline script on load.
-  CHECK(contains(h, "<div id=\"nlid-report-status\" hidden data-ready=\"0\" data-charts=\"\" "
-                    "data-rendered=\"\" data-errors=\"\" data-expected-charts=\"5\"></div>"));
+  CHECK(contains(h,
+                 "<div id=\"nlid-report-status\" hidden data-ready=\"0\" data-charts=\"\" "
+                 "data-rendered=\"\" data-errors=\"\" data-expected-charts=\"5\"></div>"));
   CHECK(contains(h, "window.onerror"));
   CHECK(contains(h, "querySelectorAll('svg.nlid-chart')"));
   CHECK(count(h, "<svg xmlns=\"http://www.w3.org/2000/svg\" class=\"nlid-chart\"") == 5);
   // Three level-2 headings -> a table of contents with anchors.
-  CHECK(contains(h, "<nav class=\"toc\"><strong>Contents</strong><ol><li><a href=\"#s1\">Data</a></li>"
-                    "<li><a href=\"#s2\">Models</a></li><li><a href=\"#s3\">Grids</a></li></ol></nav>"));
+  CHECK(
+      contains(h,
+               "<nav class=\"toc\"><strong>Contents</strong><ol><li><a href=\"#s1\">Data</a></li>"
+               "<li><a href=\"#s2\">Models</a></li><li><a href=\"#s3\">Grids</a></li></ol></nav>"));
   CHECK(contains(h, "<h2 id=\"s2\">Models</h2>"));
   CHECK(contains(h, "<h3>Details</h3>"));
   CHECK(contains(h, "<p>Estimation on data1+data2.\nValidation on data3..5.</p>"));
   CHECK(contains(h, "<pre>y(t) = a1 y(t-1) + b0 u(t)</pre>"));
   CHECK(contains(h, "<div class=\"note good\">nlarx5 validates on all sets</div>"));
   CHECK(contains(h, "<div class=\"note warning\">nlhw1 fails on data5</div>"));
-  // Tables: numbers with 4 significant digits, right-aligned; NaN shown and flagged; integers exact.
+  // Tables: numbers with 4 significant digits, right-aligned; NaN shown and flagged; integers
+  // exact.
   CHECK(contains(h, "<caption>Validation fit</caption>"));
-  CHECK(contains(h, "<th>model</th><th class=\"num\">fit data3 (%)</th><th class=\"num\">iterations</th>"));
+  CHECK(contains(
+      h, "<th>model</th><th class=\"num\">fit data3 (%)</th><th class=\"num\">iterations</th>"));
   CHECK(contains(h, "<td>nlarx5</td><td class=\"num\">93.12</td><td class=\"num\">90</td>"));
   CHECK(contains(h, "<td class=\"num bad\">NaN</td>"));
   CHECK(contains(h, "<figcaption>Measured vs simulated</figcaption>"));
@@ -113,8 +120,9 @@ TEST_CASE("HtmlReport rejects malformed input with a message saying what and whe
                     "nlid: heading level must be 2, 3 or 4 (level 1 is the report title), got 1");
   CHECK_THROWS_WITH(r.table({"a", "b"}, {{"1", "2"}, {"3"}}, "fits"),
                     "nlid: table 'fits': row 2 has 1 cells but the header has 2");
-  CHECK_THROWS_WITH(r.chart_svg("<div>not a chart</div>"),
-                    Catch::StartsWith("nlid: chart markup must be a single <svg class=\"nlid-chart\">"));
+  CHECK_THROWS_WITH(
+      r.chart_svg("<div>not a chart</div>"),
+      Catch::StartsWith("nlid: chart markup must be a single <svg class=\"nlid-chart\">"));
   CHECK_THROWS_WITH(r.chart_svg("<svg class=\"other\"></svg>"), Catch::Contains("nlid-chart"));
   CHECK_THROWS_WITH(r.grid(std::vector<std::string>{small_chart("a").svg()}, 0),
                     "nlid: grid columns must be in [1, 6]");

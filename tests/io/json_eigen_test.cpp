@@ -20,7 +20,7 @@ TEST_CASE("Eigen vectors and matrices round trip through JSON bit-exactly") {
   j["a"] = a;
   j["rm"] = rm;
   j["rv"] = rv;
-  j["expr"] = nlid::to_json(2.0 * theta.head(2));  // expressions go through to_json
+  j["expr"] = nlid::to_json(2.0 * theta.head(2));             // expressions go through to_json
   CHECK(j.at("a").json().dump(-1) == "[[1,2,3],[4,5,6.5]]");  // rows, whatever the storage
   CHECK(j.at("rm").json().dump(-1) == "[[1,2],[3,4]]");
   CHECK(j.at("expr").json().dump(-1) == "[0.2,-5e-17]");
@@ -41,15 +41,18 @@ TEST_CASE("Eigen vectors and matrices round trip through JSON bit-exactly") {
 
 TEST_CASE("Reading Eigen types checks the shape and names the key path") {
   const nlid::Json j = nlid::Json::parse(
-      R"({"model": {"theta": [1, 2, 3], "m": [[1, 2], [3]], "bad": [[1, "x"]], "v": 5}})", "m.json");
+      R"({"model": {"theta": [1, 2, 3], "m": [[1, 2], [3]], "bad": [[1, "x"]], "v": 5}})",
+      "m.json");
   const auto model = j.at("model");
   CHECK_THROWS_WITH(model.at("theta").get<Eigen::Vector4d>(),
                     "nlid: expected 4 elements at model.theta, found 3 [at file 'm.json', row 1, "
                     "column 21]");
-  CHECK_THROWS_WITH(model.at("m").get<Eigen::MatrixXd>(),
-                    Catch::StartsWith("nlid: ragged matrix: row model.m[1] has 1 elements, row 0 has 2"));
-  CHECK_THROWS_WITH(model.at("bad").get<Eigen::MatrixXd>(),
-                    Catch::StartsWith("nlid: expected number at model.bad[0][1], found string \"x\""));
+  CHECK_THROWS_WITH(
+      model.at("m").get<Eigen::MatrixXd>(),
+      Catch::StartsWith("nlid: ragged matrix: row model.m[1] has 1 elements, row 0 has 2"));
+  CHECK_THROWS_WITH(
+      model.at("bad").get<Eigen::MatrixXd>(),
+      Catch::StartsWith("nlid: expected number at model.bad[0][1], found string \"x\""));
   CHECK_THROWS_WITH(model.at("v").get<Eigen::VectorXd>(),
                     Catch::StartsWith("nlid: expected array at model.v, found number 5"));
   CHECK_THROWS_WITH((model.at("m").get<Eigen::Matrix<double, 3, 2>>()),

@@ -46,9 +46,8 @@ TEST_CASE("Json builder makes nested objects and arrays in insertion order") {
   j["log"].push_back("start");
   j["log"].push_back(2);
   j["name"] = "nlarx5b";  // assigning an existing key keeps its position
-  CHECK(j.dump(-1) ==
-        R"({"name":"nlarx5b","orders":[3,3,0],"fit":{"data3":93.25,"data4":-1.5},)"
-        R"("converged":true,"note":null,"log":["start",2]})");
+  CHECK(j.dump(-1) == R"({"name":"nlarx5b","orders":[3,3,0],"fit":{"data3":93.25,"data4":-1.5},)"
+                      R"("converged":true,"note":null,"log":["start",2]})");
   CHECK(j.dump() == R"({
   "name": "nlarx5b",
   "orders": [3, 3, 0],
@@ -122,7 +121,8 @@ TEST_CASE("Json refuses integers a double cannot hold and non-finite numbers, na
   j["models"]["nlarx5"]["theta"] = std::vector<double>{1.0, 2.0, std::nan(""), 4.0};
   const nlid::Error e = error_of([&] { (void)j.dump(); });
   CHECK(e.message() ==
-        "cannot write non-finite number (nan) at models.nlarx5.theta[2]: JSON has no NaN or Infinity");
+        "cannot write non-finite number (nan) at models.nlarx5.theta[2]: JSON has no NaN or "
+        "Infinity");
   nlid::Json k = nlid::Json::array({1, -std::numeric_limits<double>::infinity()});
   CHECK_THROWS_WITH(k.dump(-1), Catch::Contains("(-inf) at [1]"));
   CHECK_THROWS_WITH(nlid::Json(std::numeric_limits<double>::infinity()).dump(),
@@ -141,9 +141,10 @@ TEST_CASE("Json strings: escapes, control characters and unicode round trip") {
                              std::string(1, '\0') + "\x01\x1f\x7f" + " é 日本 😀";
   const nlid::Json j(tricky);
   const std::string text = j.dump();
-  CHECK(text ==
-        "\"quote\\\" backslash\\\\ slash/ tab\\t nl\\n cr\\r bs\\b ff\\f\\u0000\\u0001\\u001f\\u007f"
-        " é 日本 😀\"");
+  CHECK(
+      text ==
+      "\"quote\\\" backslash\\\\ slash/ tab\\t nl\\n cr\\r bs\\b ff\\f\\u0000\\u0001\\u001f\\u007f"
+      " é 日本 😀\"");
   CHECK(nlid::Json::parse(text).as_string() == tricky);
 
   // \uXXXX decoding, including a surrogate pair for U+1F600 and escaped solidus.
@@ -165,7 +166,8 @@ TEST_CASE("Json string errors: lone surrogates, bad escapes, raw control charact
   CHECK(parse_error(R"("\ud83d\u0041")").message() ==
         "JSON parse error: high surrogate not followed by a low surrogate in \\u escape");
   CHECK(parse_error(R"("\x")").message() == "JSON parse error: invalid escape '\\x' in string");
-  CHECK(parse_error(R"("\u12G4")").message() == "JSON parse error: \\u escape needs four hex digits");
+  CHECK(parse_error(R"("\u12G4")").message() ==
+        "JSON parse error: \\u escape needs four hex digits");
   CHECK(parse_error("\"a\nb\"").message() ==
         "JSON parse error: line break inside a string (write \\n, or close the quote)");
   CHECK(parse_error("\"a\tb\"").message() ==
@@ -178,7 +180,8 @@ TEST_CASE("Json string errors: lone surrogates, bad escapes, raw control charact
 
   nlid::Json j;
   j["name"] = std::string("caf\xE9");  // Latin-1, not UTF-8
-  CHECK(error_of([&] { (void)j.dump(); }).message() == "string at name is not valid UTF-8 (byte 3)");
+  CHECK(error_of([&] { (void)j.dump(); }).message() ==
+        "string at name is not valid UTF-8 (byte 3)");
 }
 
 TEST_CASE("Json parse errors say what and where (line and column)") {
@@ -223,10 +226,12 @@ TEST_CASE("Json parse errors say what and where (line and column)") {
   // Numbers.
   CHECK(parse_error("[01]").message() ==
         "JSON parse error: leading zeros are not allowed in JSON numbers");
-  CHECK(parse_error("[1.]").message() == "JSON parse error: expected a digit after the decimal point");
+  CHECK(parse_error("[1.]").message() ==
+        "JSON parse error: expected a digit after the decimal point");
   CHECK(parse_error("[1e]").message() == "JSON parse error: expected a digit in the exponent");
   CHECK(parse_error("[+1]").message() == "JSON parse error: unexpected '+': expected a value");
-  CHECK(parse_error("1e400").message() == "JSON parse error: number 1e400 is too large for a double");
+  CHECK(parse_error("1e400").message() ==
+        "JSON parse error: number 1e400 is too large for a double");
   CHECK(nlid::Json::parse("1e-400").as_number() == 0.0);  // underflow rounds to zero, as IEEE does
 
   // Structure.
@@ -234,13 +239,15 @@ TEST_CASE("Json parse errors say what and where (line and column)") {
   CHECK(parse_error("  \n ").where().row == 2);
   CHECK(parse_error("[1 2]").message() ==
         "JSON parse error: expected ',' or ']' after array element, found '2'");
-  CHECK(parse_error(R"({"a" 1})").message() == "JSON parse error: expected ':' after key 'a', found '1'");
+  CHECK(parse_error(R"({"a" 1})").message() ==
+        "JSON parse error: expected ':' after key 'a', found '1'");
   CHECK(parse_error("{a: 1}").message() ==
         "JSON parse error: expected a string key in double quotes, found 'a'");
   CHECK(parse_error(R"({"a": 1 "b": 2})").message() ==
         "JSON parse error: expected ',' or '}' after object member, found '\"'");
   CHECK(parse_error("[1] x").message() == "JSON parse error: unexpected 'x' after the JSON value");
-  CHECK(parse_error("[1] // note").message() == "JSON parse error: comments are not allowed in JSON");
+  CHECK(parse_error("[1] // note").message() ==
+        "JSON parse error: comments are not allowed in JSON");
   e = parse_error("{\"a\": 1,\n \"a\": 2}");
   CHECK(e.message() == "JSON parse error: duplicate key 'a' in object");
   CHECK(e.where().row == 2);
@@ -368,8 +375,8 @@ TEST_CASE("write_json / read_json round trip through a file; missing file is an 
 
   // A parse error in a file names the file.
   nlid::write_file_atomically(path, "{\"a\": [1,]}");
-  CHECK_THROWS_WITH(nlid::read_json(path),
-                    Catch::Contains("trailing comma") && Catch::Contains("summary.json") &&
-                        Catch::Contains("row 1, column 10"));
+  CHECK_THROWS_WITH(nlid::read_json(path), Catch::Contains("trailing comma") &&
+                                               Catch::Contains("summary.json") &&
+                                               Catch::Contains("row 1, column 10"));
   std::filesystem::remove_all(dir);
 }

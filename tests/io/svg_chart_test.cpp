@@ -4,13 +4,13 @@
 #include <algorithm>
 #include <array>
 #include <catch2/catch.hpp>
-#include <cmath>
 #include <charconv>
-#include <system_error>
+#include <cmath>
 #include <filesystem>
 #include <map>
 #include <set>
 #include <string>
+#include <system_error>
 #include <vector>
 
 #include "nlid/core/atomic_file.hpp"
@@ -92,7 +92,10 @@ TEST_CASE("Line chart: axes, legend, shading, band; output is deterministic") {
   c.shade(4.0, 3.0, "mismatch").band(90, 100, "hard stop");
   const std::string svg = c.svg();
 
-  CHECK(svg.rfind(R"(<svg xmlns="http://www.w3.org/2000/svg" class="nlid-chart" width="720" height="360")", 0) == 0);
+  CHECK(
+      svg.rfind(
+          R"(<svg xmlns="http://www.w3.org/2000/svg" class="nlid-chart" width="720" height="360")",
+          0) == 0);
   CHECK(svg.find("<title>Validation on data3</title>") != std::string::npos);
   CHECK(svg.find(">time (s)</text>") != std::string::npos);
   CHECK(svg.find(">angle (deg)</text>") != std::string::npos);
@@ -142,7 +145,8 @@ TEST_CASE("Decimation keeps per-pixel extremes, so spikes survive and files stay
 
   // Per pixel column, the decimated polyline reaches the same min and max as the full one.
   std::map<long, std::pair<double, double>> col_full, col_dec;
-  const auto fill = [](const std::vector<Point>& pts, std::map<long, std::pair<double, double>>& m) {
+  const auto fill = [](const std::vector<Point>& pts,
+                       std::map<long, std::pair<double, double>>& m) {
     for (const Point& p : pts) {
       const long c = static_cast<long>(std::floor(p.x));
       auto [it, fresh] = m.try_emplace(c, p.y, p.y);
@@ -244,12 +248,14 @@ TEST_CASE("Line chart inputs: Eigen vectors and std::array work; bad input is an
   CHECK(c.num_series() == 2);
   CHECK(c.series()[0].y[49] == 1.0);
 
-  CHECK_THROWS_WITH(nlid::LineChart().line("sim", std::vector<double>{1, 2, 3}, std::vector<double>{1, 2}),
-                    "nlid: series 'sim': x has 3 values but y has 2");
+  CHECK_THROWS_WITH(
+      nlid::LineChart().line("sim", std::vector<double>{1, 2, 3}, std::vector<double>{1, 2}),
+      "nlid: series 'sim': x has 3 values but y has 2");
   CHECK_THROWS_WITH(nlid::LineChart().line("w", a, a, "", nlid::LineStyle::solid, 0.0),
                     Catch::StartsWith("nlid: series 'w': line width must be in (0, 100) px"));
-  CHECK_THROWS_WITH(nlid::LineChart().size(100, 50),
-                    "nlid: chart size must be between 240 x 160 and 20000 x 20000 px, got 100 x 50");
+  CHECK_THROWS_WITH(
+      nlid::LineChart().size(100, 50),
+      "nlid: chart size must be between 240 x 160 and 20000 x 20000 px, got 100 x 50");
   CHECK_THROWS_WITH(nlid::LineChart().y_limits(2, 1), "nlid: y_limits needs finite lo < hi");
   CHECK_THROWS_WITH(nlid::LineChart().shade(0, NAN, "m"),
                     "nlid: shaded interval 'm' needs finite bounds");
@@ -287,8 +293,12 @@ TEST_CASE("Bar chart: highlight, negative values, missing values, log scale") {
   CHECK(b.svg() == svg);
 
   nlid::BarChart h;
-  h.size(900, 300).horizontal(true).add("a very long candidate model name that needs room", 3).add("b", 1);
-  CHECK(h.svg().find(">a very long candidate model name that needs room</text>") != std::string::npos);
+  h.size(900, 300)
+      .horizontal(true)
+      .add("a very long candidate model name that needs room", 3)
+      .add("b", 1);
+  CHECK(h.svg().find(">a very long candidate model name that needs room</text>") !=
+        std::string::npos);
   // Labels longer than 40 % of the width are shortened at a code point, full text as tooltip.
   nlid::BarChart cut;
   const std::string long_name = "\xC3\xA9" + std::string(80, 'x') + " tail";
@@ -306,7 +316,8 @@ TEST_CASE("Bar chart: highlight, negative values, missing values, log scale") {
     CHECK(ls.find(tick) != std::string::npos);
   }
   lg.add("bad", -1);
-  CHECK_THROWS_WITH(lg.svg(), "nlid: bar chart 'loss': log scale needs positive values, bar 'bad' has -1");
+  CHECK_THROWS_WITH(lg.svg(),
+                    "nlid: bar chart 'loss': log scale needs positive values, bar 'bad' has -1");
   CHECK_THROWS_WITH(nlid::BarChart().highlight(0), "nlid: highlight index 0 out of range (0 bars)");
 
   // Many categories: labels rotate instead of overlapping.

@@ -3,9 +3,10 @@
 /// `nlid::HtmlReport`: one self-contained HTML file with text, tables and SVG charts.
 ///
 /// The identification loop ends in a document a person reads: which data, which models, how
-/// well each fits (the fit % of Ljung 1999, eq. 16.4 / MATLAB `compare`), where simulation and
-/// measurement part, what was changed. `HtmlReport` collects those pieces in order and writes
-/// them as a single file that opens anywhere, offline, years later:
+/// well each fits (fit % of the simulated output, MATLAB `compare`; validation by simulation as in
+/// Ljung 1999, ch. 16), where simulation and measurement part, what was changed. `HtmlReport`
+/// collects those pieces in order and writes them as a single file that opens anywhere, offline,
+/// years later:
 ///
 /// * everything is inline: CSS in a `<style>` element, charts as `<svg>` (see svg_chart.hpp);
 ///   no web fonts, no images, no scripts from the network. A Content-Security-Policy meta tag
@@ -27,8 +28,8 @@
 /// fails unless data-errors is 0 and the chart counts equal N.
 ///
 ///     nlid::HtmlReport r("Throttle identification");
-///     r.heading("Validation").paragraph("Models estimated on data1+data2, simulated from u only.");
-///     r.table({"model", "data3", "data4", "data5"}, {{"nlarx5", 93.1, 91.7, 88.2}});
+///     r.heading("Validation").paragraph("Models estimated on data1+data2, simulated from u
+///     only."); r.table({"model", "data3", "data4", "data5"}, {{"nlarx5", 93.1, 91.7, 88.2}});
 ///     r.chart(compare_chart);
 ///     r.write("throttle_report.html");
 
@@ -65,8 +66,8 @@ class TableCell {
   TableCell(F x) : value_(static_cast<double>(x)) {}  // NOLINT(google-explicit-constructor)
   /// An integer cell (printed exactly; not limited by the table's digits).
   template <std::integral I>
-    requires(!std::same_as<I, bool> && !std::same_as<I, char>)
-  TableCell(I i) : value_(std::to_string(i)), numeric_text_(true) {}  // NOLINT
+  requires(!std::same_as<I, bool> && !std::same_as<I, char>) TableCell(I i)
+      : value_(std::to_string(i)), numeric_text_(true) {}  // NOLINT
 
   /// True for number cells (right-aligned).
   [[nodiscard]] bool is_number() const noexcept {
@@ -90,17 +91,17 @@ class TableCell {
 
 /// A table: header, rows of cells, optional caption.
 struct Table {
-  std::vector<std::string> header;              ///< column titles (may be empty: no header row)
-  std::vector<std::vector<TableCell>> rows;     ///< each row as long as the header (if any)
-  std::string caption;                          ///< shown above the table
-  int digits = 4;                               ///< significant digits of number cells
+  std::vector<std::string> header;           ///< column titles (may be empty: no header row)
+  std::vector<std::vector<TableCell>> rows;  ///< each row as long as the header (if any)
+  std::string caption;                       ///< shown above the table
+  int digits = 4;                            ///< significant digits of number cells
 };
 
 /// Style of a `note` call-out.
 enum class NoteKind {
-  info,     ///< neutral remark
-  good,     ///< a check that passed, an improvement
-  warning   ///< something the reader must not miss (a located mismatch, a failed validation)
+  info,    ///< neutral remark
+  good,    ///< a check that passed, an improvement
+  warning  ///< something the reader must not miss (a located mismatch, a failed validation)
 };
 
 /// Builder of a self-contained HTML report (see the file comment).
@@ -165,8 +166,8 @@ class HtmlReport {
   /// one `<svg class="nlid-chart">` element (other markup would break the page's chart count).
   HtmlReport& chart_svg(std::string svg, std::string caption = {}) {
     check_svg(svg);
-    blocks_.push_back({Kind::chart, "<figure class=\"chart\">" + svg + figcaption(caption) +
-                                        "</figure>", 0});
+    blocks_.push_back(
+        {Kind::chart, "<figure class=\"chart\">" + svg + figcaption(caption) + "</figure>", 0});
     ++charts_;
     return *this;
   }
@@ -207,11 +208,11 @@ class HtmlReport {
   };
 
   static void check_svg(const std::string& svg) {
-    const bool ok = svg.rfind("<svg", 0) == 0 &&
-                    svg.find("class=\"nlid-chart\"") < svg.find('>') &&
+    const bool ok = svg.rfind("<svg", 0) == 0 && svg.find("class=\"nlid-chart\"") < svg.find('>') &&
                     svg.size() >= 6 && svg.compare(svg.size() - 6, 6, "</svg>") == 0;
-    require(ok, "chart markup must be a single <svg class=\"nlid-chart\"> element, as made by "
-                "LineChart::svg() or BarChart::svg()");
+    require(ok,
+            "chart markup must be a single <svg class=\"nlid-chart\"> element, as made by "
+            "LineChart::svg() or BarChart::svg()");
   }
   static std::string figcaption(const std::string& caption) {
     if (caption.empty()) return {};
@@ -219,7 +220,8 @@ class HtmlReport {
   }
   static std::string render_table(const Table& t) {
     std::string h = "<div class=\"table-wrap\"><table>";
-    if (!t.caption.empty()) h.append("<caption>").append(detail::escape_xml(t.caption)).append("</caption>");
+    if (!t.caption.empty())
+      h.append("<caption>").append(detail::escape_xml(t.caption)).append("</caption>");
     // A column is right-aligned when all its body cells are numbers.
     std::size_t ncols = t.header.size();
     for (const auto& row : t.rows) ncols = std::max(ncols, row.size());
@@ -266,19 +268,26 @@ namespace detail {
 /// Page style: readable measure, tabular numbers, charts scale down on small screens, print.
 inline constexpr std::string_view report_css = R"(
 :root{color-scheme:light}
-body{margin:0;background:#f6f7f9;color:#1d1f23;font:15px/1.5 system-ui,-apple-system,"Segoe UI",Roboto,"DejaVu Sans",Arial,sans-serif}
-main{max-width:1100px;margin:0 auto;padding:24px 28px 40px;background:#fff;min-height:100vh;box-sizing:border-box}
-h1{font-size:26px;margin:0 0 12px}h2{font-size:20px;margin:32px 0 8px;border-bottom:1px solid #ddd;padding-bottom:4px}
-h3{font-size:17px;margin:24px 0 6px}h4{font-size:15px;margin:18px 0 4px}
+body{margin:0;background:#f6f7f9;color:#1d1f23;
+  font:15px/1.5 system-ui,-apple-system,"Segoe UI",Roboto,"DejaVu Sans",Arial,sans-serif}
+main{max-width:1100px;margin:0 auto;padding:24px 28px 40px;background:#fff;min-height:100vh;
+  box-sizing:border-box}
+h1{font-size:26px;margin:0 0 12px}
+h2{font-size:20px;margin:32px 0 8px;border-bottom:1px solid #ddd;padding-bottom:4px}
+h3{font-size:17px;margin:24px 0 6px}
+h4{font-size:15px;margin:18px 0 4px}
 p{margin:8px 0;white-space:pre-line}
-pre{background:#f3f4f6;border:1px solid #e3e5e8;border-radius:4px;padding:10px 12px;overflow-x:auto;font:13px/1.45 ui-monospace,"DejaVu Sans Mono",Menlo,Consolas,monospace}
-nav.toc{background:#f3f6fa;border:1px solid #dde3ea;border-radius:4px;padding:6px 14px;margin:8px 0 16px;display:inline-block}
+pre{background:#f3f4f6;border:1px solid #e3e5e8;border-radius:4px;padding:10px 12px;
+  overflow-x:auto;font:13px/1.45 ui-monospace,"DejaVu Sans Mono",Menlo,Consolas,monospace}
+nav.toc{background:#f3f6fa;border:1px solid #dde3ea;border-radius:4px;padding:6px 14px;
+  margin:8px 0 16px;display:inline-block}
 nav.toc ol{margin:4px 0;padding-left:22px}
 .table-wrap{overflow-x:auto;margin:12px 0}
 table{border-collapse:collapse;font-size:14px}
 caption{text-align:left;font-weight:600;padding:4px 0}
 th,td{border:1px solid #d9dce1;padding:4px 10px;text-align:left;vertical-align:top}
-th{background:#f0f2f5}tr:nth-child(even) td{background:#fafbfc}
+th{background:#f0f2f5}
+tr:nth-child(even) td{background:#fafbfc}
 .num{text-align:right;font-variant-numeric:tabular-nums}
 td.bad{color:#a01c1c;font-weight:600}
 figure.chart{margin:14px 0;text-align:center}
@@ -286,11 +295,14 @@ figure.chart svg{max-width:100%;height:auto}
 figcaption{font-size:13px;color:#555;margin-top:2px}
 .grid{display:grid;gap:12px}
 .grid figure.chart{margin:0}
-.note{border-left:4px solid #1f77b4;background:#eef5fb;padding:8px 12px;margin:12px 0;white-space:pre-line}
-.note.good{border-color:#2ca02c;background:#eff8ee}.note.warning{border-color:#d62728;background:#fcf0f0}
+.note{border-left:4px solid #1f77b4;background:#eef5fb;padding:8px 12px;margin:12px 0;
+  white-space:pre-line}
+.note.good{border-color:#2ca02c;background:#eff8ee}
+.note.warning{border-color:#d62728;background:#fcf0f0}
 footer{max-width:1100px;margin:0 auto;padding:8px 28px;color:#888;font-size:12px}
 @media (max-width:760px){.grid{grid-template-columns:1fr !important}main{padding:14px}}
-@media print{body{background:#fff}main{max-width:none;padding:0}figure.chart,table{break-inside:avoid}}
+@media print{body{background:#fff}main{max-width:none;padding:0}
+  figure.chart,table{break-inside:avoid}}
 )";
 
 /// Status recorder for headless-browser tests (see the file comment). Plain ES5, no network.

@@ -128,8 +128,8 @@ class Json {
   /// A number from float or double (float widens exactly; long double is not accepted because
   /// narrowing it could change the value).
   template <class F>
-    requires std::same_as<F, double> || std::same_as<F, float>
-  Json(F x) : value_(static_cast<double>(x)) {}  // NOLINT(google-explicit-constructor)
+  requires std::same_as<F, double> || std::same_as<F, float> Json(F x)
+      : value_(static_cast<double>(x)) {}  // NOLINT(google-explicit-constructor)
   /// A number from an integer. Throws `nlid::Error` if |i| > 2^53, where a double could no
   /// longer hold it exactly (the value would change silently on the way through the file).
   template <detail::JsonInteger I>
@@ -154,7 +154,8 @@ class Json {
     Json j;
     j.value_ = Object{};
     for (const Member& m : members) {
-      if (j.find(m.first) != nullptr) throw Error("duplicate key '" + m.first + "' in Json::object");
+      if (j.find(m.first) != nullptr)
+        throw Error("duplicate key '" + m.first + "' in Json::object");
       std::get<Object>(j.value_).push_back(m);
     }
     return j;
@@ -347,7 +348,8 @@ class Json {
 class JsonView {
  public:
   /// A view of `node` reached by `path` ("" = the document root).
-  explicit JsonView(const Json& node, std::string path = {}) : node_(&node), path_(std::move(path)) {}
+  explicit JsonView(const Json& node, std::string path = {})
+      : node_(&node), path_(std::move(path)) {}
 
   /// The viewed value.
   [[nodiscard]] const Json& json() const noexcept { return *node_; }
@@ -507,8 +509,8 @@ class JsonView {
   std::string child_path(std::string_view key) const {
     bool plain = !key.empty();
     for (char c : key) {
-      const bool word = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
-                        c == '_' || c == '-';
+      const bool word = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') ||
+                        (c >= '0' && c <= '9') || c == '_' || c == '-';
       plain = plain && word;
     }
     std::string p = path_;
@@ -541,9 +543,7 @@ inline void write_json(const std::string& path, const Json& json, int indent = 2
 template <class T>
 struct JsonTraits<std::vector<T>> {
   /// Each element through `Json(T)`.
-  static Json to_json(const std::vector<T>& v)
-    requires std::constructible_from<Json, const T&>
-  {
+  static Json to_json(const std::vector<T>& v) requires std::constructible_from<Json, const T&> {
     Json::Array a;
     a.reserve(v.size());
     for (const T& x : v) a.emplace_back(x);
@@ -641,13 +641,27 @@ inline std::size_t append_json_string(std::string& out, std::string_view s) {
       continue;
     }
     switch (c) {
-      case '"': out.append("\\\""); break;
-      case '\\': out.append("\\\\"); break;
-      case '\n': out.append("\\n"); break;
-      case '\r': out.append("\\r"); break;
-      case '\t': out.append("\\t"); break;
-      case '\b': out.append("\\b"); break;
-      case '\f': out.append("\\f"); break;
+      case '"':
+        out.append("\\\"");
+        break;
+      case '\\':
+        out.append("\\\\");
+        break;
+      case '\n':
+        out.append("\\n");
+        break;
+      case '\r':
+        out.append("\\r");
+        break;
+      case '\t':
+        out.append("\\t");
+        break;
+      case '\b':
+        out.append("\\b");
+        break;
+      case '\f':
+        out.append("\\f");
+        break;
       default:
         if (c < 0x20 || c == 0x7F) {
           constexpr char hex[] = "0123456789abcdef";
@@ -668,8 +682,11 @@ inline std::size_t append_json_string(std::string& out, std::string_view s) {
 inline std::string json_preview(const Json& value) {
   std::string s = Json::type_name(value.type());
   switch (value.type()) {
-    case Json::Type::null: break;
-    case Json::Type::boolean: s.append(value.as_bool() ? " true" : " false"); break;
+    case Json::Type::null:
+      break;
+    case Json::Type::boolean:
+      s.append(value.as_bool() ? " true" : " false");
+      break;
     case Json::Type::number: {
       const double x = value.as_number();
       s.push_back(' ');
@@ -691,8 +708,12 @@ inline std::string json_preview(const Json& value) {
       s.append(" ").append(q);
       break;
     }
-    case Json::Type::array: s.append(" of " + std::to_string(value.size())); break;
-    case Json::Type::object: s.append(" with " + std::to_string(value.size()) + " keys"); break;
+    case Json::Type::array:
+      s.append(" of " + std::to_string(value.size()));
+      break;
+    case Json::Type::object:
+      s.append(" with " + std::to_string(value.size()) + " keys");
+      break;
   }
   return s;
 }
@@ -704,8 +725,12 @@ class JsonWriter {
 
   void write(const Json& v, int depth) {
     switch (v.type()) {
-      case Json::Type::null: out_.append("null"); break;
-      case Json::Type::boolean: out_.append(v.as_bool() ? "true" : "false"); break;
+      case Json::Type::null:
+        out_.append("null");
+        break;
+      case Json::Type::boolean:
+        out_.append(v.as_bool() ? "true" : "false");
+        break;
       case Json::Type::number: {
         const double x = v.as_number();
         if (!std::isfinite(x)) {
@@ -716,9 +741,15 @@ class JsonWriter {
         append_json_number(out_, x);
         break;
       }
-      case Json::Type::string: string(v.as_string(), "string"); break;
-      case Json::Type::array: array(v.as_array(), depth); break;
-      case Json::Type::object: object(v.as_object(), depth); break;
+      case Json::Type::string:
+        string(v.as_string(), "string");
+        break;
+      case Json::Type::array:
+        array(v.as_array(), depth);
+        break;
+      case Json::Type::object:
+        object(v.as_object(), depth);
+        break;
     }
   }
   std::string take() { return std::move(out_); }
@@ -958,15 +989,32 @@ class JsonParser {
     if (pos_ >= s_.size()) fail("unexpected end of input in escape sequence");
     const char e = s_[pos_++];
     switch (e) {
-      case '"': out.push_back('"'); return;
-      case '\\': out.push_back('\\'); return;
-      case '/': out.push_back('/'); return;
-      case 'b': out.push_back('\b'); return;
-      case 'f': out.push_back('\f'); return;
-      case 'n': out.push_back('\n'); return;
-      case 'r': out.push_back('\r'); return;
-      case 't': out.push_back('\t'); return;
-      case 'u': break;
+      case '"':
+        out.push_back('"');
+        return;
+      case '\\':
+        out.push_back('\\');
+        return;
+      case '/':
+        out.push_back('/');
+        return;
+      case 'b':
+        out.push_back('\b');
+        return;
+      case 'f':
+        out.push_back('\f');
+        return;
+      case 'n':
+        out.push_back('\n');
+        return;
+      case 'r':
+        out.push_back('\r');
+        return;
+      case 't':
+        out.push_back('\t');
+        return;
+      case 'u':
+        break;
       default:
         pos_ = at;
         fail(std::string("invalid escape '\\") + e + "' in string");
@@ -1067,7 +1115,8 @@ class JsonParser {
 
   void literal(Json& v) {
     std::size_t end = pos_;
-    while (end < s_.size() && ((s_[end] >= 'a' && s_[end] <= 'z') || (s_[end] >= 'A' && s_[end] <= 'Z')))
+    while (end < s_.size() &&
+           ((s_[end] >= 'a' && s_[end] <= 'z') || (s_[end] >= 'A' && s_[end] <= 'Z')))
       ++end;
     const std::string_view word = s_.substr(pos_, end - pos_);
     if (word == "true") {
@@ -1126,7 +1175,8 @@ class JsonParser {
   std::string describe_here() const {
     if (pos_ >= s_.size()) return "end of input";
     const unsigned char c = static_cast<unsigned char>(s_[pos_]);
-    if (c < 0x20 || c >= 0x7F) return "byte 0x" + std::string{"0123456789abcdef"[c >> 4], "0123456789abcdef"[c & 15]};
+    if (c < 0x20 || c >= 0x7F)
+      return "byte 0x" + std::string{"0123456789abcdef"[c >> 4], "0123456789abcdef"[c & 15]};
     return std::string("'") + static_cast<char>(c) + "'";
   }
 

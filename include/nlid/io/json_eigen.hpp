@@ -30,8 +30,8 @@ namespace nlid {
 /// Any Eigen dense expression of double or float values -> JSON (flat array for vectors,
 /// array of rows otherwise, decided by the compile-time shape).
 template <class Derived>
-  requires std::same_as<typename Derived::Scalar, double> ||
-           std::same_as<typename Derived::Scalar, float>
+requires std::same_as<typename Derived::Scalar, double> ||
+    std::same_as<typename Derived::Scalar, float>
 [[nodiscard]] Json to_json(const Eigen::DenseBase<Derived>& m) {
   Json::Array out;
   if constexpr (Derived::IsVectorAtCompileTime) {
@@ -70,7 +70,8 @@ Plain eigen_from_json(const JsonView& view) {
     } else {
       m.resize(n, 1);
     }
-    for (Eigen::Index i = 0; i < n; ++i) m(i) = view.at(static_cast<std::size_t>(i)).template get<S>();
+    for (Eigen::Index i = 0; i < n; ++i)
+      m(i) = view.at(static_cast<std::size_t>(i)).template get<S>();
   } else {
     if (R != Eigen::Dynamic && n != R) {
       view.fail("expected " + std::to_string(R) + " rows at " + view.path_text() + ", found " +
@@ -100,7 +101,7 @@ Plain eigen_from_json(const JsonView& view) {
 
 /// `Eigen::Matrix` of double or float <-> JSON (see the file comment for the layout).
 template <class S, int R, int C, int O, int MR, int MC>
-  requires std::same_as<S, double> || std::same_as<S, float>
+requires std::same_as<S, double> || std::same_as<S, float>
 struct JsonTraits<Eigen::Matrix<S, R, C, O, MR, MC>> {
   /// Flat array for vectors, array of rows for matrices.
   static Json to_json(const Eigen::Matrix<S, R, C, O, MR, MC>& m) { return nlid::to_json(m); }
@@ -112,7 +113,7 @@ struct JsonTraits<Eigen::Matrix<S, R, C, O, MR, MC>> {
 
 /// `Eigen::Array` of double or float <-> JSON (same layout as `Eigen::Matrix`).
 template <class S, int R, int C, int O, int MR, int MC>
-  requires std::same_as<S, double> || std::same_as<S, float>
+requires std::same_as<S, double> || std::same_as<S, float>
 struct JsonTraits<Eigen::Array<S, R, C, O, MR, MC>> {
   /// Flat array for vectors, array of rows otherwise.
   static Json to_json(const Eigen::Array<S, R, C, O, MR, MC>& m) { return nlid::to_json(m); }

@@ -23,7 +23,7 @@
 /// columns that show it. For x sorted ascending, a series with more than 4 points per pixel
 /// column is reduced per column to its first, last, minimum and maximum sample, kept in time
 /// order (the M4 aggregation of Jugel et al. 2014, "M4: a visualization-oriented time series data
-/// aggregation", PVLDB 7(10), sec. 4). The drawn polyline is then the same at pixel resolution as
+/// aggregation", PVLDB 7(10)). The drawn polyline is then the same at pixel resolution as
 /// the full one: a one-sample spike still reaches its peak, and a 1e5-sample trace costs < 4 x pw
 /// points (~30 kB). Unsorted x (phase plots) is drawn in full.
 ///
@@ -69,28 +69,28 @@ concept DoubleSequence = requires(const R& r) {
 
 /// One line of a `LineChart`.
 struct Series {
-  std::string name;             ///< legend text (escaped)
-  std::vector<double> x;        ///< abscissae, same length as `y`
-  std::vector<double> y;        ///< ordinates; NaN/Inf are gaps
-  std::string colour;           ///< CSS colour ("#1f77b4", "black"); empty: next palette colour
+  std::string name;       ///< legend text (escaped)
+  std::vector<double> x;  ///< abscissae, same length as `y`
+  std::vector<double> y;  ///< ordinates; NaN/Inf are gaps
+  std::string colour;     ///< CSS colour ("#1f77b4", "black"); empty: next palette colour
   LineStyle style = LineStyle::solid;  ///< stroke pattern
-  double width = 1.5;           ///< stroke width in px, > 0
+  double width = 1.5;                  ///< stroke width in px, > 0
 };
 
 /// A shaded x-interval across the full plot height, e.g. a located mismatch [t0, t1].
 struct ShadedInterval {
-  double x_begin = 0;      ///< one end of the interval (order does not matter)
-  double x_end = 0;        ///< the other end
-  std::string label;       ///< printed at the top of the interval (may be empty)
-  std::string colour;      ///< fill colour; empty: a translucent red
+  double x_begin = 0;  ///< one end of the interval (order does not matter)
+  double x_end = 0;    ///< the other end
+  std::string label;   ///< printed at the top of the interval (may be empty)
+  std::string colour;  ///< fill colour; empty: a translucent red
 };
 
 /// A horizontal band across the full plot width, e.g. hard stops or a tolerance.
 struct HorizontalBand {
-  double y_low = 0;        ///< one edge of the band
-  double y_high = 0;       ///< the other edge
-  std::string label;       ///< printed at the right end (may be empty)
-  std::string colour;      ///< fill colour; empty: a translucent grey
+  double y_low = 0;    ///< one edge of the band
+  double y_high = 0;   ///< the other edge
+  std::string label;   ///< printed at the right end (may be empty)
+  std::string colour;  ///< fill colour; empty: a translucent grey
 };
 
 namespace detail {
@@ -115,11 +115,20 @@ class LineChart {
   explicit LineChart(std::string title) : title_(std::move(title)) {}
 
   /// Title above the plot.
-  LineChart& title(std::string text) { title_ = std::move(text); return *this; }
+  LineChart& title(std::string text) {
+    title_ = std::move(text);
+    return *this;
+  }
   /// Label under the x axis.
-  LineChart& x_label(std::string text) { x_label_ = std::move(text); return *this; }
+  LineChart& x_label(std::string text) {
+    x_label_ = std::move(text);
+    return *this;
+  }
   /// Label left of the y axis (rotated).
-  LineChart& y_label(std::string text) { y_label_ = std::move(text); return *this; }
+  LineChart& y_label(std::string text) {
+    y_label_ = std::move(text);
+    return *this;
+  }
   /// Overall size in px (the plot box is what remains after margins). At least 240 x 160.
   LineChart& size(int width, int height) {
     require(width >= 240 && height >= 160 && width <= 20000 && height <= 20000,
@@ -144,7 +153,10 @@ class LineChart {
     return *this;
   }
   /// Turns min/max-per-pixel decimation off (on by default; see the file comment).
-  LineChart& decimate(bool on) { decimate_ = on; return *this; }
+  LineChart& decimate(bool on) {
+    decimate_ = on;
+    return *this;
+  }
 
   /// Adds a series. Throws if x and y differ in length or the width is not positive.
   LineChart& add(Series s) {
@@ -179,16 +191,16 @@ class LineChart {
   LineChart& shade(double x_begin, double x_end, std::string label = {}, std::string colour = {}) {
     require(std::isfinite(x_begin) && std::isfinite(x_end),
             "shaded interval '" + label + "' needs finite bounds");
-    shaded_.push_back({std::min(x_begin, x_end), std::max(x_begin, x_end), std::move(label),
-                       std::move(colour)});
+    shaded_.push_back(
+        {std::min(x_begin, x_end), std::max(x_begin, x_end), std::move(label), std::move(colour)});
     return *this;
   }
   /// Draws a horizontal band between y_low and y_high (either order) over the full width.
   LineChart& band(double y_low, double y_high, std::string label = {}, std::string colour = {}) {
     require(std::isfinite(y_low) && std::isfinite(y_high),
             "horizontal band '" + label + "' needs finite bounds");
-    bands_.push_back({std::min(y_low, y_high), std::max(y_low, y_high), std::move(label),
-                      std::move(colour)});
+    bands_.push_back(
+        {std::min(y_low, y_high), std::max(y_low, y_high), std::move(label), std::move(colour)});
     return *this;
   }
 
@@ -227,9 +239,9 @@ class LineChart {
 
 /// One bar of a `BarChart`.
 struct Bar {
-  std::string label;    ///< category text (escaped)
-  double value = 0;     ///< bar length; NaN is shown as "n/a" without a bar
-  std::string colour;   ///< empty: the chart's bar colour (or the highlight colour)
+  std::string label;       ///< category text (escaped)
+  double value = 0;        ///< bar length; NaN is shown as "n/a" without a bar
+  std::string colour;      ///< empty: the chart's bar colour (or the highlight colour)
   bool highlight = false;  ///< draw in the accent colour (the chosen order, the best candidate)
 };
 
@@ -247,11 +259,20 @@ class BarChart {
   explicit BarChart(std::string title) : title_(std::move(title)) {}
 
   /// Title above the plot.
-  BarChart& title(std::string text) { title_ = std::move(text); return *this; }
+  BarChart& title(std::string text) {
+    title_ = std::move(text);
+    return *this;
+  }
   /// Axis label of the categories.
-  BarChart& category_label(std::string text) { category_label_ = std::move(text); return *this; }
+  BarChart& category_label(std::string text) {
+    category_label_ = std::move(text);
+    return *this;
+  }
   /// Axis label of the values.
-  BarChart& value_label(std::string text) { value_label_ = std::move(text); return *this; }
+  BarChart& value_label(std::string text) {
+    value_label_ = std::move(text);
+    return *this;
+  }
   /// Overall size in px, at least 240 x 160.
   BarChart& size(int width, int height) {
     require(width >= 240 && height >= 160 && width <= 20000 && height <= 20000,
@@ -262,9 +283,15 @@ class BarChart {
     return *this;
   }
   /// Bars grow rightwards with categories listed top to bottom (good for long names).
-  BarChart& horizontal(bool on) { horizontal_ = on; return *this; }
+  BarChart& horizontal(bool on) {
+    horizontal_ = on;
+    return *this;
+  }
   /// Logarithmic value axis (every value must then be positive; checked in `svg()`).
-  BarChart& log_scale(bool on) { log_ = on; return *this; }
+  BarChart& log_scale(bool on) {
+    log_ = on;
+    return *this;
+  }
   /// Significant digits of the value printed at each bar (default 4; 0 hides the values).
   BarChart& value_digits(int digits) {
     require(digits >= 0 && digits <= 17, "value_digits must be in [0, 17]");
@@ -277,11 +304,14 @@ class BarChart {
     return *this;
   }
   /// Adds a prepared bar.
-  BarChart& add(Bar bar) { bars_.push_back(std::move(bar)); return *this; }
+  BarChart& add(Bar bar) {
+    bars_.push_back(std::move(bar));
+    return *this;
+  }
   /// Highlights bar `index` (throws if out of range).
   BarChart& highlight(std::size_t index) {
-    require(index < bars_.size(), "highlight index " + std::to_string(index) +
-                                      " out of range (" + std::to_string(bars_.size()) + " bars)");
+    require(index < bars_.size(), "highlight index " + std::to_string(index) + " out of range (" +
+                                      std::to_string(bars_.size()) + " bars)");
     bars_[index].highlight = true;
     return *this;
   }
@@ -350,11 +380,21 @@ inline std::string escape_xml(std::string_view text) {
       continue;
     }
     switch (c) {
-      case '&': out.append("&amp;"); break;
-      case '<': out.append("&lt;"); break;
-      case '>': out.append("&gt;"); break;
-      case '"': out.append("&quot;"); break;
-      case '\'': out.append("&#39;"); break;
+      case '&':
+        out.append("&amp;");
+        break;
+      case '<':
+        out.append("&lt;");
+        break;
+      case '>':
+        out.append("&gt;");
+        break;
+      case '"':
+        out.append("&quot;");
+        break;
+      case '\'':
+        out.append("&#39;");
+        break;
       default:
         if (c < 0x20 && c != '\t' && c != '\n' && c != '\r') {
           out.append("\xEF\xBF\xBD");
@@ -373,8 +413,8 @@ inline std::string format_general(double v, int significant) {
   if (std::isinf(v)) return v > 0 ? "Inf" : "-Inf";
   if (v == 0) return "0";
   char buf[64];
-  const auto r = std::to_chars(buf, buf + sizeof buf, v, std::chars_format::general,
-                               std::max(1, significant));
+  const auto r =
+      std::to_chars(buf, buf + sizeof buf, v, std::chars_format::general, std::max(1, significant));
   return std::string(buf, r.ptr);
 }
 
@@ -393,8 +433,8 @@ inline std::string format_fixed(double v, int decimals) {
 inline void append_coord(std::string& out, double v) {
   v = std::clamp(v, -1e6, 1e6);  // far-off points are clipped anyway; keep the text short
   char buf[32];
-  const auto r = std::to_chars(buf, buf + sizeof buf, std::round(v * 10) / 10,
-                               std::chars_format::fixed, 1);
+  const auto r =
+      std::to_chars(buf, buf + sizeof buf, std::round(v * 10) / 10, std::chars_format::fixed, 1);
   std::string_view s(buf, static_cast<std::size_t>(r.ptr - buf));
   if (s.size() > 2 && s.substr(s.size() - 2) == ".0") s.remove_suffix(2);
   if (s == "-0") s = "0";
@@ -450,10 +490,10 @@ inline Ticks nice_ticks(double lo, double hi, double target) {
 /// Label of a tick: the decimals the step needs; scientific for very large or small values.
 inline std::string format_tick(double v, double step, double max_abs) {
   if (max_abs >= 1e6 || step < 1e-4) {
-    const int digits = std::clamp(
-        static_cast<int>(std::floor(std::log10(std::max(max_abs, step)))) -
-            static_cast<int>(std::floor(std::log10(step))) + 1,
-        1, 15);
+    const int digits =
+        std::clamp(static_cast<int>(std::floor(std::log10(std::max(max_abs, step)))) -
+                       static_cast<int>(std::floor(std::log10(step))) + 1,
+                   1, 15);
     return format_general(v, digits);
   }
   const int decimals = std::max(0, -static_cast<int>(std::floor(std::log10(step) + 1e-9)));
@@ -487,8 +527,8 @@ struct SvgFrame {
     }
   }
   // `tooltip` (the full text of a shortened label) becomes a <title> the browser shows on hover.
-  void text(double x, double y, std::string_view s, const char* anchor,
-            std::string_view extra = {}, std::string_view tooltip = {}) {
+  void text(double x, double y, std::string_view s, const char* anchor, std::string_view extra = {},
+            std::string_view tooltip = {}) {
     out.append("<text x=\"");
     append_coord(out, x);
     out.append("\" y=\"");
@@ -542,9 +582,7 @@ struct SvgFrame {
     out.append("\" overflow=\"hidden\">\n");
   }
   void close_clip() { out.append("</svg>\n"); }
-  void frame() {
-    rect(left, top, right, bottom, "none", R"( stroke="#444" stroke-width="1")");
-  }
+  void frame() { rect(left, top, right, bottom, "none", R"( stroke="#444" stroke-width="1")"); }
   void axis_labels(const std::string& x_label, const std::string& y_label) {
     if (!x_label.empty()) text((left + right) / 2, height - 8.0, x_label, "middle");
     if (!y_label.empty()) {
@@ -564,9 +602,12 @@ struct SvgFrame {
 
 inline const char* dash_array(LineStyle s) {
   switch (s) {
-    case LineStyle::dashed: return R"( stroke-dasharray="6 4")";
-    case LineStyle::dotted: return R"( stroke-dasharray="1.5 3" stroke-linecap="round")";
-    case LineStyle::solid: break;
+    case LineStyle::dashed:
+      return R"( stroke-dasharray="6 4")";
+    case LineStyle::dotted:
+      return R"( stroke-dasharray="1.5 3" stroke-linecap="round")";
+    case LineStyle::solid:
+      break;
   }
   return "";
 }
@@ -797,8 +838,7 @@ inline std::string LineChart::svg() const {
     }
   }
   if (no_data) {
-    f.text((f.left + f.right) / 2, (f.top + f.bottom) / 2, "no data", "middle",
-           R"( fill="#999")");
+    f.text((f.left + f.right) / 2, (f.top + f.bottom) / 2, "no data", "middle", R"( fill="#999")");
   }
   f.close_clip();
   f.frame();
@@ -869,10 +909,12 @@ inline std::string BarChart::svg() const {
   std::vector<double> ticks;
   double step = 1;
   if (log_) {
-    for (double k = std::round(t_lo); k <= std::round(t_hi); k += 1) ticks.push_back(std::pow(10.0, k));
+    for (double k = std::round(t_lo); k <= std::round(t_hi); k += 1)
+      ticks.push_back(std::pow(10.0, k));
   } else {
     const double extent = horizontal_ ? width_ : height_;
-    const detail::Ticks t = detail::nice_ticks(lo, hi, (extent - 100) / (horizontal_ ? 80.0 : 50.0));
+    const detail::Ticks t =
+        detail::nice_ticks(lo, hi, (extent - 100) / (horizontal_ ? 80.0 : 50.0));
     ticks = t.values;
     step = t.step;
   }
@@ -937,14 +979,15 @@ inline std::string BarChart::svg() const {
     const double c0 = (horizontal_ ? f.top : f.left) + slot * static_cast<double>(i);
     const double mid = c0 + slot / 2;
     const double thick = std::max(1.0, slot * 0.7);
-    const std::string colour =
-        !b.colour.empty() ? b.colour : (b.highlight ? "#d62728" : "#1f77b4");
+    const std::string colour = !b.colour.empty() ? b.colour : (b.highlight ? "#d62728" : "#1f77b4");
     const std::string label = detail::fit_text(b.label, label_cap, 11);
     const std::string_view tooltip = label == b.label ? std::string_view() : b.label;
     const char* bold = b.highlight ? R"( font-weight="600")" : "";
     if (std::isfinite(b.value)) {
       const double p0 = vpos(base), p1 = vpos(b.value);
-      const std::string extra = " class=\"nlid-bar\"" + std::string(b.highlight ? R"( stroke="#7a0f0f" stroke-width="1.5")" : "");
+      const std::string extra =
+          " class=\"nlid-bar\"" +
+          std::string(b.highlight ? R"( stroke="#7a0f0f" stroke-width="1.5")" : "");
       if (horizontal_) {
         f.rect(p0, mid - thick / 2, p1, mid + thick / 2, colour, extra);
       } else {
@@ -980,7 +1023,8 @@ inline std::string BarChart::svg() const {
       f.out.append(" ");
       append_coord(f.out, f.bottom + 14);
       f.out.append(")\"").append(bold).append(">");
-      if (!tooltip.empty()) f.out.append("<title>").append(detail::escape_xml(tooltip)).append("</title>");
+      if (!tooltip.empty())
+        f.out.append("<title>").append(detail::escape_xml(tooltip)).append("</title>");
       f.out.append(detail::escape_xml(label)).append("</text>\n");
     } else {
       f.text(mid, f.bottom + 15, label, "middle", bold, tooltip);

@@ -20,8 +20,9 @@ int main(int argc, char** argv) {
   }
   try {
     nlid::HtmlReport r("nlid render check <script>throw new Error('escaping broken')</script>");
-    r.paragraph("Hostile text must show, not run: <script>throw new Error('paragraph')</script> "
-                "& \"quotes\" 'single' \xC3\x28 (invalid UTF-8)\nsecond line.");
+    r.paragraph(
+        "Hostile text must show, not run: <script>throw new Error('paragraph')</script> "
+        "& \"quotes\" 'single' \xC3\x28 (invalid UTF-8)\nsecond line.");
     r.note("A located mismatch is shaded in the first chart.", nlid::NoteKind::warning);
 
     // A real 1 kHz recording (2e4 samples) when the data directory is given, plus a 1e5-sample
@@ -73,7 +74,8 @@ int main(int argc, char** argv) {
     r.table({"model", "data3", "data4", "data5", "iterations"},
             {{"nlarx5", 93.1234, 91.72, 88.2, 90}, {"<nlhw2>", 90.5, 89.9, std::nan(""), 200}},
             "Fit (%) per validation experiment");
-    r.preformatted("y(t) = F(y(t-1), y(t-2), y(t-3), u(t), u(t-1), u(t-2))\n  </pre><script>x</script>");
+    r.preformatted(
+        "y(t) = F(y(t-1), y(t-2), y(t-3), u(t), u(t-1), u(t-2))\n  </pre><script>x</script>");
     r.write(argv[1]);
     std::printf("%zu\n", r.chart_count());
     return 0;
