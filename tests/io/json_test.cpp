@@ -307,6 +307,18 @@ TEST_CASE("Json accessors name the key path, file, line and column on wrong type
   e = error_of([&] { (void)built.at("a").at("b").as_bool(); });
   CHECK(std::string(e.what()) == "nlid: expected boolean at a.b, found number 1");
 
+  // Index access: modifies existing elements; never grows an array or treats 0 as a key.
+  nlid::Json arr = nlid::Json::array({1, 2, 3});
+  arr[0] = "one";
+  CHECK(arr.dump(-1) == R"(["one",2,3])");
+  CHECK_THROWS_WITH(arr[3], "nlid: index 3 out of range (array has 3 elements)");
+  nlid::Json obj = nlid::Json::object({{"a", 1}});
+  CHECK_THROWS_WITH(obj[0], Catch::Contains("cannot index a JSON object with [0]"));
+  const nlid::Json& cobj = obj;
+  CHECK(cobj["a"].as_number() == 1);  // const operator[] reads, never inserts
+  CHECK_THROWS_WITH(cobj["b"], "nlid: missing key 'b' at top level");
+  CHECK(obj.size() == 1);
+
   // Builder misuse.
   nlid::Json n(3.0);
   CHECK_THROWS_WITH(n["k"], Catch::Contains("cannot set key 'k' on a JSON number"));

@@ -90,7 +90,7 @@ class TableCell {
 };
 
 /// A table: header, rows of cells, optional caption.
-struct Table {
+struct ReportTable {
   std::vector<std::string> header;           ///< column titles (may be empty: no header row)
   std::vector<std::vector<TableCell>> rows;  ///< each row as long as the header (if any)
   std::string caption;                       ///< shown above the table
@@ -136,7 +136,7 @@ class HtmlReport {
     return *this;
   }
   /// A table. Throws if a row's length differs from the header's, naming the row.
-  HtmlReport& table(Table t) {
+  HtmlReport& table(ReportTable t) {
     require(t.digits >= 1 && t.digits <= 17, "table digits must be in [1, 17]");
     for (std::size_t r = 0; r < t.rows.size(); ++r) {
       if (!t.header.empty() && t.rows[r].size() != t.header.size()) {
@@ -152,7 +152,7 @@ class HtmlReport {
   /// A table from header and rows, numbers with `digits` significant digits.
   HtmlReport& table(std::vector<std::string> header, std::vector<std::vector<TableCell>> rows,
                     std::string caption = {}, int digits = 4) {
-    return table(Table{std::move(header), std::move(rows), std::move(caption), digits});
+    return table(ReportTable{std::move(header), std::move(rows), std::move(caption), digits});
   }
   /// A chart, full width, with an optional caption under it.
   HtmlReport& chart(const LineChart& c, std::string caption = {}) {
@@ -218,7 +218,7 @@ class HtmlReport {
     if (caption.empty()) return {};
     return "<figcaption>" + detail::escape_xml(caption) + "</figcaption>";
   }
-  static std::string render_table(const Table& t) {
+  static std::string render_table(const ReportTable& t) {
     std::string h = "<div class=\"table-wrap\"><table>";
     if (!t.caption.empty())
       h.append("<caption>").append(detail::escape_xml(t.caption)).append("</caption>");

@@ -209,6 +209,25 @@ class Json {
     members.emplace_back(std::string(key), Json());
     return members.back().second;
   }
+  /// Array element `index` for modification. Throws if this is not an array or the index is out
+  /// of range (arrays grow only through `push_back`, so a typo cannot create 10^6 nulls).
+  /// Also keeps `j[0]` from converting 0 to a null `const char*` key.
+  Json& operator[](std::size_t index) {
+    if (!is_array()) {
+      throw Error("cannot index a JSON " + std::string(type_name(type())) + " with [" +
+                  std::to_string(index) + "] (only arrays have elements)");
+    }
+    auto& items = std::get<Array>(value_);
+    if (index >= items.size()) {
+      throw Error("index " + std::to_string(index) + " out of range (array has " +
+                  std::to_string(items.size()) + " elements)");
+    }
+    return items[index];
+  }
+  /// Read-only member access on a const value: same as `at(key)` (throws if missing).
+  [[nodiscard]] JsonView operator[](std::string_view key) const;
+  /// Read-only element access on a const value: same as `at(index)`.
+  [[nodiscard]] JsonView operator[](std::size_t index) const;
   /// Appends to an array (a null value first becomes an empty array). Returns the new element.
   Json& push_back(Json item) {
     if (is_null()) value_ = Array{};
@@ -1236,6 +1255,8 @@ inline std::string Json::dump(int indent) const {
 inline JsonView Json::view() const { return JsonView(*this); }
 inline JsonView Json::at(std::string_view key) const { return view().at(key); }
 inline JsonView Json::at(std::size_t index) const { return view().at(index); }
+inline JsonView Json::operator[](std::string_view key) const { return view().at(key); }
+inline JsonView Json::operator[](std::size_t index) const { return view().at(index); }
 inline double Json::as_number() const { return view().as_number(); }
 inline long long Json::as_integer() const { return view().as_integer(); }
 inline bool Json::as_bool() const { return view().as_bool(); }

@@ -68,7 +68,7 @@ concept DoubleSequence = requires(const R& r) {
 };
 
 /// One line of a `LineChart`.
-struct Series {
+struct ChartSeries {
   std::string name;       ///< legend text (escaped)
   std::vector<double> x;  ///< abscissae, same length as `y`
   std::vector<double> y;  ///< ordinates; NaN/Inf are gaps
@@ -159,7 +159,7 @@ class LineChart {
   }
 
   /// Adds a series. Throws if x and y differ in length or the width is not positive.
-  LineChart& add(Series s) {
+  LineChart& add(ChartSeries s) {
     if (s.x.size() != s.y.size()) {
       throw Error("series '" + s.name + "': x has " + std::to_string(s.x.size()) +
                   " values but y has " + std::to_string(s.y.size()));
@@ -175,7 +175,7 @@ class LineChart {
   template <DoubleSequence X, DoubleSequence Y>
   LineChart& line(std::string name, const X& x, const Y& y, std::string colour = {},
                   LineStyle style = LineStyle::solid, double width = 1.5) {
-    Series s{std::move(name), copy(x), copy(y), std::move(colour), style, width};
+    ChartSeries s{std::move(name), copy(x), copy(y), std::move(colour), style, width};
     return add(std::move(s));
   }
   /// Adds a series plotted against the sample index 0, 1, 2, ...
@@ -184,7 +184,7 @@ class LineChart {
                   LineStyle style = LineStyle::solid, double width = 1.5) {
     std::vector<double> x(static_cast<std::size_t>(y.size()));
     for (std::size_t i = 0; i < x.size(); ++i) x[i] = static_cast<double>(i);
-    Series s{std::move(name), std::move(x), copy(y), std::move(colour), style, width};
+    ChartSeries s{std::move(name), std::move(x), copy(y), std::move(colour), style, width};
     return add(std::move(s));
   }
   /// Shades the x-interval [x_begin, x_end] (either order) over the full plot height.
@@ -207,7 +207,7 @@ class LineChart {
   /// Number of series added.
   [[nodiscard]] std::size_t num_series() const noexcept { return series_.size(); }
   /// The series added, in order.
-  [[nodiscard]] const std::vector<Series>& series() const noexcept { return series_; }
+  [[nodiscard]] const std::vector<ChartSeries>& series() const noexcept { return series_; }
 
   /// The chart as an `<svg class="nlid-chart">` element (inline in HTML, or a file by itself).
   [[nodiscard]] std::string svg() const;
@@ -232,13 +232,13 @@ class LineChart {
   bool has_x_limits_ = false;
   bool has_y_limits_ = false;
   bool decimate_ = true;
-  std::vector<Series> series_;
+  std::vector<ChartSeries> series_;
   std::vector<ShadedInterval> shaded_;
   std::vector<HorizontalBand> bands_;
 };
 
 /// One bar of a `BarChart`.
-struct Bar {
+struct ChartBar {
   std::string label;       ///< category text (escaped)
   double value = 0;        ///< bar length; NaN is shown as "n/a" without a bar
   std::string colour;      ///< empty: the chart's bar colour (or the highlight colour)
@@ -304,7 +304,7 @@ class BarChart {
     return *this;
   }
   /// Adds a prepared bar.
-  BarChart& add(Bar bar) {
+  BarChart& add(ChartBar bar) {
     bars_.push_back(std::move(bar));
     return *this;
   }
@@ -329,7 +329,7 @@ class BarChart {
   bool horizontal_ = false;
   bool log_ = false;
   int digits_ = 4;
-  std::vector<Bar> bars_;
+  std::vector<ChartBar> bars_;
 };
 
 /// The default series colours, in order (Tableau 10: distinguishable, print well in grey).
@@ -649,7 +649,7 @@ inline std::string LineChart::svg() const {
   double ymin = xmin, ymax = -xmin;
   std::vector<std::size_t> non_finite(series_.size(), 0);
   for (std::size_t s = 0; s < series_.size(); ++s) {
-    const Series& se = series_[s];
+    const ChartSeries& se = series_[s];
     for (std::size_t i = 0; i < se.x.size(); ++i) {
       if (!std::isfinite(se.x[i]) || !std::isfinite(se.y[i])) {
         ++non_finite[s];
@@ -763,7 +763,7 @@ inline std::string LineChart::svg() const {
   std::size_t palette_next = 0;
   std::vector<std::string> colours;
   for (std::size_t s = 0; s < series_.size(); ++s) {
-    const Series& se = series_[s];
+    const ChartSeries& se = series_[s];
     colours.push_back(se.colour.empty() ? chart_palette[palette_next++ % 10] : se.colour);
     // Sorted x (ignoring non-finite samples) allows per-pixel decimation.
     bool sorted = true;
@@ -872,7 +872,7 @@ inline std::string BarChart::svg() const {
   const std::size_t n = bars_.size();
   // ---- value range -------------------------------------------------------------------------
   double vmin = std::numeric_limits<double>::infinity(), vmax = -vmin;
-  for (const Bar& b : bars_) {
+  for (const ChartBar& b : bars_) {
     if (!std::isfinite(b.value)) continue;
     if (log_ && !(b.value > 0)) {
       throw Error("bar chart '" + title_ + "': log scale needs positive values, bar '" + b.label +
@@ -902,7 +902,7 @@ inline std::string BarChart::svg() const {
 
   detail::SvgFrame f(width_, height_, title_);
   double max_label = 0;
-  for (const Bar& b : bars_) max_label = std::max(max_label, detail::text_width(b.label, 11));
+  for (const ChartBar& b : bars_) max_label = std::max(max_label, detail::text_width(b.label, 11));
   // Category labels may take up to 40 % of the width (horizontal) or 200 px (rotated).
   const double label_cap = horizontal_ ? 0.4 * width_ : 200.0;
   max_label = std::min(max_label, label_cap);
@@ -975,7 +975,7 @@ inline std::string BarChart::svg() const {
 
   const double base = log_ ? lo : 0.0;
   for (std::size_t i = 0; i < n; ++i) {
-    const Bar& b = bars_[i];
+    const ChartBar& b = bars_[i];
     const double c0 = (horizontal_ ? f.top : f.left) + slot * static_cast<double>(i);
     const double mid = c0 + slot / 2;
     const double thick = std::max(1.0, slot * 0.7);
