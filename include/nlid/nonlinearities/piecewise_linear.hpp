@@ -227,16 +227,44 @@ class PwLinear {
       for (std::size_t j = 0; j < uniq.size(); ++j) {
         H.col(static_cast<Eigen::Index>(j)) = (xs.array() - uniq[j]).max(0.0).matrix();
       }
-      detail::ForwardSelector sel(ys, std::move(H), 1);
-      sel.add_fixed(Eigen::VectorXd::Ones(nr));
-      sel.add_fixed(xs);
       const double sst = (ys.array() - ys.mean()).square().sum();
-      while (static_cast<int>(knots.size()) < interior) {
-        double explained = 0;
-        const int j = sel.select(explained);
-        if (j < 0 || !(explained > 1e-12 * sst)) break;
-        knots.push_back(uniq[static_cast<std::size_t>(j)]);
+      std::vector<int> chosen;
+      {
+        detail::ForwardSelector sel(ys, H, 1);
+        sel.add_fixed(Eigen::VectorXd::Ones(nr));
+        sel.add_fixed(xs);
+        while (static_cast<int>(chosen.size()) < interior) {
+          double explained = 0;
+          const int j = sel.select(explained);
+          if (j < 0 || !(explained > 1e-12 * sst)) break;
+          chosen.push_back(j);
+        }
       }
+      // Exchange refinement: greedy steps are myopic (the best single hinge for a two-bend
+      // target sits between the bends), so each knot in turn is re-chosen as the best candidate
+      // given all the others. The residual never grows, so the sweeps terminate.
+      for (int sweep = 0; sweep < 10 && chosen.size() > 1; ++sweep) {
+        bool changed = false;
+        for (std::size_t i = 0; i < chosen.size(); ++i) {
+          detail::ForwardSelector sel(ys, H, 1);
+          sel.add_fixed(Eigen::VectorXd::Ones(nr));
+          sel.add_fixed(xs);
+          for (std::size_t k = 0; k < chosen.size(); ++k) {
+            if (k != i) sel.add_fixed(H.col(chosen[k]));
+          }
+          const double current = sel.explained_by(chosen[i]);
+          double best = 0;
+          const int j = sel.select(best);
+          if (j >= 0 && j != chosen[i] && best > current + 1e-9 * sst) {
+            chosen[i] = j;
+            changed = true;
+          }
+        }
+        if (!changed) break;
+      }
+      for (int j : chosen) knots.push_back(uniq[static_cast<std::size_t>(j)]);
+      std::sort(knots.begin(), knots.end());
+      refine_knots(xs, ys, xmin, xmax, knots);
     }
     std::vector<double> pos{xmin, xmax};
     pos.insert(pos.end(), knots.begin(), knots.end());
@@ -250,6 +278,59 @@ class PwLinear {
       pos.insert(pos.begin() + static_cast<std::ptrdiff_t>(w + 1), 0.5 * (pos[w] + pos[w + 1]));
     }
     return pos;
+  }
+
+  // Residual sum of squares of the best continuous piecewise-linear fit with the given interior
+  // knots (span{1, x, max(0, x − c)}), by normal equations — only used to compare knot sets.
+  static double hinge_rss(const Eigen::VectorXd& x, const Eigen::VectorXd& y, const std::vector<double>& knots) {
+    const auto n = static_cast<Eigen::Index>(knots.size()) + 2;
+    Eigen::MatrixXd A(x.size(), n);
+    A.col(0).setOnes();
+    A.col(1) = x;
+    for (std::size_t k = 0; k < knots.size(); ++k) {
+      A.col(static_cast<Eigen::Index>(k) + 2) = (x.array() - knots[k]).max(0.0).matrix();
+    }
+    return (y - A * detail::least_squares(A, y)).squaredNorm();
+  }
+
+  // Continuous refinement of each knot by golden-section search between its neighbours (the
+  // candidate grid only places knots to within its spacing). Each accepted move lowers the RSS.
+  static void refine_knots(const Eigen::VectorXd& xs, const Eigen::VectorXd& ys, double xmin, double xmax,
+                           std::vector<double>& knots) {
+    const auto rows = detail::subsample_rows(xs.size(), 1000);
+    Eigen::VectorXd x(static_cast<Eigen::Index>(rows.size())), y(x.size());
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+      x(static_cast<Eigen::Index>(i)) = xs(rows[i]);
+      y(static_cast<Eigen::Index>(i)) = ys(rows[i]);
+    }
+    const double range = xmax - xmin;
+    const double gr = 0.5 * (std::sqrt(5.0) - 1.0);
+    for (int sweep = 0; sweep < 2; ++sweep) {
+      for (std::size_t i = 0; i < knots.size(); ++i) {
+        const double lo_nb = i == 0 ? xmin : knots[i - 1];
+        const double hi_nb = i + 1 == knots.size() ? xmax : knots[i + 1];
+        // Search the middle half of each neighbouring gap, so knots stay apart.
+        double a = knots[i] - 0.5 * (knots[i] - lo_nb), b = knots[i] + 0.5 * (hi_nb - knots[i]);
+        if (!(b - a > 1e-9 * range)) continue;
+        auto cost = [&](double c) {
+          auto k = knots;
+          k[i] = c;
+          return hinge_rss(x, y, k);
+        };
+        const double best0 = cost(knots[i]);
+        double c1 = b - gr * (b - a), c2 = a + gr * (b - a);
+        double f1 = cost(c1), f2 = cost(c2);
+        for (int it = 0; it < 30 && b - a > 1e-7 * range; ++it) {
+          if (f1 <= f2) {
+            b = c2; c2 = c1; f2 = f1; c1 = b - gr * (b - a); f1 = cost(c1);
+          } else {
+            a = c1; c1 = c2; f1 = f2; c2 = a + gr * (b - a); f2 = cost(c2);
+          }
+        }
+        const double c = f1 <= f2 ? c1 : c2;
+        if (std::min(f1, f2) < best0) knots[i] = c;
+      }
+    }
   }
 
   Eigen::VectorXd fit_values(const Eigen::VectorXd& x, const Eigen::VectorXd& y,
@@ -271,7 +352,7 @@ class PwLinear {
     // Second-difference (slope change) penalty, in units of y, weighted so that it matters only
     // where the data determine nothing.
     const double hbar = (pos.back() - pos.front()) / static_cast<double>(n - 1);
-    const double w = 1e-5 * std::sqrt(static_cast<double>(N));
+    const double w = 1e-7 * std::sqrt(static_cast<double>(N));
     for (Eigen::Index k = 1; k + 1 < n; ++k) {
       const double hl = pos[static_cast<std::size_t>(k)] - pos[static_cast<std::size_t>(k - 1)];
       const double hr = pos[static_cast<std::size_t>(k + 1)] - pos[static_cast<std::size_t>(k)];

@@ -67,6 +67,9 @@ class ForwardSelector {
     return best;
   }
 
+  /// Residual sum of squares block b would remove if it were selected next.
+  [[nodiscard]] double explained_by(int b) const { return score(b); }
+
   /// The current residual (target minus its projection on the basis).
   [[nodiscard]] const Eigen::VectorXd& residual() const { return r_; }
 
