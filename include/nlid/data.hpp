@@ -10,6 +10,7 @@
 ///         nlid::read_csv_dataset({"data1.csv", "data2.csv"}), 10);
 ///     nlid::Experiment val = nlid::decimate(nlid::read_csv("data3.csv"), 10);
 
+#include "nlid/data/concepts.hpp"    // IWYU pragma: export
 #include "nlid/data/csv.hpp"         // IWYU pragma: export
 #include "nlid/data/dataset.hpp"     // IWYU pragma: export
 #include "nlid/data/experiment.hpp"  // IWYU pragma: export

@@ -259,3 +259,19 @@ TEST_CASE("filtfilt is generic over the scalar: float and Dual", "[data][filter]
   }
   CHECK(worst < 1e-12);
 }
+
+// FilterScalar: what the filter kernels accept (and refuse) at compile time.
+static_assert(nlid::FilterScalar<double>);
+static_assert(nlid::FilterScalar<float>);
+static_assert(nlid::FilterScalar<nlid::Dual<double, 3>>);
+static_assert(nlid::FilterScalar<nlid::DynamicDual<double>>);
+static_assert(!nlid::FilterScalar<std::string>);  // no product
+static_assert(!nlid::FilterScalar<int*>);         // not constructible from double
+static_assert(!nlid::FilterScalar<int>);          // would truncate the coefficients
+template <class M>
+concept CanFiltfilt = requires(const nlid::SosFilter& f, const M& m) {
+  nlid::filtfilt(f, m);
+};
+static_assert(CanFiltfilt<Eigen::MatrixXd>);
+static_assert(CanFiltfilt<Eigen::VectorXf>);
+static_assert(!CanFiltfilt<Eigen::MatrixXi>);  // rejected at the interface, not deep inside

@@ -40,6 +40,7 @@
 #include <vector>
 
 #include "nlid/core/error.hpp"
+#include "nlid/data/concepts.hpp"
 
 namespace nlid {
 
@@ -114,7 +115,7 @@ class SosFilter {
   /// Causal filtering in place, each section started in the steady state of its first input
   /// sample (so a signal that starts at a constant level produces no start-up transient).
   /// `Scalar` may be double, float, or any type with field arithmetic (e.g. `nlid::Dual`).
-  template <class Scalar>
+  template <FilterScalar Scalar>
   void filter_in_place(Scalar* x, Eigen::Index n, Eigen::Index stride = 1) const {
     if (n <= 0) return;
     // Sections run in groups of up to `group` per sample: each section's recursion is a serial
@@ -153,6 +154,7 @@ class SosFilter {
   std::vector<Biquad> sections_;
 };
 
+// ---- Implementation details below (until the end of namespace detail) ------------------
 namespace detail {
 
 inline void check_lowpass_args(int order, double cutoff) {
@@ -227,6 +229,7 @@ inline SosFilter butterworth_lowpass(int order, double cutoff) {
 /// Returns a matrix of the same size. A constant column is returned bit-exactly: the first sample
 /// is subtracted before filtering and added back afterwards, and a zero signal stays zero.
 template <class Derived>
+requires FilterScalar<typename Derived::Scalar>
 [[nodiscard]] Eigen::Matrix<typename Derived::Scalar, Eigen::Dynamic, Eigen::Dynamic> filtfilt(
     const SosFilter& filter, const Eigen::MatrixBase<Derived>& x) {
   using Scalar = typename Derived::Scalar;

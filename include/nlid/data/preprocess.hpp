@@ -59,8 +59,11 @@ struct Trend {
   }
 };
 
+// ---- Implementation details below (helpers of the functions that follow) ----------------
 namespace detail {
 
+// A trend fitted on another record must match this record's channels one for one; broadcasting a
+// single offset silently would subtract the wrong level from some channel.
 inline void check_trend(const Experiment& e, const Trend& t) {
   auto check = [](Eigen::Index got, int want, const char* name) {
     if (got != want) {
@@ -94,6 +97,8 @@ inline Eigen::MatrixXd apply_trend(const Eigen::MatrixXd& x, const Eigen::Vector
   return out;
 }
 
+// validate(true): offsets may be applied to records with kept missing samples (NaN − o stays
+// NaN), so the gap is still visible to fill_missing() or to the next function that needs data.
 inline Experiment trend_applied(const Experiment& e, const Trend& t, double sign,
                                 const std::string& note) {
   e.validate(true);
@@ -106,6 +111,7 @@ inline Experiment trend_applied(const Experiment& e, const Trend& t, double sign
   return out;
 }
 
+// "[15, 0.2]" for the notes: six digits are enough for a human reading the history.
 inline std::string vec_str(const Eigen::VectorXd& v) {
   std::string s = "[";
   for (Eigen::Index i = 0; i < v.size(); ++i) {
@@ -116,6 +122,7 @@ inline std::string vec_str(const Eigen::VectorXd& v) {
   return s + "]";
 }
 
+// A mean of nothing is NaN and a line through one point is undetermined: refuse both up front.
 inline void require_samples(const Experiment& e, Eigen::Index n, const char* what) {
   if (e.size() < n) {
     throw Error(std::string(what) + " needs at least " + std::to_string(n) +
@@ -217,6 +224,8 @@ inline Experiment select(const Experiment& e, double t_begin, double t_end) {
     throw Error("time window " + range + " reaches outside the record " + rec,
                 at_parameter(t_begin < e.t0() - half ? "t_begin" : "t_end"));
   }
+  // (0.5 − 0)/0.1 evaluates to 4.999…: without the allowance, asking for t = 0.5 would silently
+  // start at 0.6. 1e-9 of a sample is far below any meaningful time but far above rounding.
   const double eps = 1e-9;
   const auto k0 = static_cast<Eigen::Index>(std::ceil((t_begin - e.t0()) / e.ts() - eps));
   const auto k1 = static_cast<Eigen::Index>(std::floor((t_end - e.t0()) / e.ts() + eps));
@@ -279,6 +288,7 @@ inline Trend mean_trend(const Dataset& d) {
       l.experiment = static_cast<long>(i);
       throw Error(err.message(), l);
     }
+    // Sums, not means of means: every sample weighs the same, so a long record counts more.
     su += d[i].u().colwise().sum().transpose();
     sy += d[i].y().colwise().sum().transpose();
     n += d[i].size();

@@ -37,6 +37,7 @@
 #include "nlid/core/error.hpp"
 #include "nlid/data/dataset.hpp"
 #include "nlid/data/detail/per_experiment.hpp"
+#include "nlid/data/detail/spline.hpp"
 #include "nlid/data/experiment.hpp"
 #include "nlid/data/filter.hpp"
 
@@ -66,92 +67,6 @@ struct ResampleOptions {
   double ripple_db = 0.05;  ///< anti-alias ripple (single pass)
   double cutoff = 0.8;      ///< anti-alias edge as a fraction of the new Nyquist frequency
 };
-
-namespace detail {
-
-inline std::string fmt_g(double x) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.10g", x);
-  return buf;
-}
-
-/// Copies everything except the samples (names, units, notes, name).
-inline Experiment with_samples(const Experiment& like, Eigen::MatrixXd u, Eigen::MatrixXd y,
-                               double ts, double t0) {
-  Experiment e(std::move(u), std::move(y), ts, like.name(), NonFinitePolicy::keep);
-  e.set_t0(t0);
-  e.set_input_names(like.input_names());
-  e.set_output_names(like.output_names());
-  e.set_input_units(like.input_units());
-  e.set_output_units(like.output_units());
-  for (const auto& n : like.notes()) e.add_note(n);
-  return e;
-}
-
-/// Not-a-knot cubic spline through x(k) at k = 0…n−1 (unit spacing), evaluated at positions s
-/// (in samples, 0 ≤ s ≤ n−1). Falls back to linear for n < 4.
-inline Eigen::VectorXd spline_at(const Eigen::VectorXd& x, const Eigen::VectorXd& s) {
-  const Eigen::Index n = x.size();
-  Eigen::VectorXd out(s.size());
-  if (n < 4) {
-    for (Eigen::Index i = 0; i < s.size(); ++i) {
-      const Eigen::Index k = std::min<Eigen::Index>(static_cast<Eigen::Index>(s(i)), n - 2);
-      const double f = s(i) - static_cast<double>(k);
-      out(i) = n == 1 ? x(0) : x(k) + f * (x(k + 1) - x(k));
-    }
-    return out;
-  }
-  // Second derivatives M: M_{k−1} + 4M_k + M_{k+1} = 6(x_{k+1} − 2x_k + x_{k−1}). Not-a-knot
-  // (M_0 = 2M_1 − M_2, M_{n−1} = 2M_{n−2} − M_{n−3}) reduces the first and last equations to
-  // 6M_1 = d_1 and 6M_{n−2} = d_{n−2}; the rest is tridiagonal (Thomas algorithm).
-  Eigen::VectorXd d(n), m = Eigen::VectorXd::Zero(n);
-  for (Eigen::Index k = 1; k + 1 < n; ++k) d(k) = 6.0 * (x(k + 1) - 2.0 * x(k) + x(k - 1));
-  m(1) = d(1) / 6.0;
-  m(n - 2) = d(n - 2) / 6.0;
-  if (n > 4) {
-    const Eigen::Index lo = 2, hi = n - 3;  // unknowns M_lo..M_hi
-    Eigen::VectorXd c(n), r(n);
-    for (Eigen::Index k = lo; k <= hi; ++k) {
-      double rhs = d(k);
-      if (k == lo) rhs -= m(1);
-      if (k == hi) rhs -= m(n - 2);
-      const double diag = k == lo ? 4.0 : 4.0 - c(k - 1);
-      c(k) = 1.0 / diag;
-      r(k) = (k == lo ? rhs : rhs - r(k - 1)) / diag;
-    }
-    m(hi) = r(hi);
-    for (Eigen::Index k = hi - 1; k >= lo; --k) m(k) = r(k) - c(k) * m(k + 1);
-  }
-  m(0) = 2.0 * m(1) - m(2);
-  m(n - 1) = 2.0 * m(n - 2) - m(n - 3);
-  for (Eigen::Index i = 0; i < s.size(); ++i) {
-    const Eigen::Index k = std::clamp<Eigen::Index>(static_cast<Eigen::Index>(s(i)), 0, n - 2);
-    const double f = s(i) - static_cast<double>(k), g = 1.0 - f;
-    out(i) = g * x(k) + f * x(k + 1) + ((g * g * g - g) * m(k) + (f * f * f - f) * m(k + 1)) / 6.0;
-  }
-  return out;
-}
-
-inline Eigen::VectorXd interpolate_at(const Eigen::VectorXd& x, const Eigen::VectorXd& s,
-                                      Interpolation how) {
-  const Eigen::Index n = x.size();
-  if (how == Interpolation::spline) return spline_at(x, s);
-  Eigen::VectorXd out(s.size());
-  for (Eigen::Index i = 0; i < s.size(); ++i) {
-    // A position within 1e-9 of a sample is that sample (grids rarely land exactly).
-    const double pos = std::min(s(i) + 1e-9, static_cast<double>(n - 1));
-    const Eigen::Index k = static_cast<Eigen::Index>(pos);
-    if (how == Interpolation::hold || k >= n - 1) {
-      out(i) = x(k);
-    } else {
-      const double f = std::max(0.0, s(i) - static_cast<double>(k));
-      out(i) = x(k) + f * (x(k + 1) - x(k));
-    }
-  }
-  return out;
-}
-
-}  // namespace detail
 
 /// Decimation by an integer `factor` ≥ 1: zero-phase anti-alias low-pass, then samples
 /// 0, r, 2r, …, so t_0 is kept, `ts` becomes r·ts and the length is ⌈N/r⌉. Throws if the record
@@ -203,6 +118,8 @@ inline Experiment resample(const Experiment& e, double new_ts,
   const double ratio = new_ts / e.ts();
   const double r = std::round(ratio);
   if (r >= 1.0 && std::abs(ratio - r) <= 1e-9 * ratio && r < 1e9) {
+    // An exact multiple gets the exact algorithm (no interpolation error at all); held channels
+    // are sampled, which is what a zero-order hold means at the coarser grid.
     DecimateOptions d;
     d.order = options.order;
     d.ripple_db = options.ripple_db;
@@ -218,11 +135,14 @@ inline Experiment resample(const Experiment& e, double new_ts,
                 at_parameter("new_ts"));
   }
   const double span = static_cast<double>(e.size() - 1) * e.ts();
+  // The last new sample may coincide with the last old one; 1e-12 keeps rounding from dropping it.
   const auto m = static_cast<Eigen::Index>(std::floor(span / new_ts * (1.0 + 1e-12))) + 1;
   Eigen::VectorXd pos(m);  // new sample instants in units of old samples
   for (Eigen::Index k = 0; k < m; ++k) {
     pos(k) = std::min(static_cast<double>(k) * ratio, static_cast<double>(e.size() - 1));
   }
+  // Only a longer sample time can alias. Shorter ones interpolate the samples as they are: any
+  // filter there would only remove information the record has.
   SosFilter lp;
   const bool down = ratio > 1.0;
   if (down) lp = chebyshev1_lowpass(options.order, options.ripple_db, options.cutoff / ratio);
@@ -231,7 +151,9 @@ inline Experiment resample(const Experiment& e, double new_ts,
     if (down && how != Interpolation::hold) src = filtfilt(lp, x);
     Eigen::MatrixXd out(m, x.cols());
     for (Eigen::Index c = 0; c < x.cols(); ++c) {
-      out.col(c) = detail::interpolate_at(src.col(c), pos, how);
+      out.col(c) = how == Interpolation::spline
+                       ? detail::spline_at(src.col(c), pos)
+                       : detail::step_or_line_at(src.col(c), pos, how == Interpolation::hold);
     }
     return out;
   };

@@ -1,8 +1,12 @@
 #pragma once
 /// @file
-/// Applies an `Experiment → Experiment` operation to every experiment of a `Dataset`, adding the
-/// experiment index to any `nlid::Error` so a failure in a multi-experiment set says which record.
+/// Helpers of the `Experiment → Experiment` operations: carrying metadata over to new samples,
+/// and applying an operation to every experiment of a `Dataset`, adding the experiment index to any
+/// `nlid::Error` so a failure in a multi-experiment set says which record.
 
+#include <Eigen/Core>
+#include <cstdio>
+#include <string>
 #include <utility>
 
 #include "nlid/core/error.hpp"
@@ -10,6 +14,29 @@
 #include "nlid/data/experiment.hpp"
 
 namespace nlid::detail {
+
+/// "%.10g": short numbers for notes and messages.
+inline std::string fmt_g(double x) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.10g", x);
+  return buf;
+}
+
+/// A new experiment with these samples and everything else (name, channel names and units,
+/// notes) from `like`.
+inline Experiment with_samples(const Experiment& like, Eigen::MatrixXd u, Eigen::MatrixXd y,
+                               double ts, double t0) {
+  Experiment e(std::move(u), std::move(y), ts, like.name(), NonFinitePolicy::keep);
+  e.set_t0(t0);
+  e.set_input_names(like.input_names());
+  e.set_output_names(like.output_names());
+  e.set_input_units(like.input_units());
+  e.set_output_units(like.output_units());
+  for (const auto& n : like.notes()) e.add_note(n);
+  return e;
+}
+
+/// `op` applied to each experiment of `d`; errors get the experiment index.
 
 template <class Op>
 Dataset per_experiment(const Dataset& d, Op&& op) {

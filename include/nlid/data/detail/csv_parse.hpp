@@ -1,0 +1,466 @@
+#pragma once
+/// @file
+/// Internals of the CSV reader and writer (csv.hpp): tokenising, cell parsing, missing-value
+/// policy with file-line locations, number formatting, and the exact sample-time recovery.
+
+#include <Eigen/Core>
+#include <algorithm>
+#include <bit>
+#include <charconv>
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <cstdio>
+#include <limits>
+#include <string>
+#include <string_view>
+#include <system_error>
+#include <utility>
+#include <vector>
+
+#include "nlid/core/atomic_file.hpp"
+#include "nlid/core/error.hpp"
+#include "nlid/data/detail/missing.hpp"
+#include "nlid/data/experiment.hpp"
+
+namespace nlid {
+
+namespace detail {
+
+/// "'t', 'u', 'y'" for error messages ("(none)" if empty).
+inline std::string quoted_list(const std::vector<std::string>& names) {
+  std::string s;
+  for (const auto& n : names) s += (s.empty() ? "'" : ", '") + n + "'";
+  return s.empty() ? "(none)" : s;
+}
+
+/// Tokenised CSV text: header, data rows as strings, and the file line of each row. Kept as text
+/// so only the columns a caller asks for must be numeric (a file may carry a comment column).
+struct CsvText {
+  std::string file;
+  std::vector<std::string> header;
+  long header_line = 0;
+  std::vector<std::vector<std::string>> rows;
+  std::vector<long> lines;  // 1-based line number of each row
+};
+
+inline Location csv_at(const std::string& file, long row = -1, long col = -1,
+                       const std::string& name = {}) {
+  Location l;
+  l.file = file;
+  l.row = row;
+  l.column = col;
+  l.column_name = name;
+  return l;
+}
+
+inline std::string_view trim_blanks(std::string_view s, bool tabs) {
+  auto blank = [tabs](char c) { return c == ' ' || (tabs && c == '\t'); };
+  while (!s.empty() && blank(s.front())) s.remove_prefix(1);
+  while (!s.empty() && blank(s.back())) s.remove_suffix(1);
+  return s;
+}
+
+/// Splits one line into fields (trimmed, unquoted). Throws on an unterminated quote.
+inline void split_csv_line(std::string_view line, char delim, std::vector<std::string>& out,
+                           const std::string& file, long line_no) {
+  out.clear();
+  const bool blank_delim = delim == ' ';
+  const bool trim_tabs = delim != '\t';
+  if (blank_delim) line = trim_blanks(line, true);
+  std::size_t i = 0;
+  const std::size_t n = line.size();
+  while (true) {
+    // Leading blanks of a field.
+    while (i < n && (line[i] == ' ' || (trim_tabs && line[i] == '\t'))) ++i;
+    std::string field;
+    if (i < n && line[i] == '"') {
+      ++i;
+      bool closed = false;
+      while (i < n) {
+        if (line[i] == '"') {
+          if (i + 1 < n && line[i + 1] == '"') {
+            field += '"';
+            i += 2;
+            continue;
+          }
+          ++i;
+          closed = true;
+          break;
+        }
+        field += line[i++];
+      }
+      if (!closed) {
+        throw Error("unterminated quoted field",
+                    csv_at(file, line_no, static_cast<long>(out.size()) + 1));
+      }
+      while (i < n && (line[i] == ' ' || (trim_tabs && line[i] == '\t')) && line[i] != delim) ++i;
+      if (i < n && line[i] != delim && !(blank_delim && (line[i] == '\t'))) {
+        throw Error("unexpected text after a quoted field",
+                    csv_at(file, line_no, static_cast<long>(out.size()) + 1));
+      }
+    } else {
+      std::size_t j = i;
+      if (blank_delim) {
+        while (j < n && line[j] != ' ' && line[j] != '\t') ++j;
+      } else {
+        while (j < n && line[j] != delim) ++j;
+      }
+      field = std::string(trim_blanks(line.substr(i, j - i), trim_tabs));
+      i = j;
+    }
+    out.push_back(std::move(field));
+    if (i >= n) break;
+    // Skip the delimiter (a run of blanks when the delimiter is ' ').
+    if (blank_delim) {
+      while (i < n && (line[i] == ' ' || line[i] == '\t')) ++i;
+    } else {
+      ++i;
+      if (i == n) {  // "a,b," – a final empty field
+        out.emplace_back();
+        break;
+      }
+    }
+  }
+}
+
+/// Reads and tokenises `path`; checks header sanity and that every row has the header's width.
+inline CsvText tokenize_csv(const std::string& path, char delimiter) {
+  if (delimiter == '"' || delimiter == '\n' || delimiter == '\r' || delimiter == '#') {
+    throw Error(std::string("invalid delimiter '") + delimiter + "'", at_parameter("delimiter"));
+  }
+  CsvText t;
+  t.file = path;
+  std::string text = read_file(path);  // names the file if missing / a directory
+  std::string_view s(text);
+  if (s.size() >= 3 && s.substr(0, 3) == "\xEF\xBB\xBF") s.remove_prefix(3);  // UTF-8 BOM
+  if (s.find_first_not_of(" \t\r\n") == std::string_view::npos) {
+    throw Error("file is empty", csv_at(path));
+  }
+  std::vector<std::string> fields;
+  long line_no = 0;
+  bool have_header = false;
+  std::size_t pos = 0;
+  while (pos < s.size()) {
+    std::size_t eol = s.find('\n', pos);
+    if (eol == std::string_view::npos) eol = s.size();
+    std::string_view line = s.substr(pos, eol - pos);
+    pos = eol + 1;
+    ++line_no;
+    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+    const std::string_view content = trim_blanks(line, true);
+    if (content.empty() || content.front() == '#') continue;
+    split_csv_line(line, delimiter, fields, path, line_no);
+    if (!have_header) {
+      have_header = true;
+      t.header = fields;
+      t.header_line = line_no;
+      for (std::size_t j = 0; j < t.header.size(); ++j) {
+        if (t.header[j].empty()) continue;  // unnamed (e.g. a pandas index) – cannot be requested
+        for (std::size_t i = 0; i < j; ++i) {
+          if (t.header[i] == t.header[j]) {
+            throw Error("duplicate column name '" + t.header[j] + "' (also column " +
+                            std::to_string(i + 1) + ")",
+                        csv_at(path, line_no, static_cast<long>(j) + 1, t.header[j]));
+          }
+        }
+      }
+      continue;
+    }
+    if (fields.size() != t.header.size()) {
+      throw Error("ragged row: expected " + std::to_string(t.header.size()) +
+                      " fields (as in the header on row " + std::to_string(t.header_line) +
+                      "), found " + std::to_string(fields.size()),
+                  csv_at(path, line_no));
+    }
+    t.rows.push_back(fields);
+    t.lines.push_back(line_no);
+  }
+  if (!have_header) throw Error("file has no header row (only comments)", csv_at(path));
+  if (t.rows.empty()) {
+    throw Error("file has a header but no data rows", csv_at(path, t.header_line));
+  }
+  return t;
+}
+
+/// Parses one cell. Empty → NaN (a missing value). Throws quoting the cell if it is not a number.
+inline double parse_cell(const std::string& cell, char decimal_point, const CsvText& t,
+                         std::size_t row, std::size_t col) {
+  if (cell.empty()) return std::numeric_limits<double>::quiet_NaN();
+  std::string buf;
+  std::string_view s(cell);
+  if (decimal_point != '.') {
+    buf = cell;
+    std::replace(buf.begin(), buf.end(), decimal_point, '.');
+    s = buf;
+  }
+  if (s.size() > 1 && s.front() == '+' && s[1] != '-' && s[1] != '+') s.remove_prefix(1);
+  double v = 0.0;
+  const auto [ptr, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
+  const auto where = [&] {
+    return csv_at(t.file, t.lines[row], static_cast<long>(col) + 1, t.header[col]);
+  };
+  if (ec == std::errc::result_out_of_range) {
+    throw Error("number out of the range of double: '" + cell + "'", where());
+  }
+  if (ec != std::errc() || ptr != s.data() + s.size()) {
+    throw Error("non-numeric cell '" + cell + "'", where());
+  }
+  return v;
+}
+
+/// Column `col` of the table as numbers.
+inline Eigen::VectorXd parse_column(const CsvText& t, std::size_t col, char decimal_point) {
+  Eigen::VectorXd v(static_cast<Eigen::Index>(t.rows.size()));
+  for (std::size_t r = 0; r < t.rows.size(); ++r) {
+    v(static_cast<Eigen::Index>(r)) = parse_cell(t.rows[r][col], decimal_point, t, r, col);
+  }
+  return v;
+}
+
+/// "row 12" or "rows 12-15" of the file, for a gap of data rows [g.begin, g.end).
+inline std::string row_span(const CsvText& t, const Gap& g) {
+  const long a = t.lines[static_cast<std::size_t>(g.begin)];
+  const long b = t.lines[static_cast<std::size_t>(g.end - 1)];
+  return a == b ? "row " + std::to_string(a)
+                : "rows " + std::to_string(a) + "-" + std::to_string(b);
+}
+
+/// Applies the non-finite policy to data column `j` of `m`, which came from file column `col`.
+/// Returns a note describing what was filled ("" if nothing).
+inline std::string apply_csv_policy(Eigen::MatrixXd& m, Eigen::Index j, const CsvText& t,
+                                    std::size_t col, NonFinitePolicy policy, int max_gap) {
+  if (policy == NonFinitePolicy::keep) return {};
+  const std::vector<Gap> gaps = find_gaps(m, j);
+  if (gaps.empty()) return {};
+  const auto at = [&](Eigen::Index r) {
+    return csv_at(t.file, t.lines[static_cast<std::size_t>(r)], static_cast<long>(col) + 1,
+                  t.header[col]);
+  };
+  if (policy == NonFinitePolicy::error) {
+    const Eigen::Index r = gaps.front().begin;
+    const std::string& cell = t.rows[static_cast<std::size_t>(r)][col];
+    throw Error((cell.empty() ? std::string("empty cell (missing value)")
+                              : "non-finite value '" + cell + "'") +
+                    " under NonFinitePolicy::error; use NonFinitePolicy::keep or ::interpolate "
+                    "for missing data",
+                at(r));
+  }
+  std::string list;
+  Eigen::Index filled = 0;
+  for (const auto& g : gaps) {
+    if (g.begin == 0 || g.end == m.rows()) {
+      throw Error("cannot interpolate missing values at the " +
+                      std::string(g.begin == 0 ? "start" : "end") + " of the data (" +
+                      row_span(t, g) + "); remove those rows or use NonFinitePolicy::keep",
+                  at(g.begin));
+    }
+    if (g.length() > max_gap) {
+      throw Error("gap of " + std::to_string(g.length()) + " missing values (" + row_span(t, g) +
+                      ") is longer than max_gap = " + std::to_string(max_gap),
+                  at(g.begin));
+    }
+  }
+  for (const auto& g : gaps) {
+    fill_gap_linear(m, j, g);
+    filled += g.length();
+    list += (list.empty() ? "" : ", ") + row_span(t, g);
+  }
+  return "filled " + std::to_string(filled) + " missing value(s) of column '" + t.header[col] +
+         "' by linear interpolation (" + list + ")";
+}
+
+inline std::size_t find_column(const CsvText& t, const std::string& name, const char* role) {
+  for (std::size_t j = 0; j < t.header.size(); ++j) {
+    if (t.header[j] == name) return j;
+  }
+  Location l = csv_at(t.file, t.header_line, -1, name);
+  throw Error(std::string(role) + " column '" + name +
+                  "' not found; available columns: " + quoted_list(t.header),
+              l);
+}
+
+inline std::string format_double(double x) {
+  char buf[64];
+  const auto res = std::to_chars(buf, buf + sizeof buf, x);  // shortest round-trip form
+  return std::string(buf, res.ptr);
+}
+
+inline std::string quote_if_needed(const std::string& s, char delim) {
+  const bool needs = s.find(delim) != std::string::npos || s.find('"') != std::string::npos ||
+                     s.find('\n') != std::string::npos || s.find('\r') != std::string::npos ||
+                     (!s.empty() && (s.front() == ' ' || s.front() == '\t' || s.front() == '#' ||
+                                     s.back() == ' ' || s.back() == '\t'));
+  if (!needs) return s;
+  std::string q = "\"";
+  for (char c : s) {
+    if (c == '\n' || c == '\r') {
+      throw Error("column name contains a line break: '" + s + "'", at_parameter("header"));
+    }
+    q += c;
+    if (c == '"') q += '"';
+  }
+  return q + "\"";
+}
+
+/// The sample time whose grid t0 + k·ts reproduces `t` exactly, if there is one near the endpoint
+/// estimate (t_{N−1} − t_0)/(N−1); otherwise that estimate. Makes write → read of `ts` exact.
+///
+/// fl(t_0 + fl(k·ts)) is monotone in ts, so the doubles that reproduce the last time stamp form an
+/// interval, found by bisection over the (ordered) bit patterns of positive doubles. Candidates in
+/// it are checked against every time stamp, shortest decimals first: when t_0 is large several
+/// doubles reproduce the column, and the shortest (0.001 rather than 0.0010000000000004686) is the
+/// one a person or a writer used.
+inline double snap_sample_time(const Eigen::VectorXd& t) {
+  const Eigen::Index n = t.size();
+  const double t0 = t(0), tl = t(n - 1);
+  const double est = (tl - t0) / static_cast<double>(n - 1);
+  const auto last = static_cast<double>(n - 1);
+  auto grid_last = [&](double ts) { return t0 + last * ts; };
+  auto bits = [](double x) { return std::bit_cast<std::uint64_t>(x); };
+  auto from = [](std::uint64_t b) { return std::bit_cast<double>(b); };
+  std::uint64_t lo = bits(est * (1.0 - 1e-9)), hi = bits(est * (1.0 + 1e-9));
+  if (!(grid_last(from(lo)) < tl && grid_last(from(hi)) > tl)) return est;
+  // L = first double with grid_last >= tl.
+  std::uint64_t a = lo, b = hi;
+  while (b - a > 1) {
+    const std::uint64_t m = a + (b - a) / 2;
+    (grid_last(from(m)) < tl ? a : b) = m;
+  }
+  const std::uint64_t first = b;
+  // U = last double with grid_last <= tl.
+  a = lo, b = hi;
+  while (b - a > 1) {
+    const std::uint64_t m = a + (b - a) / 2;
+    (grid_last(from(m)) <= tl ? a : b) = m;
+  }
+  const std::uint64_t final_ = a;
+  if (final_ < first) return est;
+  auto exact = [&](double ts) {
+    for (Eigen::Index k = 1; k < n; ++k) {
+      if (t0 + static_cast<double>(k) * ts != t(k)) return false;
+    }
+    return true;
+  };
+  const double fa = from(first), fb = from(final_);
+  // Shortest decimals first: round the interval's ends and middle to 1, 2, … significant digits.
+  for (int d = 1; d <= 17; ++d) {
+    for (double x : {fa + (fb - fa) / 2, fa, fb}) {
+      char buf[64];
+      std::snprintf(buf, sizeof buf, "%.*e", d - 1, x);
+      double c = 0.0;
+      std::from_chars(buf, buf + std::char_traits<char>::length(buf), c);
+      if (c >= fa && c <= fb && exact(c)) return c;
+    }
+  }
+  // Otherwise the exact candidate nearest to the estimate (at most 256 tried).
+  const std::uint64_t c = std::clamp(bits(est), first, final_);
+  for (std::uint64_t i = 0; i <= 128; ++i) {
+    if (c - first >= i && exact(from(c - i))) return from(c - i);
+    if (final_ - c >= i && exact(from(c + i))) return from(c + i);
+  }
+  return est;
+}
+
+inline std::string percent(double x) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.3g %%", 100.0 * x);
+  return buf;
+}
+
+inline std::string num(double x) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.10g", x);
+  return buf;
+}
+
+/// Throws if one file column is used twice (time, inputs, outputs).
+inline void check_distinct_columns(const CsvText& t, bool has_time, std::size_t time_col,
+                                   const std::vector<std::size_t>& in_cols,
+                                   const std::vector<std::size_t>& out_cols) {
+  std::vector<std::pair<std::size_t, std::string>> used;
+  if (has_time) used.emplace_back(time_col, "the time column");
+  for (std::size_t i = 0; i < in_cols.size(); ++i) {
+    used.emplace_back(in_cols[i], "input " + std::to_string(i + 1));
+  }
+  for (std::size_t i = 0; i < out_cols.size(); ++i) {
+    used.emplace_back(out_cols[i], "output " + std::to_string(i + 1));
+  }
+  for (std::size_t a = 0; a < used.size(); ++a) {
+    for (std::size_t b = 0; b < a; ++b) {
+      if (used[a].first == used[b].first) {
+        throw Error("column '" + t.header[used[a].first] + "' is requested twice (" +
+                        used[b].second + " and " + used[a].second + ")",
+                    csv_at(t.file, t.header_line, static_cast<long>(used[a].first) + 1,
+                           t.header[used[a].first]));
+      }
+    }
+  }
+}
+
+/// Validates the time column and returns (ts, t0). `ts_override` > 0 wins over the column (a
+/// disagreement is noted); otherwise ts is inferred and every step checked against the median.
+inline std::pair<double, double> time_axis(const CsvText& t, std::size_t time_col,
+                                           char decimal_point, double ts_override, double tolerance,
+                                           std::vector<std::string>& notes) {
+  const Eigen::VectorXd time = parse_column(t, time_col, decimal_point);
+  const Eigen::Index n = time.size();
+  const auto at_row = [&](Eigen::Index k) {
+    return csv_at(t.file, t.lines[static_cast<std::size_t>(k)], static_cast<long>(time_col) + 1,
+                  t.header[time_col]);
+  };
+  for (Eigen::Index k = 0; k < n; ++k) {
+    if (!std::isfinite(time(k))) {
+      const std::string& cell = t.rows[static_cast<std::size_t>(k)][time_col];
+      throw Error(
+          cell.empty() ? std::string("empty time stamp") : "non-finite time stamp '" + cell + "'",
+          at_row(k));
+    }
+    if (k > 0 && !(time(k) > time(k - 1))) {
+      throw Error("time column is not increasing: t = " + num(time(k)) +
+                      " follows t = " + num(time(k - 1)) + " on row " +
+                      std::to_string(t.lines[static_cast<std::size_t>(k - 1)]),
+                  at_row(k));
+    }
+  }
+  const double t0 = n > 0 ? time(0) : 0.0;  // n > 0: tokenize_csv rejects files without data
+  if (ts_override > 0.0) {
+    if (n >= 2) {
+      const double implied = (time(n - 1) - t0) / static_cast<double>(n - 1);
+      if (std::abs(implied - ts_override) > tolerance * ts_override) {
+        notes.push_back("sample time " + num(ts_override) +
+                        " set by the caller; the time column implies " + num(implied));
+      }
+    }
+    return {ts_override, t0};
+  }
+  if (n < 2) {
+    throw Error(
+        "too few rows to infer the sample time from the time column (1 data row); set "
+        "CsvReadOptions::ts",
+        at_row(0));
+  }
+  // Steps are checked against the median step, so the message points at the odd step (e.g. a
+  // dropped sample) rather than at whichever step an outlier-biased mean disfavours.
+  const Eigen::VectorXd steps = time.tail(n - 1) - time.head(n - 1);
+  std::vector<double> sorted(steps.data(), steps.data() + steps.size());
+  const auto mid = sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2);
+  std::nth_element(sorted.begin(), mid, sorted.end());
+  const double typical = *mid;
+  for (Eigen::Index k = 1; k < n; ++k) {
+    const double dev = std::abs(steps(k - 1) - typical) / typical;
+    if (dev > tolerance) {
+      throw Error("non-uniform time column: step " + num(steps(k - 1)) + " from row " +
+                      std::to_string(t.lines[static_cast<std::size_t>(k - 1)]) + " deviates by " +
+                      percent(dev) + " from the typical step " + num(typical) + " (tolerance " +
+                      percent(tolerance) +
+                      "); missing samples? resample first or set CsvReadOptions::ts",
+                  at_row(k));
+    }
+  }
+  return {snap_sample_time(time), t0};
+}
+
+}  // namespace detail
+
+}  // namespace nlid
