@@ -124,6 +124,10 @@ TEST_CASE("HtmlReport rejects malformed input with a message saying what and whe
       r.chart_svg("<div>not a chart</div>"),
       Catch::StartsWith("nlid: chart markup must be a single <svg class=\"nlid-chart\">"));
   CHECK_THROWS_WITH(r.chart_svg("<svg class=\"other\"></svg>"), Catch::Contains("nlid-chart"));
+  const std::string chart = small_chart("c").svg();
+  CHECK_THROWS_WITH(r.chart_svg(chart + "<SCRIPT>x()</SCRIPT>" + chart),
+                    Catch::Contains("without scripts"));
+  CHECK_THROWS_WITH(r.chart_svg(chart + chart), Catch::Contains("single"));
   CHECK_THROWS_WITH(r.grid(std::vector<std::string>{small_chart("a").svg()}, 0),
                     "nlid: grid columns must be in [1, 6]");
   CHECK(r.chart_count() == 0);  // nothing half-added

@@ -207,17 +207,30 @@ class HtmlReport {
     int level;            // heading level, or NoteKind
   };
 
+  // Raw chart markup is accepted only in the shape the chart classes produce: one root
+  // <svg class="nlid-chart">, and no <script>. This is not a sanitiser (the markup is trusted to
+  // come from LineChart/BarChart), but it catches passing other HTML by mistake, which would
+  // break the chart count that the status element reports.
   static void check_svg(const std::string& svg) {
-    const bool ok = svg.rfind("<svg", 0) == 0 && svg.find("class=\"nlid-chart\"") < svg.find('>') &&
-                    svg.size() >= 6 && svg.compare(svg.size() - 6, 6, "</svg>") == 0;
+    std::string lower(svg.size(), ' ');
+    for (std::size_t i = 0; i < svg.size(); ++i) {
+      const char c = svg[i];
+      lower[i] = (c >= 'A' && c <= 'Z') ? static_cast<char>(c - 'A' + 'a') : c;
+    }
+    const std::string cls = "class=\"nlid-chart\"";
+    const bool ok = svg.rfind("<svg", 0) == 0 && svg.find(cls) < svg.find('>') &&
+                    svg.find(cls, svg.find(cls) + 1) == std::string::npos &&
+                    lower.find("<script") == std::string::npos && svg.size() >= 6 &&
+                    svg.compare(svg.size() - 6, 6, "</svg>") == 0;
     require(ok,
-            "chart markup must be a single <svg class=\"nlid-chart\"> element, as made by "
-            "LineChart::svg() or BarChart::svg()");
+            "chart markup must be a single <svg class=\"nlid-chart\"> element without scripts, "
+            "as made by LineChart::svg() or BarChart::svg()");
   }
   static std::string figcaption(const std::string& caption) {
     if (caption.empty()) return {};
     return "<figcaption>" + detail::escape_xml(caption) + "</figcaption>";
   }
+  // Rendered eagerly (at table()) so a bad table is reported by the call that added it.
   static std::string render_table(const ReportTable& t) {
     std::string h = "<div class=\"table-wrap\"><table>";
     if (!t.caption.empty())
@@ -348,6 +361,11 @@ inline constexpr std::string_view report_status_script = R"(
 }  // namespace detail
 
 inline std::string HtmlReport::str() const {
+  // The status script goes first in <head> so that window.onerror is installed before any other
+  // markup is parsed: an error anywhere later in the page is then recorded, not lost. The CSP
+  // allows inline style and script (the report's own) and data: images, and nothing else.
+  // The status element starts with empty counts and data-ready="0": if the script never runs
+  // (blocked, broken), a checker sees that rather than plausible-looking zeros.
   std::string h;
   h.reserve(16384);
   h.append("<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n")
@@ -368,6 +386,8 @@ inline std::string HtmlReport::str() const {
       .append(detail::escape_xml(title_))
       .append("</h1>\n");
 
+  // A contents list pays off once there are a few sections; anchors are numbered (s1, s2, ...)
+  // rather than derived from the heading text, so they stay unique and deterministic.
   std::size_t sections = 0;
   for (const Block& b : blocks_) sections += b.kind == Kind::heading && b.level == 2;
   if (sections >= 3) {
@@ -380,6 +400,8 @@ inline std::string HtmlReport::str() const {
     }
     h.append("</ol></nav>\n");
   }
+  // Text blocks are escaped here, at output time; tables and charts were rendered (and their
+  // text escaped) when they were added, so any errors surfaced at the call that caused them.
   std::size_t section = 0;
   for (const Block& b : blocks_) {
     switch (b.kind) {

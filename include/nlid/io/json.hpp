@@ -738,6 +738,8 @@ inline std::string json_preview(const Json& value) {
 }
 
 /// Writes a value tree; keeps a stack of path segments so an error can name where it is.
+/// The path is materialised as text only on failure, so the happy path costs one small
+/// push/pop per nesting level.
 class JsonWriter {
  public:
   explicit JsonWriter(int indent) : indent_(indent) {}
@@ -875,6 +877,9 @@ class JsonParser {
  private:
   static constexpr int max_depth = 512;  // bounds recursion (stack) on hostile input
 
+  // value := object | array | string | number | true | false | null   (RFC 8259 sec. 3).
+  // The first byte decides the production, so no backtracking is ever needed. Each value
+  // records where it started, for errors raised later by accessors (JsonView::fail).
   Json value(int depth) {
     if (depth > max_depth) fail("nesting deeper than 512 levels");
     Json v;
@@ -896,6 +901,11 @@ class JsonParser {
     return v;
   }
 
+  // object := '{' [ string ':' value { ',' string ':' value } ] '}'. The loop is written so that
+  // each way of going wrong (trailing comma, missing colon, unquoted key, end of input) gets
+  // its own message at the exact offending byte, rather than a generic "syntax error".
+  // Duplicate keys are rejected: RFC 8259 leaves their meaning open, and silently keeping the
+  // last one would hide an edit made in the wrong place of a hand-edited model file.
   void object(Json& v, int depth) {
     const std::size_t open = pos_;
     ++pos_;
@@ -941,6 +951,7 @@ class JsonParser {
     v.value_ = std::move(members);
   }
 
+  // array := '[' [ value { ',' value } ] ']' -- same error discipline as object().
   void array(Json& v, int depth) {
     const std::size_t open = pos_;
     ++pos_;
@@ -971,6 +982,8 @@ class JsonParser {
     v.value_ = std::move(items);
   }
 
+  // string := '"' { unescaped | escape } '"'. Raw bytes are copied after UTF-8 validation, so
+  // the stored text is always well-formed and dump() can never fail on parsed strings.
   std::string string() {
     const std::size_t open = pos_;
     ++pos_;  // opening quote
@@ -1002,6 +1015,9 @@ class JsonParser {
     }
   }
 
+  // The two-character escapes of RFC 8259 sec. 7, and \uXXXX. Characters outside the Basic
+  // Multilingual Plane arrive as a UTF-16 surrogate pair (\uD83D\uDE00) that must be combined
+  // into one code point before encoding it as UTF-8; a lone half has no meaning and is an error.
   void escape(std::string& out) {
     const std::size_t at = pos_;
     ++pos_;  // backslash
@@ -1081,6 +1097,9 @@ class JsonParser {
     return v;
   }
 
+  // The grammar is checked here, byte by byte, because std::from_chars alone accepts forms JSON
+  // forbids ("01", "1.", "inf", "nan"); from_chars then does the correctly rounded conversion
+  // (so parse(dump(x)) == x bit for bit).
   double number() {
     // Grammar (RFC 8259 sec. 6): -? (0 | [1-9][0-9]*) (. [0-9]+)? ([eE] [+-]? [0-9]+)?
     const std::size_t start = pos_;
@@ -1132,6 +1151,8 @@ class JsonParser {
     return x;
   }
 
+  // Reads a whole word so that "tru" or "nulll" is reported as one bad literal, and common
+  // non-JSON spellings (NaN, Infinity from Python or JavaScript) get a specific explanation.
   void literal(Json& v) {
     std::size_t end = pos_;
     while (end < s_.size() &&
@@ -1154,6 +1175,8 @@ class JsonParser {
     pos_ = end;
   }
 
+  // Whitespace is space, tab, CR, LF only (RFC 8259 sec. 2). Line bookkeeping happens here
+  // because a newline can only occur in whitespace (raw newlines in strings are errors).
   void skip_space() {
     while (pos_ < s_.size()) {
       const char c = s_[pos_];
@@ -1172,6 +1195,7 @@ class JsonParser {
       }
     }
   }
+  // '\0' at the end never matches a structural character, so callers need no bounds check.
   char peek() const { return pos_ < s_.size() ? s_[pos_] : '\0'; }
 
   // Column of pos_ in code points; advances a cursor so the total work is linear.
@@ -1191,6 +1215,7 @@ class JsonParser {
     v.source_ = source_;
   }
 
+  // What is at pos_, for "expected X, found Y" messages; non-printable bytes as hex.
   std::string describe_here() const {
     if (pos_ >= s_.size()) return "end of input";
     const unsigned char c = static_cast<unsigned char>(s_[pos_]);
@@ -1199,15 +1224,11 @@ class JsonParser {
     return std::string("'") + static_cast<char>(c) + "'";
   }
 
+  // Truncated input is reported where it ends (that is where the reader's editor cursor
+  // lands), and names the line where the unclosed value began, which is where the fix goes.
   [[noreturn]] void fail_unterminated(const char* what, std::size_t open) {
-    // Report at the end of input, and say where the unclosed value began.
-    const std::size_t end = pos_;
-    pos_ = open;
-    const long open_line = line_at(open);
-    const std::string open_where = "line " + std::to_string(open_line);
-    pos_ = end;
-    fail(std::string("unexpected end of input: unterminated ") + what + " starting at " +
-         open_where);
+    fail(std::string("unexpected end of input: unterminated ") + what + " starting at line " +
+         std::to_string(line_at(open)));
   }
   long line_at(std::size_t p) const {
     long l = 1;

@@ -600,6 +600,8 @@ struct SvgFrame {
   }
 };
 
+/// Dash pattern attribute of a line style. Dots use round caps on a 1.5 px dash, which renders as
+/// dots at any stroke width; lengths are in px of the chart, so they scale with the figure.
 inline const char* dash_array(LineStyle s) {
   switch (s) {
     case LineStyle::dashed:
@@ -618,6 +620,8 @@ inline void m4_indices(const std::vector<double>& x, const std::vector<double>& 
                        std::size_t e, double x_lo, double x_hi, int columns,
                        std::vector<std::size_t>& keep) {
   const double scale = static_cast<double>(columns) / (x_hi - x_lo);
+  // The run may include one point beyond each axis limit (so the line reaches the frame):
+  // clamping puts those into virtual columns -1 and `columns`, which keeps them separate.
   const auto column_of = [&](std::size_t i) {
     const double c = std::floor((x[i] - x_lo) * scale);
     return static_cast<long>(std::clamp(c, -1.0, static_cast<double>(columns)));
@@ -632,6 +636,8 @@ inline void m4_indices(const std::vector<double>& x, const std::vector<double>& 
       last = i;
       ++i;
     }
+    // Time order matters: emitting min before max when the max came first would draw a
+    // different polyline (and connect to the neighbouring columns at the wrong height).
     std::size_t pick[4] = {first, lo, hi, last};
     std::sort(pick, pick + 4);
     for (std::size_t k = 0; k < 4; ++k) {
@@ -645,6 +651,8 @@ inline void m4_indices(const std::vector<double>& x, const std::vector<double>& 
 inline std::string LineChart::svg() const {
   using detail::append_coord;
   // ---- data ranges -------------------------------------------------------------------------
+  // Only finite samples count: one NaN must not turn the whole axis into NaN. With fixed x
+  // limits the y range follows the visible part, as a zoomed plot should.
   double xmin = std::numeric_limits<double>::infinity(), xmax = -xmin;
   double ymin = xmin, ymax = -xmin;
   std::vector<std::size_t> non_finite(series_.size(), 0);
@@ -663,6 +671,8 @@ inline std::string LineChart::svg() const {
       }
     }
   }
+  // Bands and shaded intervals are part of the message (e.g. where the hard stops are), so the
+  // automatic axes always include them.
   for (const HorizontalBand& b : bands_) {
     ymin = std::min(ymin, b.y_low);
     ymax = std::max(ymax, b.y_high);
@@ -672,6 +682,7 @@ inline std::string LineChart::svg() const {
     xmax = std::max(xmax, s.x_end);
   }
   const bool no_data = !(xmin <= xmax);
+  // A degenerate range (no data, or a constant) gets a span, so the mapping never divides by 0.
   const auto widen = [](double& lo, double& hi) {
     if (!(lo <= hi)) {
       lo = 0;
@@ -695,6 +706,9 @@ inline std::string LineChart::svg() const {
   const double y_hi = has_y_limits_ ? y_limits_.second : ymax;
 
   // ---- layout ------------------------------------------------------------------------------
+  // The left margin depends on the widest y tick label, so the y ticks are computed first. The
+  // plot box then takes what is left after title, legend rows and axis labels; no font metrics
+  // are available, so text widths are estimated (detail::text_width) with a safety gap.
   detail::SvgFrame f(width_, height_, title_);
   const detail::Ticks yt = detail::nice_ticks(y_lo, y_hi, (height_ - 100) / 50.0);
   const double y_abs = std::max(std::abs(y_lo), std::abs(y_hi));
@@ -704,7 +718,9 @@ inline std::string LineChart::svg() const {
   }
   f.left = std::ceil(tick_w) + 12 + (y_label_.empty() ? 6 : 24);
   f.right = width_ - 16.0;
-  // Legend entries flow in rows under the title.
+  // Legend entries flow in rows under the title, like words in a paragraph. Keeping the legend
+  // out of the plot box means it can never hide data (an in-plot legend box often covers the
+  // very transient the chart is about). Each entry: 20 px swatch, gap, text, 14 px spacing.
   struct Entry {
     std::string text;
     double x, y;
@@ -734,6 +750,7 @@ inline std::string LineChart::svg() const {
   const auto py = [&](double y) { return f.top + (y_hi - y) / (y_hi - y_lo) * ph; };
 
   // ---- grid and ticks ----------------------------------------------------------------------
+  // ~80 px per x tick leaves room for labels like "-12.5"; the grid is light so data dominates.
   const detail::Ticks xt = detail::nice_ticks(x_lo, x_hi, pw / 80.0);
   const double x_abs = std::max(std::abs(x_lo), std::abs(x_hi));
   f.out.append("<g stroke=\"#e5e5e5\" stroke-width=\"1\">\n");
@@ -751,6 +768,7 @@ inline std::string LineChart::svg() const {
   f.out.append("</g>\n");
 
   // ---- shaded intervals, bands, series (clipped to the plot box) ---------------------------
+  // Drawing order is painter's order: areas first, then lines over them, then their labels.
   f.open_clip();
   for (const HorizontalBand& b : bands_) {
     const std::string c = b.colour.empty() ? "#7f7f7f" : b.colour;
@@ -765,7 +783,9 @@ inline std::string LineChart::svg() const {
   for (std::size_t s = 0; s < series_.size(); ++s) {
     const ChartSeries& se = series_[s];
     colours.push_back(se.colour.empty() ? chart_palette[palette_next++ % 10] : se.colour);
-    // Sorted x (ignoring non-finite samples) allows per-pixel decimation.
+    // Sorted x (ignoring non-finite samples) allows per-pixel decimation: a pixel column is
+    // then a contiguous index range. For unsorted x the same column is visited many times, and
+    // keeping only its extremes would reorder the curve, so such series are drawn in full.
     bool sorted = true;
     double prev = -std::numeric_limits<double>::infinity();
     for (std::size_t i = 0; i < se.x.size() && sorted; ++i) {
@@ -777,6 +797,8 @@ inline std::string LineChart::svg() const {
     std::vector<std::size_t> keep;
     std::size_t i = 0;
     const std::size_t n = se.x.size();
+    // Split at non-finite samples: each finite run becomes one "M ... L ..." subpath, so a NaN
+    // shows as a visible gap rather than as a line bridging it.
     std::vector<std::pair<std::size_t, std::size_t>> runs;  // finite runs [b, e)
     while (i < n) {
       while (i < n && (!std::isfinite(se.x[i]) || !std::isfinite(se.y[i]))) ++i;
@@ -793,6 +815,7 @@ inline std::string LineChart::svg() const {
         while (e - 1 > b + 1 && se.x[e - 2] > x_hi) --e;
       }
       keep.clear();
+      // Below 4 samples per column M4 would keep nearly everything anyway; skip its overhead.
       if (decimate_ && sorted && (e - b) > static_cast<std::size_t>(4 * columns)) {
         detail::m4_indices(se.x, se.y, b, e, x_lo, x_hi, columns, keep);
       } else {
@@ -810,6 +833,8 @@ inline std::string LineChart::svg() const {
       drawn += keep.size();
     }
     if (d.empty()) continue;
+    // data-points / data-samples record the decimation in the markup itself, so a reader (or a
+    // test) can see how much was reduced without re-running anything.
     f.out.append("<path class=\"nlid-series\" data-points=\"")
         .append(std::to_string(drawn))
         .append("\" data-samples=\"")
@@ -844,6 +869,8 @@ inline std::string LineChart::svg() const {
   f.frame();
 
   // ---- legend and axis labels --------------------------------------------------------------
+  // Entries were laid out above for exactly the series with legend text, in series order; walk
+  // both lists together so each swatch gets its own series' colour and dash pattern.
   std::size_t e = 0;
   for (std::size_t s = 0; s < series_.size() && e < legend.size(); ++s) {
     if (series_[s].name.empty() && non_finite[s] == 0) continue;
@@ -881,6 +908,8 @@ inline std::string BarChart::svg() const {
     vmin = std::min(vmin, b.value);
     vmax = std::max(vmax, b.value);
   }
+  // Linear axes always include 0: a bar's length is its value, and an axis starting at 80 would
+  // make 81 look twice as good as 80.5. Log axes span whole decades (ticks at 10^k).
   double lo = 0, hi = 1;
   if (vmin <= vmax) {
     if (log_) {
@@ -928,6 +957,9 @@ inline std::string BarChart::svg() const {
   double tick_w = 0;
   for (double v : ticks) tick_w = std::max(tick_w, detail::text_width(tick_text(v), 11));
 
+  // Horizontal: the category labels set the left margin. Vertical: the tick labels do, and the
+  // category labels rotate by 45 degrees once they no longer fit their slot, which costs height
+  // (the rotated label's vertical extent is its width times sin 45 deg).
   const double top = title_.empty() ? 12.0 : 30.0;
   bool rotate = false;
   if (horizontal_) {
@@ -973,6 +1005,7 @@ inline std::string BarChart::svg() const {
   }
   f.out.append("</g>\n");
 
+  // Bars grow from 0 (linear) or from the lowest decade (log, where 0 is at minus infinity).
   const double base = log_ ? lo : 0.0;
   for (std::size_t i = 0; i < n; ++i) {
     const ChartBar& b = bars_[i];
