@@ -1,0 +1,554 @@
+#pragma once
+/// @file
+/// `GreyBox<Physics>`: a grey-box model — physics written once, parameters from data.
+///
+/// A grey-box model (Ljung 1999, Sec. 4.5, eq. 4.62; Bohlin 2006, ch. 2) is the continuous-time
+/// state-space model
+///
+///     ẋ = f(x, u, p),   y = g(x, u, p),   x(t₀) = x₀,
+///
+/// whose structure f, g is physics (see `Physics` in greybox_concepts.hpp) and whose named
+/// parameters p (with units, bounds and fixed flags) are estimated from sampled data by
+/// minimising the simulation error (greybox_problem.hpp, greybox_estimate.hpp). This class holds
+/// the physics, the parameter table and the integrator settings, and simulates:
+///
+///     GreyBox<physics::Throttle> model;
+///     model.initialize(data);                                  // scale parameters from the data
+///     auto fit = estimate(model, data);                         // multi-start simulation error
+///     Eigen::MatrixXd yhat = model.simulate(data3, InitialCondition::estimate);
+///     std::cout << model.describe();
+///
+/// Simulation holds each input sample over its interval (zero-order hold) and integrates with the
+/// method and sub-step rule of `IntegratorOptions` (integrators.hpp). Initial conditions
+/// (`InitialCondition`, core/initial_condition.hpp):
+///   - `zero`: x₀ = 0;
+///   - `equilibrium`: x₀ = x̄ with f(x̄, u₀, p) = 0 for the first input sample held;
+///   - `estimate`: x₀ minimises the simulation error over the first samples of the record
+///     (parameters fixed; `set_initial_state_window`, default 2000 samples, 0 = all), the
+///     grey-box counterpart of the toolbox's `findstates`;
+///   - `measured` does not apply to a state-space model and is rejected with an `nlid::Error`.
+///
+/// The same class serves compile-time physics (`GreyBox<physics::Throttle>`: fixed-size vectors,
+/// no heap use per sample, one Dual pass per experiment for the Jacobian) and physics chosen at
+/// run time (`DynamicGreyBox = GreyBox<AnyPhysics>`, greybox_dynamic.hpp).
+///
+/// Parameter table invariants: one entry per physics parameter, names unique, lower ≤ value ≤
+/// upper. Setters check these and throw `nlid::Error` naming the parameter.
+
+#include <algorithm>
+#include <cmath>
+#include <concepts>
+#include <cstdio>
+#include <limits>
+#include <span>
+#include <string>
+#include <string_view>
+#include <utility>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "nlid/core/error.hpp"
+#include "nlid/core/initial_condition.hpp"
+#include "nlid/data/dataset.hpp"
+#include "nlid/data/experiment.hpp"
+#include "nlid/estimation/levenberg_marquardt.hpp"
+#include "nlid/models/greybox_concepts.hpp"
+#include "nlid/models/greybox_problem.hpp"
+#include "nlid/models/greybox_simulate.hpp"
+#include "nlid/models/integrators.hpp"
+
+namespace nlid {
+
+namespace detail {
+template <class P>
+concept HasStateInfo = requires(const P& p) {
+  { p.state_info() } -> InfoList<StateInfo>;
+};
+template <class P>
+concept HasPhysicsName = requires(const P& p) {
+  { p.name() } -> std::convertible_to<std::string>;
+};
+template <class P>
+concept HasEquation = requires(const P& p) {
+  { p.equation() } -> std::convertible_to<std::string>;
+};
+template <class P>
+concept HasInitializeHook = requires(const P& p, const Dataset& d, std::span<ParameterInfo> s) {
+  p.initialize(d, s);
+};
+
+inline std::string format_number(double v) {
+  char buf[40];
+  std::snprintf(buf, sizeof buf, "%.6g", v);
+  return buf;
+}
+}  // namespace detail
+
+/// A grey-box model of physics P (see the file comment).
+template <Physics P>
+class GreyBox {
+ public:
+  using physics_type = P;                                         ///< the physics functor
+  static constexpr int num_states = P::num_states;                ///< n_x (or Dynamic)
+  static constexpr int num_inputs = P::num_inputs;                ///< n_u (or Dynamic)
+  static constexpr int num_outputs = P::num_outputs;              ///< n_y (or Dynamic)
+  static constexpr int num_params = P::num_params;                ///< n_p (or Dynamic)
+  using StateVector = Eigen::Matrix<double, num_states, 1>;       ///< x
+  using ParameterVector = Eigen::Matrix<double, num_params, 1>;   ///< p
+
+  /// Model with a default-constructed physics and its default parameter values.
+  GreyBox()
+    requires std::default_initializable<P>
+      : GreyBox(P{}) {}
+
+  /// Model of the given physics; parameters start at the physics' defaults. Throws
+  /// `nlid::Error` if the physics' metadata is inconsistent (count, duplicate or empty names,
+  /// default outside its bounds).
+  explicit GreyBox(P physics) : physics_(std::move(physics)) {
+    const auto info = physics_.parameter_info();
+    const int np = detail::physics_params(physics_);
+    require(static_cast<int>(info.size()) == np,
+            "physics declares " + std::to_string(np) + " parameters but describes " +
+                std::to_string(info.size()));
+    for (std::size_t i = 0; i < info.size(); ++i) {
+      const ParameterInfo& q = info[i];
+      require(!q.name.empty(), "parameter " + std::to_string(i) + " has no name");
+      for (std::size_t j = 0; j < i; ++j) {
+        require(info[j].name != q.name, "duplicate parameter name '" + q.name + "'",
+                at_parameter(q.name));
+      }
+      require(q.lower <= q.value && q.value <= q.upper,
+              "default value " + detail::format_number(q.value) + " of '" + q.name +
+                  "' is outside its bounds",
+              at_parameter(q.name));
+      params_.push_back(q);
+    }
+    user_set_.assign(params_.size(), false);
+    const int nx = detail::physics_states(physics_);
+    if constexpr (detail::HasStateInfo<P>) {
+      const auto si = physics_.state_info();
+      for (std::size_t i = 0; i < si.size(); ++i) states_.push_back(si[i]);
+    }
+    if (static_cast<int>(states_.size()) != nx) {
+      states_.clear();
+      for (int i = 0; i < nx; ++i) states_.push_back(StateInfo{"x" + std::to_string(i + 1), "", ""});
+    }
+  }
+
+  // ---- structure -------------------------------------------------------------------------------
+
+  /// The physics.
+  [[nodiscard]] const P& physics() const { return physics_; }
+  /// Catalogue name of the physics ("custom" if it has none).
+  [[nodiscard]] std::string name() const {
+    if constexpr (detail::HasPhysicsName<P>) {
+      return physics_.name();
+    } else {
+      return "custom";
+    }
+  }
+  /// n_x.
+  [[nodiscard]] int state_dimension() const { return detail::physics_states(physics_); }
+  /// n_u.
+  [[nodiscard]] int input_dimension() const { return detail::physics_inputs(physics_); }
+  /// n_y.
+  [[nodiscard]] int output_dimension() const { return detail::physics_outputs(physics_); }
+  /// n_p.
+  [[nodiscard]] int num_parameters() const { return static_cast<int>(params_.size()); }
+  /// State names and units.
+  [[nodiscard]] const std::vector<StateInfo>& state_info() const { return states_; }
+
+  // ---- parameters ------------------------------------------------------------------------------
+
+  /// The parameter table (names, units, values, bounds, ranges, fixed flags).
+  [[nodiscard]] const std::vector<ParameterInfo>& parameter_info() const { return params_; }
+  /// Parameter names in order.
+  [[nodiscard]] std::vector<std::string> parameter_names() const {
+    std::vector<std::string> n;
+    for (const auto& q : params_) n.push_back(q.name);
+    return n;
+  }
+  /// Current parameter values.
+  [[nodiscard]] ParameterVector parameters() const {
+    ParameterVector p(num_parameters());
+    for (int i = 0; i < num_parameters(); ++i) p[i] = params_[static_cast<std::size_t>(i)].value;
+    return p;
+  }
+  /// Sets all parameter values. Throws `nlid::Error` naming the first parameter that is not
+  /// finite or lies outside its bounds (nothing is changed then), or on a size mismatch.
+  void set_parameters(const Eigen::Ref<const Eigen::VectorXd>& p) {
+    require(p.size() == num_parameters(), "expected " + std::to_string(num_parameters()) +
+                                              " parameter values, got " + std::to_string(p.size()));
+    for (int i = 0; i < num_parameters(); ++i) check_value(params_[static_cast<std::size_t>(i)], p[i]);
+    for (int i = 0; i < num_parameters(); ++i) {
+      params_[static_cast<std::size_t>(i)].value = p[i];
+      user_set_[static_cast<std::size_t>(i)] = true;
+    }
+  }
+  /// Index of a parameter by name; throws `nlid::Error` listing the known names.
+  [[nodiscard]] int parameter_index(std::string_view name) const {
+    for (std::size_t i = 0; i < params_.size(); ++i) {
+      if (params_[i].name == name) return static_cast<int>(i);
+    }
+    std::string known;
+    for (const auto& q : params_) known += (known.empty() ? "" : ", ") + q.name;
+    throw Error("unknown parameter '" + std::string(name) + "' of grey-box model '" + this->name() +
+                    "'; known parameters: " + known,
+                at_parameter(std::string(name)));
+  }
+  /// Value of a named parameter.
+  [[nodiscard]] double parameter(std::string_view name) const {
+    return params_[static_cast<std::size_t>(parameter_index(name))].value;
+  }
+  /// Sets a named parameter; throws `nlid::Error` naming it if the value is outside its bounds.
+  void set_parameter(std::string_view name, double value) {
+    const auto i = static_cast<std::size_t>(parameter_index(name));
+    check_value(params_[i], value);
+    params_[i].value = value;
+    user_set_[i] = true;
+  }
+  /// Sets hard bounds of a named parameter (lower ≤ value ≤ upper must hold afterwards).
+  void set_bounds(std::string_view name, double lower, double upper) {
+    const auto i = static_cast<std::size_t>(parameter_index(name));
+    ParameterInfo& q = params_[i];
+    require(!(lower > upper) && !std::isnan(lower) && !std::isnan(upper),
+            "bounds of '" + q.name + "' must satisfy lower <= upper", at_parameter(q.name));
+    require(lower <= q.value && q.value <= upper,
+            "current value " + detail::format_number(q.value) + " of '" + q.name +
+                "' lies outside the new bounds [" + detail::format_number(lower) + ", " +
+                detail::format_number(upper) + "]; set the value first",
+            at_parameter(q.name));
+    q.lower = lower;
+    q.upper = upper;
+  }
+  /// Sets the range multi-start explores for a named parameter (log-spaced if `log_scale` and
+  /// the range is positive).
+  void set_range(std::string_view name, double lower, double upper, bool log_scale = false) {
+    const auto i = static_cast<std::size_t>(parameter_index(name));
+    ParameterInfo& q = params_[i];
+    require(std::isfinite(lower) && std::isfinite(upper) && lower <= upper,
+            "range of '" + q.name + "' must be finite with lower <= upper", at_parameter(q.name));
+    require(!log_scale || lower > 0.0, "log-spaced range of '" + q.name + "' must be positive",
+            at_parameter(q.name));
+    q.range_lower = lower;
+    q.range_upper = upper;
+    q.log_scale = log_scale;
+    user_set_[i] = true;
+  }
+  /// Holds a named parameter at its value during estimation (or frees it with `false`).
+  void fix(std::string_view name, bool fixed = true) {
+    params_[static_cast<std::size_t>(parameter_index(name))].fixed = fixed;
+  }
+  /// True if the named parameter is fixed.
+  [[nodiscard]] bool is_fixed(std::string_view name) const {
+    return params_[static_cast<std::size_t>(parameter_index(name))].fixed;
+  }
+  /// Fixed flags in parameter order.
+  [[nodiscard]] std::vector<bool> fixed_flags() const {
+    std::vector<bool> f;
+    for (const auto& q : params_) f.push_back(q.fixed);
+    return f;
+  }
+  /// Replaces values (and ranges) from an estimation or another table, keeping bounds checks.
+  /// Used by `estimate`; unlike `set_parameters` it does not mark values as user-set.
+  void update_parameters(const Eigen::Ref<const Eigen::VectorXd>& p) {
+    require(p.size() == num_parameters(), "parameter count mismatch");
+    for (int i = 0; i < num_parameters(); ++i) check_value(params_[static_cast<std::size_t>(i)], p[i]);
+    for (int i = 0; i < num_parameters(); ++i) params_[static_cast<std::size_t>(i)].value = p[i];
+  }
+
+  // ---- integrator ------------------------------------------------------------------------------
+
+  /// Integrator settings.
+  [[nodiscard]] const IntegratorOptions& integrator() const { return integrator_; }
+  /// Sets the integrator; throws `nlid::Error` naming an invalid option.
+  void set_integrator(const IntegratorOptions& o) {
+    validate(o);
+    integrator_ = o;
+  }
+  /// Sub-steps per sample the rule gives at the current parameters for sample time `ts`
+  /// (initial state and input only matter for physics without a `spectral_radius`).
+  [[nodiscard]] int substeps(double ts) const {
+    const ParameterVector p = parameters();
+    const StateVector x = StateVector::Zero(state_dimension());
+    const Eigen::VectorXd u = Eigen::VectorXd::Zero(input_dimension());
+    return substeps_for(ts, physics_spectral_radius(physics_, p.data(), x.data(), u.data()),
+                        integrator_);
+  }
+
+  // ---- data-driven initialisation --------------------------------------------------------------
+
+  /// Sets starting values and multi-start ranges of scale-dependent parameters from the data
+  /// (physics' `initialize` hook) and records the data's units for `describe`. Values the user
+  /// set explicitly (`set_parameter`, `set_parameters`, `set_range`) are kept. Throws
+  /// `nlid::Error` if the data's channel counts do not match the physics.
+  void initialize(const Dataset& data) {
+    require(data.size() > 0, "initialize: empty data set");
+    check_channels(data);
+    const Experiment& e0 = data[0];
+    if (!e0.output_units().empty()) y_unit_ = e0.output_units()[0];
+    if (!e0.input_units().empty()) u_unit_ = e0.input_units()[0];
+    if constexpr (detail::HasInitializeHook<P>) {
+      std::vector<ParameterInfo> table = params_;
+      physics_.initialize(data, std::span<ParameterInfo>(table));
+      for (std::size_t i = 0; i < params_.size(); ++i) {
+        if (user_set_[i]) continue;
+        ParameterInfo& q = params_[i];
+        const ParameterInfo& t = table[i];
+        if (!std::isfinite(t.value)) continue;
+        q.value = std::clamp(t.value, q.lower, q.upper);
+        if (std::isfinite(t.range_lower) && std::isfinite(t.range_upper) && t.range_lower <= t.range_upper) {
+          q.range_lower = std::max(t.range_lower, q.lower);
+          q.range_upper = std::min(t.range_upper, q.upper);
+          q.log_scale = t.log_scale && q.range_lower > 0.0;
+        }
+      }
+    }
+    initialized_ = true;
+  }
+  /// True once `initialize` has run (estimate calls it automatically otherwise).
+  [[nodiscard]] bool initialized() const { return initialized_; }
+
+  // ---- simulation ------------------------------------------------------------------------------
+
+  /// Free-run simulation of an experiment from the given initial condition; N × n_y outputs.
+  /// Throws `nlid::Error` on a channel mismatch, an inapplicable initial condition, a missing
+  /// equilibrium, or a diverging simulation (naming the sample and suggesting a remedy).
+  [[nodiscard]] Eigen::MatrixXd simulate(const Experiment& e,
+                                         InitialCondition ic = InitialCondition::estimate) const {
+    const StateVector x0 = initial_state(e, ic);
+    return simulate(e, x0);
+  }
+
+  /// Free-run simulation of an experiment from the initial state `x0`.
+  [[nodiscard]] Eigen::MatrixXd simulate(const Experiment& e,
+                                         const Eigen::Ref<const Eigen::VectorXd>& x0) const {
+    check_channels(e, -1);
+    return simulate(e.u(), e.ts(), x0, e.name());
+  }
+
+  /// Free-run simulation of the N × n_u input matrix `u` at sample time `ts` from `x0`.
+  [[nodiscard]] Eigen::MatrixXd simulate(const Eigen::MatrixXd& u, double ts,
+                                         const Eigen::Ref<const Eigen::VectorXd>& x0,
+                                         const std::string& label = {}) const {
+    require(u.cols() == input_dimension(), "input has " + std::to_string(u.cols()) +
+                                               " column(s), the model takes " +
+                                               std::to_string(input_dimension()));
+    require(x0.size() == state_dimension(), "initial state has " + std::to_string(x0.size()) +
+                                                " entries, the model has " +
+                                                std::to_string(state_dimension()) + " states");
+    require(ts > 0.0 && std::isfinite(ts), "sample time must be positive and finite",
+            at_parameter("ts"));
+    require(u.allFinite(), "input contains non-finite samples; a simulation cannot run through them");
+    const ParameterVector p = parameters();
+    StateVector x = x0;
+    Eigen::MatrixXd y(u.rows(), output_dimension());
+    const Eigen::VectorXd u0 = u.rows() > 0 ? Eigen::VectorXd(u.row(0).transpose())
+                                            : Eigen::VectorXd::Zero(input_dimension());
+    const int sub = substeps_for(ts, physics_spectral_radius(physics_, p.data(), x.data(), u0.data()),
+                                 integrator_);
+    const Eigen::Index got = simulate_physics<double>(
+        physics_, integrator_, sub, u, ts, p.data(), x.data(), [&](Eigen::Index k, const double* yk) {
+          for (Eigen::Index j = 0; j < y.cols(); ++j) y(k, j) = yk[j];
+        });
+    if (got != u.rows()) {
+      throw Error("simulation of grey-box model '" + name() + "'" +
+                  (label.empty() ? std::string() : " on '" + label + "'") +
+                  " diverged at sample " + std::to_string(got) + " (t = " +
+                  detail::format_number(static_cast<double>(got) * ts) + " s after start) with " +
+                  std::to_string(sub) +
+                  " sub-step(s) per sample; check the parameters, or raise "
+                  "IntegratorOptions::substeps / min_substeps, or use the adaptive method");
+    }
+    return y;
+  }
+
+  /// Generic simulation core on scalar T (double, float, Dual): see `simulate_physics`.
+  /// `p` holds n_p values, `x` the n_x initial states (overwritten by the final state); returns
+  /// the number of samples delivered to `on_sample(k, const T* y)`.
+  template <class T, class OnSample>
+  Eigen::Index simulate_with(const Eigen::MatrixXd& u, double ts, const T* p, T* x, int substeps,
+                             OnSample&& on_sample) const {
+    return simulate_physics<T>(physics_, integrator_, substeps, u, ts, p, x,
+                               std::forward<OnSample>(on_sample));
+  }
+
+  /// Initial state for an experiment under an initial-condition policy (file comment).
+  [[nodiscard]] StateVector initial_state(const Experiment& e, InitialCondition ic) const {
+    check_channels(e, -1);
+    const int nx = state_dimension();
+    switch (ic) {
+      case InitialCondition::zero:
+        return StateVector::Zero(nx);
+      case InitialCondition::equilibrium: {
+        require(e.size() > 0, "equilibrium start needs at least one input sample");
+        return equilibrium(e.u().row(0).transpose(), e.name());
+      }
+      case InitialCondition::measured:
+        throw Error("InitialCondition::measured applies to regression models (past outputs); a "
+                    "grey-box model starts from a state: use estimate, zero or equilibrium");
+      case InitialCondition::estimate:
+        break;
+    }
+    return estimate_initial_state(e);
+  }
+
+  /// Equilibrium state for the input `u` held constant: f(x̄, u, p) = 0 (Newton from the
+  /// physics' initial-state guess). Throws `nlid::Error` if there is none (e.g. a free body under
+  /// a net force).
+  [[nodiscard]] StateVector equilibrium(const Eigen::Ref<const Eigen::VectorXd>& u,
+                                        const std::string& label = {}) const {
+    require(u.size() == input_dimension(), "equilibrium: input has " + std::to_string(u.size()) +
+                                               " entries, the model takes " +
+                                               std::to_string(input_dimension()));
+    const ParameterVector p = parameters();
+    StateVector x = StateVector::Zero(state_dimension());
+    const Eigen::VectorXd uv = u;
+    const EquilibriumResult res = physics_equilibrium(physics_, uv.data(), p.data(), x.data());
+    if (!res.converged) {
+      throw Error("grey-box model '" + name() + "' has no equilibrium for the input held at its " +
+                  (label.empty() ? std::string("given") : "first ('" + label + "')") +
+                  " value (|f(x)| stays at " + detail::format_number(res.residual) +
+                  "); use InitialCondition::estimate or zero");
+    }
+    return x;
+  }
+
+  /// Number of leading samples `InitialCondition::estimate` fits x₀ to in `simulate` and
+  /// `initial_state` (0 = the whole record). Default 2000: x₀ of a stable system only shapes the
+  /// start of a record, and a long record (10⁵ samples) then costs no more than a short one.
+  void set_initial_state_window(Eigen::Index samples) {
+    require(samples >= 0, "initial-state window must be >= 0 (0 = whole record)",
+            at_parameter("initial_state_window"));
+    initial_state_window_ = samples;
+  }
+  /// See `set_initial_state_window`.
+  [[nodiscard]] Eigen::Index initial_state_window() const { return initial_state_window_; }
+
+  /// Initial states estimated per experiment by the last `estimate` (empty before).
+  [[nodiscard]] const std::vector<Eigen::VectorXd>& estimated_initial_states() const {
+    return initial_states_;
+  }
+  /// Stores per-experiment initial states (used by `estimate`).
+  void set_estimated_initial_states(std::vector<Eigen::VectorXd> x0) { initial_states_ = std::move(x0); }
+
+  // ---- reporting -------------------------------------------------------------------------------
+
+  /// Units used by `describe` for "{y}" and "{u}" (set by `initialize` from the data).
+  void set_units(std::string output_unit, std::string input_unit) {
+    y_unit_ = std::move(output_unit);
+    u_unit_ = std::move(input_unit);
+  }
+
+  /// Human-readable account: equation, states, and every parameter with value, unit, bounds and
+  /// status (estimated / fixed), plus the integrator.
+  [[nodiscard]] std::string describe() const {
+    std::string s = "Grey-box model '" + name() + "'";
+    if constexpr (detail::HasEquation<P>) s += ": " + physics_.equation();
+    s += "\n  states:";
+    for (std::size_t i = 0; i < states_.size(); ++i) {
+      const StateInfo& st = states_[i];
+      s += (i == 0 ? " " : ", ") + st.name;
+      if (!st.unit.empty()) s += " (" + detail::substitute_units(st.unit, y_unit_, u_unit_) + ")";
+    }
+    s += "\n  parameters:\n";
+    std::size_t w = 4;
+    for (const auto& q : params_) w = std::max(w, q.name.size());
+    for (const auto& q : params_) {
+      std::string line = "    " + q.name + std::string(w - q.name.size() + 2, ' ');
+      std::string val = detail::format_number(q.value);
+      line += val + std::string(val.size() < 14 ? 14 - val.size() : 1, ' ');
+      std::string unit = detail::substitute_units(q.unit, y_unit_, u_unit_);
+      line += unit + std::string(unit.size() < 18 ? 18 - unit.size() : 1, ' ');
+      line += q.fixed ? "fixed" : "estimated";
+      if (std::isfinite(q.lower) || std::isfinite(q.upper)) {
+        line += "  bounds [" + detail::format_number(q.lower) + ", " + detail::format_number(q.upper) + "]";
+      }
+      if (!q.description.empty()) line += "  -- " + q.description;
+      s += line + "\n";
+    }
+    const char* method = integrator_.method == IntegratorMethod::rk4     ? "rk4"
+                         : integrator_.method == IntegratorMethod::euler ? "euler"
+                                                                         : "dormand_prince";
+    s += "  integrator: " + std::string(method);
+    if (integrator_.method == IntegratorMethod::dormand_prince) {
+      s += " (rtol " + detail::format_number(integrator_.relative_tolerance) + ", atol " +
+           detail::format_number(integrator_.absolute_tolerance) + ")";
+    } else if (integrator_.substeps > 0) {
+      s += ", " + std::to_string(integrator_.substeps) + " sub-steps per sample";
+    } else {
+      s += ", automatic sub-steps (h*rho <= " + detail::format_number(integrator_.stability_target) + ")";
+    }
+    s += "; input held between samples (zero-order hold)\n";
+    return s;
+  }
+
+  /// Checks an experiment's channel counts; throws naming experiment `index` (if ≥ 0).
+  void check_channels(const Experiment& e, long index) const {
+    const Location where = index >= 0 ? at_experiment(index) : Location{};
+    const std::string label = "experiment " + (index >= 0 ? std::to_string(index) + " " : std::string()) +
+                              (e.name().empty() ? std::string() : "('" + e.name() + "') ");
+    require(e.num_inputs() == input_dimension(),
+            label + "has " + std::to_string(e.num_inputs()) + " input(s), grey-box model '" + name() +
+                "' takes " + std::to_string(input_dimension()),
+            where);
+    require(e.num_outputs() == output_dimension(),
+            label + "has " + std::to_string(e.num_outputs()) + " output(s), grey-box model '" +
+                name() + "' gives " + std::to_string(output_dimension()),
+            where);
+  }
+  /// Checks every experiment of a data set.
+  void check_channels(const Dataset& d) const {
+    for (std::size_t i = 0; i < d.size(); ++i) check_channels(d[i], static_cast<long>(i));
+  }
+
+  // ---- Implementation details below ----------------------------------------------------------
+
+ private:
+  static void check_value(const ParameterInfo& q, double v) {
+    require(std::isfinite(v), "value of '" + q.name + "' is not finite", at_parameter(q.name));
+    require(q.lower <= v && v <= q.upper,
+            "value " + detail::format_number(v) + " of '" + q.name + "' is outside its bounds [" +
+                detail::format_number(q.lower) + ", " + detail::format_number(q.upper) + "]",
+            at_parameter(q.name));
+  }
+
+  // x₀ minimising the simulation error over the first `initial_state_window_` samples of this
+  // record with the parameters held (findstates on a prefix).
+  StateVector estimate_initial_state(const Experiment& e) const {
+    const Eigen::Index n = initial_state_window_ > 0 ? std::min<Eigen::Index>(e.size(), initial_state_window_)
+                                                     : e.size();
+    Dataset d(n == e.size() ? e
+                            : Experiment(e.u().topRows(n), e.y().topRows(n), e.ts(), e.name(),
+                                         NonFinitePolicy::keep));
+    GreyBoxProblem<P> problem(physics_, integrator_, d, InitialCondition::estimate, {}, true,
+                              Eigen::VectorXd(parameters()));
+    Eigen::VectorXd theta(problem.num_parameters());
+    problem.refresh_initial_states(theta);
+    LmOptions lm;
+    lm.max_iterations = 50;
+    // A guess that cannot be simulated (diverging from a bad state) falls back to zero.
+    Eigen::VectorXd r(problem.num_residuals());
+    if (!problem.evaluate(theta, r, nullptr)) theta.setZero();
+    if (!problem.evaluate(theta, r, nullptr)) {
+      throw Error("simulation of grey-box model '" + name() + "' on '" + e.name() +
+                  "' diverges from every initial-state guess; check the parameters or raise "
+                  "IntegratorOptions::substeps");
+    }
+    solve_least_squares(problem, theta, lm);
+    return StateVector(theta);
+  }
+
+  P physics_;
+  std::vector<ParameterInfo> params_;
+  std::vector<bool> user_set_;
+  std::vector<StateInfo> states_;
+  IntegratorOptions integrator_;
+  bool initialized_ = false;
+  std::string y_unit_, u_unit_;
+  std::vector<Eigen::VectorXd> initial_states_;
+  Eigen::Index initial_state_window_ = 2000;
+};
+
+}  // namespace nlid

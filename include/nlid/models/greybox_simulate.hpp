@@ -1,0 +1,224 @@
+#pragma once
+/// @file
+/// The grey-box simulation engine: zero-order-hold simulation of a `Physics` on any scalar,
+/// state Jacobians, equilibria and the sub-step rule. `GreyBox` and the estimation problem are
+/// thin layers over these functions; they are public so that code composing physics at run time
+/// (missing-physics diagnosis) can use the same engine.
+///
+/// Sampling. With samples u_k = u(t₀ + k T_s), k = 0 … N−1, the input is held constant over
+/// [t_k, t_{k+1}) (zero-order hold) and the output is read at the sample instants:
+///
+///     ŷ_k = g(x(t_k), u_k, p),     x(t_{k+1}) = x(t_k) + ∫_{t_k}^{t_{k+1}} f(x(τ), u_k, p) dτ,
+///
+/// the integral computed by the method of `IntegratorOptions` with n sub-steps (RK4, Euler) or
+/// adaptively (Dormand–Prince). The first output sample depends on x₀ only, so the free-run
+/// simulation error ε_k = y_k − ŷ_k (Ljung 1999, Sec. 4.5 and eq. 7.15 with the simulation
+/// predictor) starts at k = 0.
+///
+/// Sub-steps. n = `substeps_for(T_s, ρ, options)` (integrators.hpp) with ρ an upper bound on the
+/// spectral radius of ∂f/∂x: the physics' `spectral_radius(p)` when it has one (state-dependent
+/// stiffness such as a hard stop can only be known from the physics), otherwise the Gershgorin
+/// bound max_i Σ_j |∂f_i/∂x_j| at the initial state and first input. n is computed from the
+/// `double` parameter values, so value and Dual runs take identical steps (their derivatives then
+/// describe exactly the discrete map that produced the residuals).
+///
+/// Equilibrium. x̄ with f(x̄, ū, p) = 0 is found by Newton's method with a least-squares step
+/// (column-pivoting QR, so singular directions such as a free position are left at the guess)
+/// and backtracking on ‖f‖. Its parameter sensitivity follows from the implicit function theorem,
+/// ∂x̄/∂p = −(∂f/∂x)⁻¹ ∂f/∂p, which `equilibrium_sensitivity_step` evaluates as one Newton step in
+/// Dual arithmetic from the converged point.
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <concepts>
+#include <limits>
+#include <string>
+#include <type_traits>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/QR>
+
+#include "nlid/ad/dual.hpp"
+#include "nlid/core/error.hpp"
+#include "nlid/models/greybox_concepts.hpp"
+#include "nlid/models/integrators.hpp"
+
+namespace nlid {
+
+namespace detail {
+
+template <class P>
+concept HasSpectralRadius = requires(const P& p, const double* th) {
+  { p.spectral_radius(th) } -> std::convertible_to<double>;
+};
+template <class P>
+concept HasInitialStateHook = requires(const P& p, const double* y0, const double* u0,
+                                       const double* th, double* x0) {
+  { p.initial_state(y0, u0, th, x0) } -> std::convertible_to<bool>;
+};
+
+}  // namespace detail
+
+/// Jacobian ∂f/∂x (n_x × n_x) of a physics at (x, u, p), exact by forward AD in chunks of 8.
+template <Physics P>
+Eigen::MatrixXd physics_state_jacobian(const P& phys, const double* x, const double* u,
+                                       const double* p) {
+  const int nx = detail::physics_states(phys), nu = detail::physics_inputs(phys),
+            np = detail::physics_params(phys);
+  using D = RuntimeDual;
+  constexpr int W = D::num_derivatives;
+  std::vector<D> xd(static_cast<std::size_t>(nx)), ud(static_cast<std::size_t>(nu)),
+      pd(static_cast<std::size_t>(np)), dx(static_cast<std::size_t>(nx));
+  for (int j = 0; j < nu; ++j) ud[static_cast<std::size_t>(j)] = D(u[j]);
+  for (int j = 0; j < np; ++j) pd[static_cast<std::size_t>(j)] = D(p[j]);
+  Eigen::MatrixXd J(nx, nx);
+  for (int c0 = 0; c0 < nx; c0 += W) {
+    for (int j = 0; j < nx; ++j) {
+      xd[static_cast<std::size_t>(j)] =
+          (j >= c0 && j < c0 + W) ? D::variable(x[j], j - c0) : D(x[j]);
+    }
+    phys.derivative(xd.data(), ud.data(), pd.data(), dx.data());
+    for (int i = 0; i < nx; ++i) {
+      for (int j = c0; j < std::min(nx, c0 + W); ++j) J(i, j) = dx[static_cast<std::size_t>(i)].v[j - c0];
+    }
+  }
+  return J;
+}
+
+/// Upper bound on the spectral radius of ∂f/∂x used by the sub-step rule: the physics' own
+/// `spectral_radius(p)` if it has one and it is not negative ("unknown"), else the Gershgorin
+/// bound max_i Σ_j |∂f_i/∂x_j| at (x, u).
+template <Physics P>
+double physics_spectral_radius(const P& phys, const double* p, const double* x, const double* u) {
+  if constexpr (detail::HasSpectralRadius<P>) {
+    const double rho = static_cast<double>(phys.spectral_radius(p));
+    if (!(rho < 0.0)) return rho;
+  }
+  const Eigen::MatrixXd J = physics_state_jacobian(phys, x, u, p);
+  return J.allFinite() ? J.cwiseAbs().rowwise().sum().maxCoeff() : 0.0;
+}
+
+/// Zero-order-hold simulation of `phys` on scalar T (double, float, Dual).
+///
+/// `u` is N × n_u (row k = input sample k), `p` points to n_p parameters and `x` to the n_x
+/// initial states (overwritten with the state at the last sample). For every sample k the
+/// callback `on_sample(k, y)` receives the n_y outputs. `substeps` is the fixed sub-step count
+/// (Euler/RK4; ignored by the adaptive method). Returns the number of samples delivered: N on
+/// success, fewer if the state or output left the finite numbers (a diverging simulation).
+/// Allocates nothing when the physics has static sizes.
+template <class T, Physics P, class OnSample>
+Eigen::Index simulate_physics(const P& phys, const IntegratorOptions& options, int substeps,
+                              const Eigen::MatrixXd& u, double ts, const T* p, T* x,
+                              OnSample&& on_sample) {
+  constexpr int NX = P::num_states, NU = P::num_inputs, NY = P::num_outputs;
+  const int nx = detail::physics_states(phys), nu = detail::physics_inputs(phys),
+            ny = detail::physics_outputs(phys);
+  using State = Eigen::Matrix<T, NX, 1>;
+  State xs(nx);
+  for (int i = 0; i < nx; ++i) xs[i] = x[i];
+  // Size 0 inputs (autonomous physics) still need a valid array type; Eigen handles 0 rows.
+  Eigen::Matrix<T, NU, 1> uk(nu);
+  Eigen::Matrix<T, NY, 1> yk(ny);
+  auto f = [&](const State& s, State& ds) { phys.derivative(s.data(), uk.data(), p, ds.data()); };
+  Rk4Stepper<State> rk4;
+  EulerStepper<State> euler;
+  DormandPrinceStepper<State> dopri;
+  double h_try = 0.0;
+  const Eigen::Index n = u.rows();
+  const int sub = std::max(1, substeps);
+  for (Eigen::Index k = 0; k < n; ++k) {
+    for (int j = 0; j < nu; ++j) uk[j] = T(u(k, j));
+    phys.output(xs.data(), uk.data(), p, yk.data());
+    if (!detail::values_finite(yk)) return k;
+    on_sample(k, static_cast<const T*>(yk.data()));
+    if (k + 1 == n) break;
+    bool ok = true;
+    switch (options.method) {
+      case IntegratorMethod::rk4:
+        ok = rk4.integrate(f, xs, ts, sub);
+        break;
+      case IntegratorMethod::euler:
+        for (int i = 0; i < sub && ok; ++i) {
+          euler.step(f, xs, ts / sub);
+          ok = detail::values_finite(xs);
+        }
+        break;
+      case IntegratorMethod::dormand_prince:
+        ok = dopri.integrate(f, xs, ts, h_try, options);
+        break;
+    }
+    if (!ok) return k + 1;
+  }
+  for (int i = 0; i < nx; ++i) x[i] = xs[i];
+  return n;
+}
+
+/// Result of `physics_equilibrium`.
+struct EquilibriumResult {
+  bool converged = false;   ///< ‖f(x̄)‖ reached the tolerance
+  double residual = 0.0;    ///< final ‖f(x̄, ū, p)‖∞
+  int iterations = 0;       ///< Newton iterations used
+};
+
+/// Solves f(x, u, p) = 0 for x by damped Newton from the guess in `x` (overwritten). Tolerance:
+/// ‖f‖∞ ≤ tol·(1 + ‖f(guess)‖∞). See the file comment.
+template <Physics P>
+EquilibriumResult physics_equilibrium(const P& phys, const double* u, const double* p, double* x,
+                                      double tol = 1e-11, int max_iterations = 100) {
+  const int nx = detail::physics_states(phys);
+  Eigen::VectorXd xv = Eigen::Map<const Eigen::VectorXd>(x, nx);
+  Eigen::VectorXd fx(nx), ft(nx), xt(nx);
+  auto eval = [&](const Eigen::VectorXd& xx, Eigen::VectorXd& out) {
+    phys.derivative(xx.data(), u, p, out.data());
+    return out.allFinite() ? out.lpNorm<Eigen::Infinity>() : std::numeric_limits<double>::infinity();
+  };
+  EquilibriumResult res;
+  double fn = eval(xv, fx);
+  const double target = tol * (1.0 + (std::isfinite(fn) ? fn : 0.0));
+  for (res.iterations = 0; res.iterations < max_iterations && fn > target; ++res.iterations) {
+    const Eigen::MatrixXd J = physics_state_jacobian(phys, xv.data(), u, p);
+    Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(J);
+    const Eigen::VectorXd dx = qr.solve(-fx);
+    if (!dx.allFinite()) break;
+    // Backtracking: piecewise-smooth physics (stops, saturations) can overshoot a kink.
+    double step = 1.0;
+    bool improved = false;
+    for (int b = 0; b < 30; ++b, step *= 0.5) {
+      xt = xv + step * dx;
+      const double fnt = eval(xt, ft);
+      if (fnt < fn) {
+        xv = xt;
+        fx = ft;
+        fn = fnt;
+        improved = true;
+        break;
+      }
+    }
+    if (!improved) break;
+  }
+  res.residual = fn;
+  res.converged = fn <= target;
+  for (int i = 0; i < nx; ++i) x[i] = xv[i];
+  return res;
+}
+
+/// One Newton step in Dual arithmetic from a converged equilibrium x̄ (double), giving
+/// x̄(p) with exact first-order sensitivities to the dual parameters `p`:
+/// x = x̄ − J⁻¹ f(x̄, u, p), J = ∂f/∂x at x̄ (implicit function theorem). `jinv` is J⁻¹ (n_x × n_x,
+/// column-major) and `x_out` receives n_x duals. `work` must hold n_x duals.
+template <class D, Physics P>
+void equilibrium_sensitivity_step(const P& phys, const double* xbar, const D* u, const D* p,
+                                  const double* jinv, D* work, D* x_out) {
+  const int nx = detail::physics_states(phys);
+  for (int i = 0; i < nx; ++i) x_out[i] = D(xbar[i]);
+  phys.derivative(x_out, u, p, work);
+  for (int i = 0; i < nx; ++i) {
+    D acc(xbar[i]);
+    for (int l = 0; l < nx; ++l) acc -= jinv[i + static_cast<std::ptrdiff_t>(l) * nx] * work[l];
+    x_out[i] = acc;
+  }
+}
+
+}  // namespace nlid
