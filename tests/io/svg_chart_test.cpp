@@ -278,6 +278,35 @@ TEST_CASE("Empty and constant charts still render with sensible axes") {
   CHECK(s.find(">5.0</text>") != std::string::npos);  // range widened around the constant
 }
 
+TEST_CASE("Extreme values: a diverged trace or huge offsets never put NaN into the markup") {
+  nlid::LineChart diverged;
+  diverged.line("sim", std::vector<double>{0, 1, 2}, std::vector<double>{-1e308, 1e308, 0});
+  const std::string s = diverged.svg();
+  CHECK(s.find("nan") == std::string::npos);
+  CHECK(s.find("inf") == std::string::npos);
+  CHECK(series_paths(s)[0][0].size() == 3);
+  nlid::BarChart bars;
+  bars.add("a", 1e308).add("b", -1e308);
+  CHECK(bars.svg().find("nan") == std::string::npos);
+  CHECK_THROWS_WITH(nlid::LineChart().x_limits(-1e308, 1e308),
+                    "nlid: x_limits needs finite lo < hi");
+
+  // Time stamps with a large offset: labels are long, so fewer ticks are used and none overlap.
+  nlid::LineChart stamps;
+  stamps.line("y", std::vector<double>{1e9, 1e9 + 1e-3}, std::vector<double>{1, 2});
+  const std::string t = stamps.svg();
+  std::vector<double> tick_x;
+  const std::string marker = "\" text-anchor=\"middle\">1000000000";
+  for (std::size_t p = t.find(marker); p != std::string::npos; p = t.find(marker, p + 1)) {
+    const std::size_t x = t.rfind("<text x=\"", p) + 9;
+    tick_x.push_back(std::stod(t.substr(x, t.find('"', x) - x)));
+  }
+  REQUIRE(tick_x.size() >= 2);
+  for (std::size_t i = 1; i < tick_x.size(); ++i) {
+    CHECK(tick_x[i] - tick_x[i - 1] > nlid::detail::text_width("1000000000.0002", 11));
+  }
+}
+
 TEST_CASE("Bar chart: highlight, negative values, missing values, log scale") {
   nlid::BarChart b("Fit on data5 (%)");
   b.value_label("fit (%)").category_label("model");

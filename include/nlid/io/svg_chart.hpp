@@ -221,7 +221,7 @@ class LineChart {
     return std::vector<double>(p, p + static_cast<std::ptrdiff_t>(r.size()));
   }
   static void check_limits(double lo, double hi, const char* what) {
-    require(std::isfinite(lo) && std::isfinite(hi) && lo < hi,
+    require(std::isfinite(lo) && std::isfinite(hi) && lo < hi && std::isfinite(hi - lo),
             std::string(what) + " needs finite lo < hi");
   }
 
@@ -431,7 +431,9 @@ inline std::string format_fixed(double v, int decimals) {
 
 /// A pixel coordinate with one decimal (0.1 px is below what a screen shows).
 inline void append_coord(std::string& out, double v) {
-  v = std::clamp(v, -1e6, 1e6);  // far-off points are clipped anyway; keep the text short
+  // Far-off points are clipped anyway; clamping keeps the text short, and NaN (from an
+  // overflowing mapping) must never reach the markup, where it would void the whole path.
+  v = std::isnan(v) ? 0.0 : std::clamp(v, -1e6, 1e6);
   char buf[32];
   const auto r =
       std::to_chars(buf, buf + sizeof buf, std::round(v * 10) / 10, std::chars_format::fixed, 1);
@@ -693,6 +695,10 @@ inline std::string LineChart::svg() const {
       hi += d;
     }
   };
+  // Axis spans must stay finite: a diverged simulation can reach +-1e308, and max - min would
+  // overflow to infinity. Data beyond +-1e307 is drawn clipped at the frame.
+  const auto cap = [](double& v) { v = std::clamp(v, -1e307, 1e307); };
+  cap(xmin), cap(xmax), cap(ymin), cap(ymax);
   widen(xmin, xmax);
   if (ymin <= ymax && ymin != ymax) {
     const double pad = 0.05 * (ymax - ymin);
@@ -750,9 +756,19 @@ inline std::string LineChart::svg() const {
   const auto py = [&](double y) { return f.top + (y_hi - y) / (y_hi - y_lo) * ph; };
 
   // ---- grid and ticks ----------------------------------------------------------------------
-  // ~80 px per x tick leaves room for labels like "-12.5"; the grid is light so data dominates.
-  const detail::Ticks xt = detail::nice_ticks(x_lo, x_hi, pw / 80.0);
+  // ~80 px per x tick leaves room for labels like "-12.5"; long labels (time stamps like
+  // 1000000000.0002) get fewer ticks so they do not overlap. The grid is light so data dominates.
   const double x_abs = std::max(std::abs(x_lo), std::abs(x_hi));
+  detail::Ticks xt = detail::nice_ticks(x_lo, x_hi, pw / 80.0);
+  for (int attempt = 0; attempt < 4 && xt.values.size() > 2; ++attempt) {
+    double widest = 0;
+    for (double v : xt.values) {
+      widest = std::max(widest, detail::text_width(detail::format_tick(v, xt.step, x_abs), 11));
+    }
+    const double spacing = pw * xt.step / (x_hi - x_lo);
+    if (widest + 12 <= spacing) break;
+    xt = detail::nice_ticks(x_lo, x_hi, pw / (widest + 12) * 0.9);
+  }
   f.out.append("<g stroke=\"#e5e5e5\" stroke-width=\"1\">\n");
   for (double v : xt.values) f.line(px(v), f.top, px(v), f.bottom, "#e5e5e5");
   for (double v : yt.values) f.line(f.left, py(v), f.right, py(v), "#e5e5e5");
@@ -905,8 +921,8 @@ inline std::string BarChart::svg() const {
       throw Error("bar chart '" + title_ + "': log scale needs positive values, bar '" + b.label +
                   "' has " + detail::format_general(b.value, 6));
     }
-    vmin = std::min(vmin, b.value);
-    vmax = std::max(vmax, b.value);
+    vmin = std::min(vmin, std::clamp(b.value, -1e307, 1e307));  // keep spans finite
+    vmax = std::max(vmax, std::clamp(b.value, -1e307, 1e307));
   }
   // Linear axes always include 0: a bar's length is its value, and an axis starting at 80 would
   // make 81 look twice as good as 80.5. Log axes span whole decades (ticks at 10^k).
