@@ -1,0 +1,682 @@
+#pragma once
+/// @file
+/// Levenberg–Marquardt for bound-constrained, robust nonlinear least squares.
+///
+/// Problem (see `concepts.hpp`, `robust_loss.hpp`):
+///
+///     min_θ F(θ) = ½ Σᵢ ρ(rᵢ(θ)²)   subject to  l ≤ θ ≤ u,  θ_k = θ⁰_k for fixed k.
+///
+/// Each iteration linearises r about θ, r(θ + δ) ≈ r + Jδ, and minimises the damped model
+/// (Levenberg 1944; Marquardt 1963; Moré 1978; Ljung 1999, sec. 10.2, eq. 10.40)
+///
+///     m(δ) = ½‖r̃ + J̃δ‖² + ½λ‖Dδ‖²   ⇔   (J̃ᵀJ̃ + λD²) δ = −J̃ᵀr̃,
+///
+/// where r̃ = w∘r, J̃ = diag(w)J are the robustly reweighted residuals and Jacobian (w = 1 for
+/// squared loss; J̃ᵀr̃ = ∇F exactly). Notation used below: A = J̃ᵀJ̃, g = J̃ᵀr̃.
+///
+/// Scaling D. With `jacobian_scaling` (Marquardt 1963, Moré 1978 sec. 3), D = diag(d_k), d_k the
+/// largest column norm ‖J̃_k‖ seen so far in this solve: the iteration becomes invariant to the
+/// units of the parameters (a gain in degrees and a time constant in seconds are damped alike).
+/// Without it, D = √(max_k A_kk)·I (Levenberg damping made dimensionless, Madsen et al. 2004,
+/// eq. 3.14). The solver works in the scaled variables y = Dδ, so λ is dimensionless: the
+/// scaled system is (Â + λI) y = −ĝ with Â = D⁻¹AD⁻¹ (diagonal ≤ 1), ĝ = D⁻¹g.
+///
+/// Linear algebra. The damped system is factored by LDLT (pivoted Cholesky, n³/3 flops). If the
+/// factorisation is not positive definite or its reciprocal condition estimate is below 10⁻¹²
+/// (forming Â squares the condition number of J), the step is recomputed from a Householder QR
+/// of the scaled Jacobian, Ĵ = QR, followed per λ by the QR of the 2n×n matrix [R; √λ I]
+/// (Moré's MINPACK scheme, 1978, sec. 3): accurate to cond(J)·ε instead of cond(J)²·ε.
+///
+/// Damping update (Nielsen 1999; Madsen, Nielsen & Tingleff 2004, eq. 3.15): with the gain
+/// ratio ϱ = (F(θ) − F(θ+δ)) / (m(0) − m(δ)), a step is accepted when ϱ > 10⁻³, then
+/// λ ← λ·max(⅓, 1 − (2ϱ − 1)³), ν ← 2; otherwise λ ← λν, ν ← 2ν.
+///
+/// Bounds (projected LM; Kanzow, Yamashita & Fukushima 2004; Bertsekas 1982 for the active
+/// set). A parameter on a bound whose gradient points out of the box (k at l_k with g_k > 0 or
+/// at u_k with g_k < 0) is held for that iteration; the others take the damped step, and the
+/// result is projected onto [l, u]. The model decrease m(0) − m(δ) is computed for the projected
+/// step, so the gain-ratio test stays honest. First-order optimality is measured by the
+/// projected gradient ‖θ − P(θ − ∇F)‖∞, which is zero exactly at KKT points.
+///
+/// Fixed parameters are held the same way and are returned bit-for-bit unchanged.
+///
+/// Memory. `LevenbergMarquardt<Problem>` allocates all workspace in `setup` (r, trial r, IRLS
+/// weights, the m×n Jacobian, n×n matrices); the QR fallback works in place in the Jacobian
+/// buffer. With a static parameter count and a problem whose `evaluate` allocates nothing,
+/// `solve` performs no heap allocation (tested under EIGEN_RUNTIME_NO_MALLOC).
+///
+/// References: K. Levenberg, Q. Appl. Math. 2 (1944) 164–168; D. W. Marquardt, SIAM J. Appl.
+/// Math. 11 (1963) 431–441; J. J. Moré, "The Levenberg–Marquardt algorithm: implementation and
+/// theory", LNM 630 (1978); H. B. Nielsen, "Damping parameter in Marquardt's method", IMM-REP-
+/// 1999-05; K. Madsen, H. B. Nielsen, O. Tingleff, "Methods for non-linear least squares
+/// problems", 2nd ed., DTU 2004; C. Kanzow, N. Yamashita, M. Fukushima, J. Comput. Appl. Math.
+/// 172 (2004) 375–397; L. Ljung, "System Identification: Theory for the User", 2nd ed., 1999.
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <functional>
+#include <limits>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Core>
+#include <Eigen/Householder>
+
+#include "nlid/core/error.hpp"
+#include "nlid/estimation/concepts.hpp"
+#include "nlid/estimation/robust_loss.hpp"
+
+namespace nlid {
+
+/// What the solver reports to the iteration callback after every step attempt (and once with
+/// `iteration == 0` for the starting point).
+struct IterationReport {
+  int iteration;         ///< 0 for the start, then 1, 2, … (accepted and rejected attempts)
+  double cost;           ///< F(θ) at the current (last accepted) θ
+  double step_norm;      ///< ‖Δθ‖₂ of the step just tried (0 at iteration 0)
+  double lambda;         ///< damping λ the step was computed with
+  double gradient_norm;  ///< projected gradient ‖θ − P(θ − ∇F)‖∞ at the current θ
+  bool step_accepted;    ///< whether the step was taken (true at iteration 0)
+};
+
+/// Options of `solve_least_squares`. Every field is validated at the start of a solve; a bad
+/// value throws `nlid::Error` whose location names the option (and the parameter, if any).
+struct LmOptions {
+  int max_iterations = 100;            ///< step attempts (accepted + rejected), ≥ 0
+  double function_tolerance = 1e-10;   ///< relative cost decrease to stop, ≥ 0
+  double gradient_tolerance = 1e-10;   ///< projected-gradient max-norm to stop, ≥ 0
+  double parameter_tolerance = 1e-8;   ///< relative step size to stop, ≥ 0
+  double initial_lambda = 1e-3;        ///< starting damping (dimensionless, see file comment), > 0
+  bool jacobian_scaling = true;        ///< Marquardt/Moré column scaling D (recommended)
+  Eigen::VectorXd lower_bounds;        ///< empty (none) or n entries; −∞ allowed
+  Eigen::VectorXd upper_bounds;        ///< empty (none) or n entries; +∞ allowed
+  std::vector<bool> fixed;             ///< empty (none) or n flags: true = hold at initial value
+  RobustLoss loss;                     ///< ρ: squared (default) or Huber
+  /// Called after every step attempt; return false to stop (status `user_abort`).
+  std::function<bool(const IterationReport&)> callback;
+  /// Optional names of the n parameters, used in error messages (default "theta[k]").
+  std::vector<std::string> parameter_names;
+};
+
+/// Why the solver stopped. Each comment states the exact criterion (n_free = non-fixed count;
+/// norms over non-fixed parameters; ε-terms as written).
+enum class LmStatus {
+  /// ‖θ − P_[l,u](θ − ∇F(θ))‖∞ ≤ gradient_tolerance at the current θ: first-order optimal.
+  gradient_tolerance_reached,
+  /// An accepted step decreased the cost by F_old − F_new ≤ function_tolerance · F_old.
+  function_tolerance_reached,
+  /// The step just tried satisfies ‖Δθ‖₂ ≤ parameter_tolerance·(‖θ‖₂ + parameter_tolerance)
+  /// (Δθ after projection onto the bounds, θ before the step). An accepted step is taken
+  /// first; after a rejected one θ stays (a larger λ would only shorten the step further).
+  parameter_tolerance_reached,
+  /// `max_iterations` step attempts were made without meeting another criterion.
+  max_iterations_reached,
+  /// λ exceeded 10³² after consecutive rejections: no step along the damped Gauss–Newton
+  /// direction reduces F (e.g. `evaluate` fails everywhere near θ, or θ sits on a kink of r).
+  lambda_limit_reached,
+  /// At an accepted θ the Jacobian was not finite or `evaluate` failed when asked for it;
+  /// θ is left at that point and `LmSummary::detail` names the parameter and residual.
+  jacobian_not_finite,
+  /// The callback returned false.
+  user_abort,
+  /// n_free = 0 (every parameter fixed): nothing to estimate; F is reported at θ.
+  all_parameters_fixed,
+};
+
+/// Short name of a status (e.g. "gradient_tolerance_reached").
+inline const char* to_string(LmStatus s) {
+  switch (s) {
+    case LmStatus::gradient_tolerance_reached: return "gradient_tolerance_reached";
+    case LmStatus::function_tolerance_reached: return "function_tolerance_reached";
+    case LmStatus::parameter_tolerance_reached: return "parameter_tolerance_reached";
+    case LmStatus::max_iterations_reached: return "max_iterations_reached";
+    case LmStatus::lambda_limit_reached: return "lambda_limit_reached";
+    case LmStatus::jacobian_not_finite: return "jacobian_not_finite";
+    case LmStatus::user_abort: return "user_abort";
+    case LmStatus::all_parameters_fixed: return "all_parameters_fixed";
+  }
+  return "unknown";
+}
+
+/// Outcome of a solve. θ itself is returned through the caller's vector.
+struct LmSummary {
+  LmStatus status = LmStatus::max_iterations_reached;  ///< why it stopped
+  int iterations = 0;                ///< step attempts made (accepted + rejected)
+  int accepted_steps = 0;            ///< of which accepted
+  double initial_cost = 0;           ///< F at the (projected) initial θ
+  double final_cost = 0;             ///< F at the returned θ
+  double final_gradient_norm = 0;    ///< projected-gradient max-norm at the returned θ (NaN
+                                     ///< if status is jacobian_not_finite: not computable)
+  double final_lambda = 0;           ///< damping at exit
+  int residual_evaluations = 0;      ///< calls of `evaluate` (with or without J)
+  int jacobian_evaluations = 0;      ///< calls of `evaluate` with J
+  int qr_fallbacks = 0;              ///< steps solved by QR because LDLT was ill-conditioned
+  int projected_parameters = 0;      ///< initial values moved onto their bounds
+  double seconds = 0;                ///< wall-clock time of the solve
+  std::string detail;                ///< extra information for some statuses (else empty)
+
+  /// True for the statuses that certify a (local) solution: gradient, function or parameter
+  /// tolerance reached, or nothing to estimate.
+  bool converged() const {
+    return status == LmStatus::gradient_tolerance_reached ||
+           status == LmStatus::function_tolerance_reached ||
+           status == LmStatus::parameter_tolerance_reached ||
+           status == LmStatus::all_parameters_fixed;
+  }
+  /// One-paragraph human-readable account: status, costs, counts, time.
+  std::string message() const {
+    auto num = [](double v) {
+      char buf[32];
+      std::snprintf(buf, sizeof buf, "%.6g", v);
+      return std::string(buf);
+    };
+    std::string s = std::string("Levenberg-Marquardt: ") + to_string(status) +
+                    (converged() ? " (converged)" : " (not converged)") + " after " +
+                    std::to_string(iterations) + " iterations (" + std::to_string(accepted_steps) +
+                    " accepted); cost " + num(initial_cost) + " -> " + num(final_cost) +
+                    ", |projected gradient| " + num(final_gradient_norm) + ", lambda " +
+                    num(final_lambda) + "; " + std::to_string(residual_evaluations) +
+                    " residual and " + std::to_string(jacobian_evaluations) +
+                    " Jacobian evaluations";
+    if (qr_fallbacks > 0) s += ", " + std::to_string(qr_fallbacks) + " QR fallback steps";
+    if (projected_parameters > 0) {
+      s += ", " + std::to_string(projected_parameters) + " initial values projected onto bounds";
+    }
+    s += "; " + num(seconds) + " s.";
+    if (!detail.empty()) s += " " + detail;
+    return s;
+  }
+};
+
+namespace detail {
+
+// Householder QR of a (rows × cols), in place: R in the upper triangle, the essential parts of
+// the reflectors below it, their coefficients in tau. ws needs cols entries. Unblocked, so it
+// allocates nothing (Eigen's blocked HouseholderQR allocates panel temporaries).
+template <class M, class V, class W>
+void householder_qr_in_place(M& a, V& tau, W& ws) {
+  const Eigen::Index rows = a.rows(), cols = a.cols(), size = std::min(rows, cols);
+  for (Eigen::Index k = 0; k < size; ++k) {
+    double beta;
+    a.col(k).tail(rows - k).makeHouseholderInPlace(tau[k], beta);
+    a(k, k) = beta;
+    if (k + 1 < cols) {
+      a.bottomRightCorner(rows - k, cols - k - 1)
+          .applyHouseholderOnTheLeft(a.col(k).tail(rows - k - 1), tau[k], ws.data());
+    }
+  }
+}
+
+// b ← Qᵀ b for the Q stored by householder_qr_in_place.
+template <class M, class V, class B, class W>
+void apply_qt(const M& a, const V& tau, B& b, W& ws) {
+  const Eigen::Index rows = a.rows(), size = std::min(rows, a.cols());
+  for (Eigen::Index k = 0; k < size; ++k) {
+    b.tail(rows - k).applyHouseholderOnTheLeft(a.col(k).tail(rows - k - 1), tau[k], ws.data());
+  }
+}
+
+}  // namespace detail
+
+/// Levenberg–Marquardt solver object for one problem type. Construct with options, optionally
+/// call `setup` once (validates options against the problem and allocates every buffer), then
+/// `solve` any number of times; `solve` calls `setup` itself when sizes changed.
+template <LeastSquaresProblem Problem>
+class LevenbergMarquardt {
+ public:
+  static constexpr int num_params = Problem::num_params;  ///< static parameter count (or Dynamic)
+  using Parameters = ParameterVector<num_params>;          ///< θ
+
+  /// Stores the options (validated in `setup`).
+  explicit LevenbergMarquardt(LmOptions options = {}) : options_(std::move(options)) {}
+
+  /// The options in use.
+  const LmOptions& options() const { return options_; }
+  /// Replaces the options; the next `solve` re-validates them.
+  void set_options(LmOptions options) {
+    options_ = std::move(options);
+    n_ = -1;
+  }
+
+  /// Validates the options for this problem and allocates all workspace.
+  /// Throws `nlid::Error` naming the offending option / parameter.
+  void setup(const Problem& problem) {
+    const int n = problem.num_parameters();
+    const Eigen::Index m = problem.num_residuals();
+    if (n < 1 || (num_params != Dynamic && n != num_params)) {
+      throw Error("problem reports " + std::to_string(n) + " parameters; expected " +
+                      (num_params == Dynamic ? std::string("at least 1")
+                                             : std::to_string(num_params)),
+                  at_parameter("num_parameters"));
+    }
+    if (m < 1) throw Error("problem has no residuals", at_parameter("num_residuals"));
+    n_ = -1;  // stays invalid if validation throws
+    validate_options(n);
+
+    lower_.setConstant(n, -std::numeric_limits<double>::infinity());
+    upper_.setConstant(n, std::numeric_limits<double>::infinity());
+    if (options_.lower_bounds.size() == n) lower_ = options_.lower_bounds;
+    if (options_.upper_bounds.size() == n) upper_ = options_.upper_bounds;
+    fixed_.setZero(n);
+    if (!options_.fixed.empty()) {
+      for (int k = 0; k < n; ++k) fixed_[k] = options_.fixed[static_cast<std::size_t>(k)] ? 1 : 0;
+    }
+    x_.resize(n);
+    x_trial_.resize(n);
+    g_.resize(n);
+    d_.resize(n);
+    s_.resize(n);
+    y_.resize(n);
+    rhs_.resize(n);
+    free_.resize(n);
+    A_.resize(n, n);
+    Ahat_.resize(n, n);
+    R_.resize(n, n);
+    tau_.resize(n);
+    small_.resize(2 * n, n);
+    small_rhs_.resize(2 * n);
+    small_tau_.resize(n);
+    ws_.resize(n);
+    ws1_.resize(1);
+    ldlt_.compute(Matrix::Identity(n, n));  // sizes LDLT's internal buffers now, not in solve
+    r_.resize(m);
+    r_trial_.resize(m);
+    rw_.resize(m);
+    w_.resize(m);
+    J_.resize(m, n);
+    n_ = n;
+    m_ = m;
+  }
+
+  /// Minimises F from the initial `theta`, which receives the result (always the best accepted
+  /// point, whatever the status). Throws `nlid::Error` for invalid options, a non-finite initial
+  /// value, a fixed parameter outside its bounds, or a problem not evaluable at the start.
+  LmSummary solve(const Problem& problem, Parameters& theta) {
+    const auto t0 = std::chrono::steady_clock::now();
+    if (n_ != problem.num_parameters() || m_ != problem.num_residuals()) setup(problem);
+    LmSummary sum;
+    if (theta.size() != n_) {
+      throw Error("theta has " + std::to_string(theta.size()) + " entries, the problem has " +
+                      std::to_string(n_) + " parameters",
+                  at_parameter("theta"));
+    }
+    prepare_start(theta, sum);
+
+    // ---- start: full evaluation, normal equations -------------------------------------------
+    if (!evaluate_with_jacobian(problem, sum)) {
+      throw Error("the problem cannot be evaluated at the initial parameters: " + bad_detail_,
+                  at_parameter(bad_param_));
+    }
+    cost_ = robust_cost(options_.loss, r_);
+    sum.initial_cost = cost_;
+    double lambda = options_.initial_lambda;
+    double nu = 2.0;
+    build_normal_equations();
+    double gnorm = projected_gradient_norm();
+    int n_free = 0;
+    for (int k = 0; k < n_; ++k) n_free += fixed_[k] ? 0 : 1;
+
+    bool done = false;
+    if (n_free == 0) {
+      sum.status = LmStatus::all_parameters_fixed;
+      done = true;
+    } else if (gnorm <= options_.gradient_tolerance) {
+      sum.status = LmStatus::gradient_tolerance_reached;
+      done = true;
+    }
+    if (!report({0, cost_, 0.0, lambda, gnorm, true}) && !done) {
+      sum.status = LmStatus::user_abort;
+      done = true;
+    }
+
+    // ---- iterations ----------------------------------------------------------------------------
+    for (int iter = 1; !done && iter <= options_.max_iterations; ++iter) {
+      compute_step(lambda, sum);  // x_trial_ = P(x + δ)
+      const double step_norm = (x_trial_ - x_).norm();
+      const bool tiny_step =
+          step_norm <= options_.parameter_tolerance * (x_.norm() + options_.parameter_tolerance);
+      sum.iterations = iter;
+      // Model decrease of the projected step: m(0) − m(δ) = −(gᵀδ + ½ δᵀAδ).
+      y_ = x_trial_ - x_;
+      rhs_.noalias() = A_ * y_;
+      const double predicted = -(g_.dot(y_) + 0.5 * y_.dot(rhs_));
+      ++sum.residual_evaluations;
+      bool ok = problem.evaluate(x_trial_, r_trial_, nullptr);
+      check_residual_size(r_trial_);
+      ok = ok && r_trial_.allFinite();
+      const double new_cost = ok ? robust_cost(options_.loss, r_trial_) : 0.0;
+      const double actual = cost_ - new_cost;
+      const double gain = ok && predicted > 0 ? actual / predicted : -1.0;
+      const bool accepted = ok && predicted > 0 && actual > 0 && gain > 1e-3;
+
+      if (accepted) {
+        ++sum.accepted_steps;
+        const double old_cost = cost_;
+        x_.swap(x_trial_);
+        r_.swap(r_trial_);
+        cost_ = new_cost;
+        const double t = 2.0 * gain - 1.0;
+        lambda = std::max(lambda * std::max(1.0 / 3.0, 1.0 - t * t * t), 1e-16);
+        nu = 2.0;
+        if (!evaluate_with_jacobian(problem, sum)) {
+          sum.status = LmStatus::jacobian_not_finite;
+          sum.detail = "At the accepted parameters " + bad_detail_ + ".";
+          gnorm = std::numeric_limits<double>::quiet_NaN();
+          report({iter, cost_, step_norm, lambda, gnorm, true});
+          break;
+        }
+        build_normal_equations();
+        gnorm = projected_gradient_norm();
+        if (actual <= options_.function_tolerance * old_cost) {
+          sum.status = LmStatus::function_tolerance_reached;
+          done = true;
+        } else if (tiny_step) {
+          sum.status = LmStatus::parameter_tolerance_reached;
+          done = true;
+        } else if (gnorm <= options_.gradient_tolerance) {
+          sum.status = LmStatus::gradient_tolerance_reached;
+          done = true;
+        }
+      } else {
+        lambda *= nu;
+        nu = std::min(2.0 * nu, 1e10);  // ν doubles; capped so λ·ν stays finite
+        if (tiny_step) {  // larger λ only shortens the step further: no progress possible
+          sum.status = LmStatus::parameter_tolerance_reached;
+          done = true;
+        } else if (lambda > 1e32) {
+          sum.status = LmStatus::lambda_limit_reached;
+          done = true;
+        }
+      }
+      if (!report({iter, cost_, step_norm, lambda, gnorm, accepted}) && !done) {
+        sum.status = LmStatus::user_abort;
+        done = true;
+      }
+    }
+    theta = x_;
+    sum.final_cost = cost_;
+    sum.final_gradient_norm = gnorm;
+    sum.final_lambda = lambda;
+    sum.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    return sum;
+  }
+
+ private:
+  using Vector = Eigen::Matrix<double, num_params, 1>;
+  using Matrix = Eigen::Matrix<double, num_params, num_params>;
+  static constexpr int twice = num_params == Dynamic ? Dynamic : 2 * num_params;
+  using SmallMatrix = Eigen::Matrix<double, twice, num_params>;
+  using SmallVector = Eigen::Matrix<double, twice, 1>;
+
+  std::string param_name(int k) const {
+    if (!options_.parameter_names.empty()) return options_.parameter_names[static_cast<std::size_t>(k)];
+    return "theta[" + std::to_string(k) + "]";
+  }
+  static std::string num(double v) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.9g", v);
+    return buf;
+  }
+
+  void validate_options(int n) const {
+    const LmOptions& o = options_;
+    if (o.max_iterations < 0) {
+      throw Error("LmOptions::max_iterations must be >= 0, got " + std::to_string(o.max_iterations),
+                  at_parameter("max_iterations"));
+    }
+    auto check_tol = [](double v, const char* name) {
+      if (!(std::isfinite(v) && v >= 0)) {
+        throw Error(std::string("LmOptions::") + name + " must be finite and >= 0, got " + num(v),
+                    at_parameter(name));
+      }
+    };
+    check_tol(o.function_tolerance, "function_tolerance");
+    check_tol(o.gradient_tolerance, "gradient_tolerance");
+    check_tol(o.parameter_tolerance, "parameter_tolerance");
+    if (!(std::isfinite(o.initial_lambda) && o.initial_lambda > 0)) {
+      throw Error("LmOptions::initial_lambda must be finite and > 0, got " + num(o.initial_lambda),
+                  at_parameter("initial_lambda"));
+    }
+    const std::string ns = std::to_string(n);
+    if (!o.parameter_names.empty() && static_cast<int>(o.parameter_names.size()) != n) {
+      throw Error("LmOptions::parameter_names has " + std::to_string(o.parameter_names.size()) +
+                      " entries, the problem has " + ns + " parameters",
+                  at_parameter("parameter_names"));
+    }
+    auto check_size = [&](Eigen::Index size, const char* name) {
+      if (size != 0 && size != n) {
+        throw Error(std::string("LmOptions::") + name + " has " + std::to_string(size) +
+                        " entries, the problem has " + ns + " parameters (leave it empty for none)",
+                    at_parameter(name));
+      }
+    };
+    check_size(o.lower_bounds.size(), "lower_bounds");
+    check_size(o.upper_bounds.size(), "upper_bounds");
+    check_size(static_cast<Eigen::Index>(o.fixed.size()), "fixed");
+    const double inf = std::numeric_limits<double>::infinity();
+    for (int k = 0; k < n; ++k) {
+      const double lo = o.lower_bounds.size() ? o.lower_bounds[k] : -inf;
+      const double hi = o.upper_bounds.size() ? o.upper_bounds[k] : inf;
+      const std::string where = " for parameter '" + param_name(k) + "' (index " + std::to_string(k) + ")";
+      if (std::isnan(lo) || lo == inf) {
+        throw Error("LmOptions::lower_bounds is " + num(lo) + where, at_parameter(param_name(k)));
+      }
+      if (std::isnan(hi) || hi == -inf) {
+        throw Error("LmOptions::upper_bounds is " + num(hi) + where, at_parameter(param_name(k)));
+      }
+      if (lo > hi) {
+        throw Error("LmOptions: lower bound " + num(lo) + " exceeds upper bound " + num(hi) + where,
+                    at_parameter(param_name(k)));
+      }
+    }
+    validate(o.loss);
+  }
+
+  // Copies θ into x_, checks it, projects free parameters onto the bounds.
+  void prepare_start(const Parameters& theta, LmSummary& sum) {
+    for (int k = 0; k < n_; ++k) {
+      const double v = theta[k];
+      if (!std::isfinite(v)) {
+        throw Error("initial value of parameter '" + param_name(k) + "' is not finite (" + num(v) + ")",
+                    at_parameter(param_name(k)));
+      }
+      double p = std::clamp(v, lower_[k], upper_[k]);
+      if (p != v) {
+        if (fixed_[k]) {
+          throw Error("parameter '" + param_name(k) + "' is fixed at " + num(v) +
+                          " which lies outside its bounds [" + num(lower_[k]) + ", " +
+                          num(upper_[k]) + "]",
+                      at_parameter(param_name(k)));
+        }
+        ++sum.projected_parameters;
+      }
+      x_[k] = p;
+    }
+    d_.setZero();
+    bad_detail_.clear();
+    bad_param_.clear();
+  }
+
+  void check_residual_size(const Eigen::VectorXd& r) const {
+    if (r.size() != m_) {
+      throw Error("the problem's evaluate() resized the residual vector from " +
+                      std::to_string(m_) + " to " + std::to_string(r.size()) + " entries",
+                  at_parameter("num_residuals"));
+    }
+  }
+
+  // r_ and J_ at x_ (J_ then reweighted). False if not evaluable; bad_detail_ says why.
+  bool evaluate_with_jacobian(const Problem& problem, LmSummary& sum) {
+    ++sum.residual_evaluations;
+    ++sum.jacobian_evaluations;
+    const bool ok = problem.evaluate(x_, r_, &J_);
+    check_residual_size(r_);
+    if (J_.rows() != m_ || J_.cols() != n_) {
+      throw Error("the problem's evaluate() resized the Jacobian", at_parameter("J"));
+    }
+    if (!ok) {
+      bad_detail_ = "evaluate() returned false";
+      bad_param_ = "theta";
+      return false;
+    }
+    for (Eigen::Index i = 0; i < m_; ++i) {
+      if (!std::isfinite(r_[i])) {
+        bad_detail_ = "residual " + std::to_string(i) + " is " + num(r_[i]);
+        bad_param_ = "theta";
+        return false;
+      }
+    }
+    for (int k = 0; k < n_; ++k) {
+      for (Eigen::Index i = 0; i < m_; ++i) {
+        if (!std::isfinite(J_(i, k))) {
+          bad_detail_ = "the Jacobian entry d r[" + std::to_string(i) + "] / d '" + param_name(k) +
+                        "' is " + num(J_(i, k));
+          bad_param_ = param_name(k);
+          return false;
+        }
+      }
+    }
+    return true;
+  }
+
+  // IRLS reweighting, A = J̃ᵀJ̃, g = J̃ᵀr̃, column scale D.
+  void build_normal_equations() {
+    if (options_.loss.kind == RobustLoss::Kind::squared) {
+      rw_ = r_;
+    } else {
+      robust_weights(options_.loss, r_, w_);
+      rw_ = w_.cwiseProduct(r_);
+      for (int k = 0; k < n_; ++k) J_.col(k).array() *= w_.array();
+    }
+    A_.noalias() = J_.transpose() * J_;
+    g_.noalias() = J_.transpose() * rw_;
+    if (options_.jacobian_scaling) {
+      for (int k = 0; k < n_; ++k) d_[k] = std::max(d_[k], std::sqrt(A_(k, k)));
+    } else {
+      const double dmax = std::sqrt(A_.diagonal().maxCoeff());
+      if (dmax > d_[0]) d_.setConstant(dmax);  // running maximum, like the scaled case
+    }
+    // s = D⁻¹; a parameter that has never influenced r gets unit scale (its step is 0 anyway).
+    for (int k = 0; k < n_; ++k) s_[k] = d_[k] > 0 ? 1.0 / d_[k] : 1.0;
+    // Free set of this linearisation: not fixed, and not pushed out of the box by −g.
+    for (int k = 0; k < n_; ++k) {
+      const bool at_lo = x_[k] <= lower_[k] && g_[k] > 0;
+      const bool at_hi = x_[k] >= upper_[k] && g_[k] < 0;
+      free_[k] = (fixed_[k] || at_lo || at_hi) ? 0.0 : 1.0;
+    }
+    qr_ready_ = false;
+  }
+
+  double projected_gradient_norm() const {
+    double gn = 0;
+    for (int k = 0; k < n_; ++k) {
+      if (fixed_[k]) continue;
+      const double p = x_[k] - std::clamp(x_[k] - g_[k], lower_[k], upper_[k]);
+      gn = std::max(gn, std::abs(p));
+    }
+    return gn;
+  }
+
+  // Solves the scaled damped system for y, sets x_trial_ = P(x + D⁻¹y).
+  void compute_step(double lambda, LmSummary& sum) {
+    bool ok = false;
+    if (!qr_ready_) {
+      for (int i = 0; i < n_; ++i) {
+        for (int j = 0; j < n_; ++j) {
+          Ahat_(i, j) = free_[i] * free_[j] * s_[i] * A_(i, j) * s_[j];
+        }
+        Ahat_(i, i) += free_[i] > 0 ? lambda : 1.0;
+        rhs_[i] = -free_[i] * s_[i] * g_[i];
+      }
+      ldlt_.compute(Ahat_);
+      ok = ldlt_.info() == Eigen::Success && ldlt_.isPositive() &&
+           ldlt_.vectorD().minCoeff() > 0 && ldlt_.rcond() >= 1e-12;
+      if (ok) {
+        y_ = ldlt_.solve(rhs_);
+        ok = y_.allFinite();
+      }
+    }
+    if (!ok) {
+      if (!qr_ready_) prepare_qr();
+      solve_small(lambda);
+      ++sum.qr_fallbacks;
+    }
+    for (int k = 0; k < n_; ++k) {
+      const double step = free_[k] > 0 ? s_[k] * y_[k] : 0.0;
+      x_trial_[k] = free_[k] > 0 ? std::clamp(x_[k] + step, lower_[k], upper_[k]) : x_[k];
+    }
+  }
+
+  // Ĵ = J̃ D⁻¹ (held columns zeroed) = QR in place; c = Qᵀ(−r̃) kept in rw_. Destroys J_, which
+  // is not needed again before the next Jacobian evaluation.
+  void prepare_qr() {
+    for (int k = 0; k < n_; ++k) J_.col(k) *= free_[k] * s_[k];
+    detail::householder_qr_in_place(J_, tau_, ws_);
+    rw_ = -rw_;
+    detail::apply_qt(J_, tau_, rw_, ws1_);
+    R_.setZero();
+    const Eigen::Index rows = std::min<Eigen::Index>(m_, n_);
+    R_.topRows(rows) = J_.topRows(rows).template triangularView<Eigen::Upper>();
+    qr_ready_ = true;
+  }
+
+  // min ‖[R; √λ I] y − [c; 0]‖ by a second, small QR (held parameters: y_k = 0).
+  void solve_small(double lambda) {
+    small_.topRows(n_) = R_;
+    small_.bottomRows(n_).setZero();
+    const double sl = std::sqrt(lambda);
+    for (int k = 0; k < n_; ++k) small_(n_ + k, k) = free_[k] > 0 ? sl : 1.0;
+    small_rhs_.setZero();
+    const Eigen::Index rows = std::min<Eigen::Index>(m_, n_);
+    small_rhs_.head(rows) = rw_.head(rows);
+    detail::householder_qr_in_place(small_, small_tau_, ws_);
+    detail::apply_qt(small_, small_tau_, small_rhs_, ws1_);
+    y_ = small_rhs_.head(n_);
+    small_.topRows(n_).template triangularView<Eigen::Upper>().solveInPlace(y_);
+    for (int k = 0; k < n_; ++k) {
+      if (free_[k] == 0 || !std::isfinite(y_[k])) y_[k] = 0;
+    }
+  }
+
+  bool report(const IterationReport& rep) const {
+    if (!options_.callback) return true;
+    return options_.callback(rep);
+  }
+
+  LmOptions options_;
+  int n_ = -1;
+  Eigen::Index m_ = -1;
+  // Bounds, fixed flags, iterate, trial, gradient, scales, free set, solution (all size n).
+  Vector lower_, upper_, fixed_, x_, x_trial_, g_, d_, s_, y_, rhs_, free_;
+  Matrix A_, Ahat_, R_;
+  Vector tau_;
+  SmallMatrix small_;
+  SmallVector small_rhs_;
+  Vector small_tau_;
+  Eigen::Matrix<double, 1, num_params> ws_;
+  Eigen::Matrix<double, 1, 1> ws1_;
+  Eigen::LDLT<Matrix> ldlt_;
+  // Residual-sized buffers and the Jacobian.
+  Eigen::VectorXd r_, r_trial_, rw_, w_;
+  JacobianMatrix<num_params> J_;
+  double cost_ = 0;
+  bool qr_ready_ = false;
+  std::string bad_detail_, bad_param_;
+};
+
+/// Minimises ½ Σ ρ(rᵢ(θ)²) from the initial `theta` (which receives the result).
+/// Convenience wrapper: `LevenbergMarquardt<P>(options).solve(problem, theta)`.
+/// Throws `nlid::Error` for invalid options or an initial point where the problem cannot be
+/// evaluated; otherwise the summary says how it ended.
+template <LeastSquaresProblem P>
+LmSummary solve_least_squares(const P& problem, Eigen::Matrix<double, P::num_params, 1>& theta,
+                              const LmOptions& options = {}) {
+  LevenbergMarquardt<P> lm(options);
+  return lm.solve(problem, theta);
+}
+
+}  // namespace nlid

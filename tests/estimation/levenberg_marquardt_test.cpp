@@ -1,0 +1,483 @@
+// Levenberg–Marquardt: known minima (Rosenbrock, exponential fit), bounds with KKT signs, fixed
+// parameters, Huber loss against outliers, callback trace and abort, failure handling, the QR
+// fallback on an ill-conditioned problem, and validation errors that name the option.
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "nlid/estimation.hpp"
+#include "test_problems.hpp"
+
+using Catch::Matchers::Contains;
+using nlid::AutoDiffProblem;
+using nlid::LmOptions;
+using nlid::LmStatus;
+
+namespace {
+
+// ∂F/∂θ of F = ½‖r‖² at θ, from the problem's own Jacobian.
+template <class P>
+Eigen::VectorXd gradient(const P& p, const typename P::Parameters& th) {
+  Eigen::VectorXd r(p.num_residuals());
+  typename P::Jacobian J(p.num_residuals(), p.num_parameters());
+  REQUIRE(p.evaluate(th, r, &J));
+  return J.transpose() * r;
+}
+
+}  // namespace
+
+TEST_CASE("Rosenbrock, static parameter count: minimum (1, 1) to 1e-8", "[estimation][lm]") {
+  AutoDiffProblem problem(nlid_test::Rosenbrock<2>{});
+  Eigen::Vector2d x(-1.2, 1.0);
+  const auto s = nlid::solve_least_squares(problem, x);
+  INFO(s.message());
+  CHECK(s.converged());
+  CHECK(std::abs(x[0] - 1.0) < 1e-8);
+  CHECK(std::abs(x[1] - 1.0) < 1e-8);
+  CHECK(s.final_cost < 1e-20);
+  CHECK(s.initial_cost == Approx(0.5 * (4.4 * 4.4 + 2.2 * 2.2)));
+  CHECK(s.iterations > 3);  // a real nonlinear solve, not a lucky first step
+  CHECK(s.jacobian_evaluations == s.accepted_steps + 1);
+  CHECK(s.residual_evaluations == s.iterations + s.jacobian_evaluations);
+  CHECK(s.seconds >= 0);
+}
+
+TEST_CASE("Rosenbrock, dynamic parameter count and without Jacobian scaling", "[estimation][lm]") {
+  AutoDiffProblem problem(nlid_test::Rosenbrock<nlid::Dynamic>{});
+  Eigen::VectorXd x(2);
+  x << -1.2, 1.0;
+  const auto s = nlid::solve_least_squares(problem, x);
+  INFO(s.message());
+  CHECK(s.converged());
+  CHECK((x - Eigen::Vector2d(1, 1)).cwiseAbs().maxCoeff() < 1e-8);
+
+  LmOptions o;
+  o.jacobian_scaling = false;
+  Eigen::VectorXd x2(2);
+  x2 << -1.2, 1.0;
+  const auto s2 = nlid::solve_least_squares(problem, x2, o);
+  INFO(s2.message());
+  CHECK(s2.converged());
+  CHECK((x2 - Eigen::Vector2d(1, 1)).cwiseAbs().maxCoeff() < 1e-8);
+
+  // Extended Rosenbrock, n = 10: the chunked Dual path (chunks of 8 + 2) inside a real solve.
+  AutoDiffProblem ext(nlid_test::ExtendedRosenbrock{});
+  Eigen::VectorXd z(10);
+  for (int i = 0; i < 10; ++i) z[i] = i % 2 == 0 ? -1.2 : 1.0;
+  const auto s3 = nlid::solve_least_squares(ext, z);
+  INFO(s3.message());
+  CHECK(s3.converged());
+  CHECK((z.array() - 1.0).abs().maxCoeff() < 1e-8);
+}
+
+TEST_CASE("exponential fit y = a exp(bt) + c recovers noise-free parameters to 1e-9",
+          "[estimation][lm]") {
+  AutoDiffProblem problem(nlid_test::ExpFit<3>(2.0, -1.3, 0.5));
+  Eigen::Vector3d th(1.0, -0.5, 0.0);
+  const auto s = nlid::solve_least_squares(problem, th);
+  INFO(s.message());
+  CHECK(s.converged());
+  CHECK(std::abs(th[0] - 2.0) < 1e-9);
+  CHECK(std::abs(th[1] + 1.3) < 1e-9);
+  CHECK(std::abs(th[2] - 0.5) < 1e-9);
+  CHECK_THAT(s.message(), Contains("converged") && Contains("Jacobian evaluations"));
+
+  // The same through central differences: fewer digits, same answer.
+  nlid::NumericDiffProblem nproblem(nlid_test::ExpFit<3>(2.0, -1.3, 0.5));
+  Eigen::Vector3d th2(1.0, -0.5, 0.0);
+  const auto s2 = nlid::solve_least_squares(nproblem, th2);
+  CHECK(s2.converged());
+  CHECK((th2 - Eigen::Vector3d(2.0, -1.3, 0.5)).cwiseAbs().maxCoeff() < 1e-6);
+}
+
+TEST_CASE("an active upper bound: solution on the bound with the KKT sign", "[estimation][lm]") {
+  using P = AutoDiffProblem<nlid_test::ExpFit<3>>;
+  P problem(nlid_test::ExpFit<3>(2.0, -1.3, 0.5));
+  LmOptions o;
+  const double inf = std::numeric_limits<double>::infinity();
+  o.upper_bounds = Eigen::Vector3d(1.5, inf, inf);
+  // With a on the wrong value the residuals stay large, and Gauss–Newton converges only
+  // linearly (JᵀJ misses Σ rᵢ∇²rᵢ): switch the cost-change test off so the gradient test decides.
+  o.function_tolerance = 0;
+  Eigen::Vector3d th(1.0, -0.5, 0.0);
+  const auto s = nlid::solve_least_squares(problem, th, o);
+  INFO(s.message());
+  CHECK(s.converged());
+  CHECK(th[0] == 1.5);  // exactly on the bound
+  const Eigen::VectorXd g = gradient(problem, th);
+  // At an upper bound the cost must not decrease inward: ∂F/∂a ≤ 0 (strictly, here), and the
+  // free parameters are stationary.
+  CHECK(g[0] < -1e-3);
+  CHECK(std::abs(g[1]) < 1e-8);
+  CHECK(std::abs(g[2]) < 1e-8);
+  CHECK(s.final_gradient_norm < 1e-8);
+}
+
+TEST_CASE("an active lower bound; a start outside the box is projected", "[estimation][lm]") {
+  using P = AutoDiffProblem<nlid_test::Rosenbrock<2>>;
+  P problem(nlid_test::Rosenbrock<2>{});
+  LmOptions o;
+  o.lower_bounds = Eigen::Vector2d(1.5, -std::numeric_limits<double>::infinity());
+  Eigen::Vector2d x(-1.2, 1.0);  // x₁ = −1.2 < 1.5: projected to 1.5
+  const auto s = nlid::solve_least_squares(problem, x, o);
+  INFO(s.message());
+  CHECK(s.converged());
+  CHECK(s.projected_parameters == 1);
+  CHECK_THAT(s.message(), Contains("projected onto bounds"));
+  CHECK(x[0] == 1.5);
+  CHECK(x[1] == Approx(2.25).epsilon(1e-10));
+  const Eigen::VectorXd g = gradient(problem, x);
+  CHECK(g[0] == Approx(0.5));  // ∂F/∂x₁ = −(1 − x₁) = 0.5 ≥ 0 at a lower bound
+  CHECK(std::abs(g[1]) < 1e-8);
+}
+
+TEST_CASE("a fixed parameter stays exactly unchanged", "[estimation][lm]") {
+  using P = AutoDiffProblem<nlid_test::ExpFit<3>>;
+  P problem(nlid_test::ExpFit<3>(2.0, -1.3, 0.5));
+  LmOptions o;
+  o.fixed = {false, false, true};
+  o.function_tolerance = 0;  // large residual: let the gradient test decide (see above)
+  const double c0 = 0.4000000000000000222;  // deliberately wrong offset, held
+  Eigen::Vector3d th(1.0, -0.5, c0);
+  const auto s = nlid::solve_least_squares(problem, th, o);
+  INFO(s.message());
+  CHECK(s.converged());
+  CHECK(th[2] == c0);  // bit-for-bit
+  const Eigen::VectorXd g = gradient(problem, th);
+  CHECK(std::abs(g[0]) < 1e-8);  // the free parameters are optimal given c
+  CHECK(std::abs(g[1]) < 1e-8);
+  CHECK(std::abs(g[2]) > 1e-3);  // c itself is not at its optimum, proving it was held
+  CHECK(std::abs(th[0] - 2.0) > 1e-3);
+
+  o.fixed = {true, true, true};
+  Eigen::Vector3d all(1.0, -0.5, 0.0);
+  const auto s2 = nlid::solve_least_squares(problem, all, o);
+  CHECK(s2.status == LmStatus::all_parameters_fixed);
+  CHECK(s2.iterations == 0);
+  CHECK(all == Eigen::Vector3d(1.0, -0.5, 0.0));
+  CHECK(s2.final_cost == Approx(s2.initial_cost));
+}
+
+TEST_CASE("Huber loss recovers the line despite gross outliers; squared loss does not",
+          "[estimation][lm][robust]") {
+  // 10 % of the samples carry a +5 error.
+  AutoDiffProblem problem(nlid_test::LineWithOutliers(1.0, 2.0, 100, 10, 5.0));
+  Eigen::Vector2d ls(0.0, 0.0), hub(0.0, 0.0);
+  const auto s_ls = nlid::solve_least_squares(problem, ls);
+  LmOptions o;
+  o.loss = nlid::RobustLoss::huber(0.05);
+  o.function_tolerance = 0;  // IRLS converges linearly; let the gradient test decide
+  const auto s_h = nlid::solve_least_squares(problem, hub, o);
+  INFO(s_ls.message() << "\n" << s_h.message());
+  CHECK(s_ls.converged());
+  CHECK(s_h.converged());
+  CHECK(std::abs(ls[0] - 1.0) > 0.3);  // least squares is dragged up by the outliers
+  CHECK(std::abs(hub[0] - 1.0) < 0.02);
+  CHECK(std::abs(hub[1] - 2.0) < 0.03);
+  // At the Huber solution the true gradient Σ ρ'(r²) r ∇r vanishes.
+  Eigen::VectorXd r(100);
+  nlid::JacobianMatrix<2> J(100, 2);
+  REQUIRE(problem.evaluate(hub, r, &J));
+  Eigen::Vector2d g = Eigen::Vector2d::Zero();
+  for (int i = 0; i < 100; ++i) {
+    g += nlid::evaluate_loss(o.loss, r[i] * r[i]).rho1 * r[i] * J.row(i).transpose();
+  }
+  CHECK(g.cwiseAbs().maxCoeff() < 1e-8);
+  // The reported cost is ½ Σ ρ(r²), not ½‖r‖².
+  CHECK(s_h.final_cost == Approx(nlid::robust_cost(o.loss, r)).epsilon(1e-12));
+  CHECK(s_h.final_cost < 0.5 * r.squaredNorm());
+}
+
+TEST_CASE("callback: trace of costs is monotone over accepted steps; abort stops at once",
+          "[estimation][lm]") {
+  AutoDiffProblem problem(nlid_test::Rosenbrock<2>{});
+  std::vector<nlid::IterationReport> trace;
+  LmOptions o;
+  o.initial_lambda = 1e-8;  // provoke rejected steps early on
+  o.callback = [&](const nlid::IterationReport& r) {
+    trace.push_back(r);
+    return true;
+  };
+  Eigen::Vector2d x(-1.2, 1.0);
+  const auto s = nlid::solve_least_squares(problem, x, o);
+  REQUIRE(trace.size() == static_cast<std::size_t>(s.iterations + 1));
+  CHECK(trace.front().iteration == 0);
+  CHECK(trace.front().step_accepted);
+  CHECK(trace.front().cost == Approx(s.initial_cost));
+  int rejected = 0;
+  for (std::size_t i = 1; i < trace.size(); ++i) {
+    CHECK(trace[i].iteration == static_cast<int>(i));
+    if (trace[i].step_accepted) {
+      CHECK(trace[i].cost < trace[i - 1].cost);
+    } else {
+      ++rejected;
+      CHECK(trace[i].cost == trace[i - 1].cost);  // a rejected step leaves θ and F alone
+      CHECK(trace[i].lambda > trace[i - 1].lambda);
+    }
+    CHECK(trace[i].step_norm > 0);
+  }
+  CHECK(rejected > 0);
+  CHECK(trace.back().cost == Approx(s.final_cost));
+
+  // Abort after the third attempt: θ is the last accepted point, status user_abort.
+  Eigen::Vector2d last_accepted(-1.2, 1.0);
+  int calls = 0;
+  o.callback = [&](const nlid::IterationReport& r) { return ++calls < 4 || r.iteration < 0; };
+  Eigen::Vector2d y(-1.2, 1.0);
+  const auto sa = nlid::solve_least_squares(problem, y, o);
+  CHECK(sa.status == LmStatus::user_abort);
+  CHECK_FALSE(sa.converged());
+  CHECK(sa.iterations == 3);
+  CHECK(sa.final_cost == Approx(trace[3].cost));
+  CHECK(0.5 * (std::pow(10 * (y[1] - y[0] * y[0]), 2) + std::pow(1 - y[0], 2)) ==
+        Approx(sa.final_cost));
+
+  // Aborting on the start report: no iterations at all.
+  o.callback = [](const nlid::IterationReport&) { return false; };
+  Eigen::Vector2d z(-1.2, 1.0);
+  const auto s0 = nlid::solve_least_squares(problem, z, o);
+  CHECK(s0.status == LmStatus::user_abort);
+  CHECK(s0.iterations == 0);
+  CHECK(z == Eigen::Vector2d(-1.2, 1.0));
+}
+
+TEST_CASE("max_iterations stops an unfinished solve", "[estimation][lm]") {
+  AutoDiffProblem problem(nlid_test::Rosenbrock<2>{});
+  LmOptions o;
+  o.max_iterations = 3;
+  Eigen::Vector2d x(-1.2, 1.0);
+  const auto s = nlid::solve_least_squares(problem, x, o);
+  CHECK(s.status == LmStatus::max_iterations_reached);
+  CHECK(s.iterations == 3);
+  CHECK_FALSE(s.converged());
+  CHECK(s.final_cost < s.initial_cost);
+  CHECK_THAT(s.message(), Contains("max_iterations_reached") && Contains("not converged"));
+  o.max_iterations = 0;
+  Eigen::Vector2d x0(-1.2, 1.0);
+  const auto s0 = nlid::solve_least_squares(problem, x0, o);
+  CHECK(s0.status == LmStatus::max_iterations_reached);
+  CHECK(s0.iterations == 0);
+  CHECK(x0 == Eigen::Vector2d(-1.2, 1.0));
+}
+
+namespace {
+// min (log θ − log 3)²: the Gauss–Newton step from θ = 20 overshoots below 0, where log is not
+// defined; evaluate() reports false there and the solver must back off.
+struct LogFit {
+  static constexpr int num_params = 1;
+  int num_parameters() const { return 1; }
+  Eigen::Index num_residuals() const { return 1; }
+  template <class T>
+  bool residuals(std::span<const T> th, std::span<T> r) const {
+    using std::log;
+    if (!(th[0] > 0)) return false;
+    r[0] = log(th[0]) - std::log(3.0);
+    return true;
+  }
+};
+}  // namespace
+
+TEST_CASE("steps into a region where evaluate() fails are rejected, not propagated",
+          "[estimation][lm]") {
+  AutoDiffProblem problem(LogFit{});
+  Eigen::Matrix<double, 1, 1> th(20.0);
+  LmOptions o;
+  o.initial_lambda = 1e-12;
+  int rejected = 0;
+  o.callback = [&](const nlid::IterationReport& r) {
+    rejected += r.step_accepted ? 0 : 1;
+    return true;
+  };
+  const auto s = nlid::solve_least_squares(problem, th, o);
+  INFO(s.message());
+  CHECK(s.converged());
+  CHECK(th[0] == Approx(3.0).epsilon(1e-10));
+  CHECK(rejected >= 1);
+
+  // Not evaluable at the start: an error that says so.
+  Eigen::Matrix<double, 1, 1> bad(-1.0);
+  CHECK_THROWS_WITH(nlid::solve_least_squares(problem, bad),
+                    Contains("cannot be evaluated at the initial parameters") &&
+                        Contains("evaluate() returned false"));
+}
+
+TEST_CASE("a non-finite Jacobian at an accepted point stops with a named parameter",
+          "[estimation][lm]") {
+  // r = θ² − 0.01 with an analytic Jacobian that (wrongly) turns NaN below θ = 0.5.
+  auto problem = nlid::make_problem<1>(1, 1, [](const auto& th, Eigen::VectorXd& r, auto* J) {
+    r[0] = th[0] * th[0] - 0.01;
+    if (J) (*J)(0, 0) = th[0] < 0.5 ? std::numeric_limits<double>::quiet_NaN() : 2 * th[0];
+    return true;
+  });
+  Eigen::Matrix<double, 1, 1> th(2.0);
+  LmOptions o;
+  o.parameter_names = {"gain"};
+  const auto s = nlid::solve_least_squares(problem, th, o);
+  CHECK(s.status == LmStatus::jacobian_not_finite);
+  CHECK_FALSE(s.converged());
+  CHECK(th[0] < 0.5);  // θ is the accepted point where it happened
+  CHECK_THAT(s.detail, Contains("'gain'") && Contains("r[0]"));
+  CHECK_THAT(s.message(), Contains("jacobian_not_finite"));
+  // NaN residuals at the start are an error naming the residual.
+  auto nan_problem = nlid::make_problem<1>(1, 2, [](const auto&, Eigen::VectorXd& r, auto* J) {
+    r << 1.0, std::numeric_limits<double>::quiet_NaN();
+    if (J) J->setOnes();
+    return true;
+  });
+  Eigen::Matrix<double, 1, 1> t2(1.0);
+  CHECK_THROWS_WITH(nlid::solve_least_squares(nan_problem, t2), Contains("residual 1 is nan"));
+}
+
+TEST_CASE("ill-conditioned Jacobian: the QR fallback keeps full accuracy", "[estimation][lm]") {
+  // r = y − (a + b) t − 1e-7 b t² with nearly collinear columns: cond(J) ≈ 1e8, so the normal
+  // equations (cond ≈ 1e16) cannot be trusted while QR on J can.
+  const int m = 40;
+  Eigen::VectorXd t(m), y(m);
+  for (int i = 0; i < m; ++i) {
+    t[i] = 1.0 + static_cast<double>(i) / m;
+    y[i] = (1.0 + 2.0) * t[i] + 1e-7 * 2.0 * t[i] * t[i];
+  }
+  auto problem = nlid::make_problem<2>(2, m, [&](const Eigen::Vector2d& th, Eigen::VectorXd& r,
+                                                 nlid::JacobianMatrix<2>* J) {
+    r = y - (th[0] + th[1]) * t - 1e-7 * th[1] * t.cwiseProduct(t);
+    if (J) {
+      J->col(0) = -t;
+      J->col(1) = -t - 1e-7 * t.cwiseProduct(t);
+    }
+    return true;
+  });
+  LmOptions o;
+  o.initial_lambda = 1e-20;  // essentially Gauss–Newton from the start
+  // The gradient along the ill-determined direction a − b is ~σ_min² ≈ 1e-14 times the error:
+  // only the step-size test can tell when that direction has converged.
+  o.gradient_tolerance = 0;
+  o.function_tolerance = 0;
+  Eigen::Vector2d th(0.0, 0.0);
+  const auto s = nlid::solve_least_squares(problem, th, o);
+  INFO(s.message());
+  CHECK(s.qr_fallbacks > 0);
+  CHECK_THAT(s.message(), Contains("QR fallback"));
+  // Attainable: data rounding (1e-15) / σ_min (2e-7) ≈ 1e-8; the normal equations alone would
+  // lose all digits of a − b (cond² ε ≈ 1).
+  CHECK(std::abs(th[0] - 1.0) < 1e-7);
+  CHECK(std::abs(th[1] - 2.0) < 1e-7);
+  CHECK(s.final_cost < 1e-20);
+}
+
+TEST_CASE("stacked problems share parameters across experiments", "[estimation][lm]") {
+  using P = AutoDiffProblem<nlid_test::ExpFit<3>>;
+  std::vector<P> parts{P(nlid_test::ExpFit<3>(2.0, -1.3, 0.5, 30)),
+                       P(nlid_test::ExpFit<3>(2.0, -1.3, 0.5, 17))};
+  nlid::StackedProblem<P> stacked(std::move(parts));
+  CHECK(stacked.num_residuals() == 47);
+  CHECK(stacked.offset(1) == 30);
+  CHECK(stacked.size() == 2);
+  Eigen::Vector3d th(1.0, -0.5, 0.0);
+  const auto s = nlid::solve_least_squares(stacked, th);
+  CHECK(s.converged());
+  CHECK((th - Eigen::Vector3d(2.0, -1.3, 0.5)).cwiseAbs().maxCoeff() < 1e-9);
+  // The stacked Jacobian is the parts' Jacobians on top of each other.
+  Eigen::VectorXd r(47);
+  nlid::JacobianMatrix<3> J(47, 3);
+  REQUIRE(stacked.evaluate(th, r, &J));
+  Eigen::VectorXd r1(17);
+  nlid::JacobianMatrix<3> J1(17, 3);
+  REQUIRE(stacked.part(1).evaluate(th, r1, &J1));
+  CHECK(J.bottomRows(17) == J1);
+  CHECK_THROWS_WITH(nlid::StackedProblem<P>(std::vector<P>{}), Contains("no parts"));
+}
+
+TEST_CASE("invalid options throw errors that name the option and the parameter",
+          "[estimation][lm][errors]") {
+  AutoDiffProblem problem(nlid_test::ExpFit<3>(2.0, -1.3, 0.5));
+  const Eigen::Vector3d start(1.0, -0.5, 0.0);
+  auto expect = [&](const LmOptions& o, const std::string& what, const std::string& where) {
+    Eigen::Vector3d th = start;
+    try {
+      nlid::solve_least_squares(problem, th, o);
+      FAIL("no error for: " << what);
+    } catch (const nlid::Error& e) {
+      INFO(e.what());
+      CHECK_THAT(std::string(e.what()), Contains(what));
+      CHECK(e.where().parameter == where);
+      CHECK(th == start);  // θ untouched on a validation error
+    }
+  };
+  LmOptions o;
+  o.lower_bounds = Eigen::VectorXd::Zero(2);
+  expect(o, "lower_bounds has 2 entries, the problem has 3 parameters", "lower_bounds");
+  o = {};
+  o.upper_bounds = Eigen::VectorXd::Zero(4);
+  expect(o, "upper_bounds has 4 entries", "upper_bounds");
+  o = {};
+  o.lower_bounds = Eigen::Vector3d(0, 2, 0);
+  o.upper_bounds = Eigen::Vector3d(1, 1, 1);
+  expect(o, "lower bound 2 exceeds upper bound 1 for parameter 'theta[1]' (index 1)", "theta[1]");
+  o.parameter_names = {"a", "b", "c"};
+  expect(o, "for parameter 'b'", "b");
+  o = {};
+  o.lower_bounds = Eigen::Vector3d(0, std::nan(""), 0);
+  expect(o, "lower_bounds is nan", "theta[1]");
+  o = {};
+  o.fixed = {true};
+  expect(o, "fixed has 1 entries", "fixed");
+  o = {};
+  o.parameter_names = {"a"};
+  expect(o, "parameter_names has 1 entries", "parameter_names");
+  o = {};
+  o.max_iterations = -1;
+  expect(o, "max_iterations must be >= 0", "max_iterations");
+  o = {};
+  o.function_tolerance = -1e-3;
+  expect(o, "function_tolerance must be finite and >= 0", "function_tolerance");
+  o = {};
+  o.gradient_tolerance = std::numeric_limits<double>::quiet_NaN();
+  expect(o, "gradient_tolerance", "gradient_tolerance");
+  o = {};
+  o.parameter_tolerance = std::numeric_limits<double>::infinity();
+  expect(o, "parameter_tolerance", "parameter_tolerance");
+  o = {};
+  o.initial_lambda = 0;
+  expect(o, "initial_lambda must be finite and > 0", "initial_lambda");
+  o = {};
+  o.loss = nlid::RobustLoss::huber(-1.0);
+  expect(o, "Huber loss threshold delta must be finite and > 0", "loss.delta");
+  o = {};
+  o.fixed = {false, true, false};
+  o.upper_bounds = Eigen::Vector3d(10, -1.0, 10);
+  expect(o, "parameter 'theta[1]' is fixed at -0.5 which lies outside its bounds [-inf, -1]",
+         "theta[1]");
+
+  // Bad initial values.
+  Eigen::Vector3d nan_start(1.0, std::numeric_limits<double>::quiet_NaN(), 0.0);
+  CHECK_THROWS_WITH(nlid::solve_least_squares(problem, nan_start),
+                    Contains("initial value of parameter 'theta[1]' is not finite"));
+  AutoDiffProblem dyn(nlid_test::Rosenbrock<nlid::Dynamic>{});
+  Eigen::VectorXd wrong(3);
+  wrong.setZero();
+  CHECK_THROWS_WITH(nlid::solve_least_squares(dyn, wrong),
+                    Contains("theta has 3 entries, the problem has 2 parameters"));
+}
+
+TEST_CASE("a solver object is reusable and re-validates changed options", "[estimation][lm]") {
+  using P = AutoDiffProblem<nlid_test::ExpFit<3>>;
+  P problem(nlid_test::ExpFit<3>(2.0, -1.3, 0.5));
+  nlid::LevenbergMarquardt<P> lm;
+  lm.setup(problem);
+  for (int k = 0; k < 3; ++k) {
+    Eigen::Vector3d th(1.0 + k, -0.5, 0.0);
+    const auto s = lm.solve(problem, th);
+    CHECK(s.converged());
+    CHECK((th - Eigen::Vector3d(2.0, -1.3, 0.5)).cwiseAbs().maxCoeff() < 1e-9);
+  }
+  LmOptions bad;
+  bad.initial_lambda = -1;
+  lm.set_options(bad);
+  Eigen::Vector3d th(1.0, -0.5, 0.0);
+  CHECK_THROWS_WITH(lm.solve(problem, th), Contains("initial_lambda"));
+  CHECK(std::string(nlid::to_string(LmStatus::gradient_tolerance_reached)) ==
+        "gradient_tolerance_reached");
+}
