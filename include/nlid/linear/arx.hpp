@@ -108,7 +108,7 @@ struct ArxOptions {
 class Arx;
 namespace detail {
 inline Arx arx_estimate(const Dataset& data, const ArxOrders& o, const ArxOptions& opt,
-                        int min_start, const std::string& who);
+                        int min_start, const std::string& who, bool* rank_deficient);
 }  // namespace detail
 
 /// An ARX model A(q) y(t) = Σ Bᵢ(q) uᵢ(t − nkᵢ) + c + e(t) (see file comment).
@@ -381,7 +381,7 @@ class Arx {
 
  private:
   friend Arx detail::arx_estimate(const Dataset&, const ArxOrders&, const ArxOptions&, int,
-                                  const std::string&);
+                                  const std::string&, bool*);
 
   std::size_t checked(int i) const {
     require(i >= 0 && i < num_inputs(),
@@ -526,15 +526,17 @@ inline ArxRegression arx_regression(const Dataset& data, const ArxOrders& o, boo
 /// than one output, an experiment too short for the orders (naming it), missing samples, or a
 /// rank-deficient regression (input not persistently exciting).
 inline Arx arx(const Dataset& data, const ArxOrders& orders, const ArxOptions& options = {}) {
-  return detail::arx_estimate(data, orders, options, 0, "arx");
+  return detail::arx_estimate(data, orders, options, 0, "arx", nullptr);
 }
 
 namespace detail {
 
 // Estimation on the rows starting at max(largest lag, `min_start`): the order search passes a
-// common start so every candidate is scored on the same samples.
+// common start so every candidate is scored on the same samples. A rank-deficient regression
+// throws, unless `rank_deficient` is given: then it is set and an empty model returned.
 inline Arx arx_estimate(const Dataset& data, const ArxOrders& o, const ArxOptions& opt,
-                        int min_start, const std::string& who) {
+                        int min_start, const std::string& who, bool* rank_deficient) {
+  if (rank_deficient) *rank_deficient = false;
   require(data.size() > 0, who + ": the data set is empty", at_parameter("data"));
   require(data.num_outputs() == 1,
           who + ": ARX models have one output but the data have " +
@@ -551,6 +553,10 @@ inline Arx arx_estimate(const Dataset& data, const ArxOrders& o, const ArxOption
               std::to_string(d) + " parameters; more data or lower orders needed",
           at_parameter("data"));
   const LeastSquaresSolution sol = solve_least_squares_qr(reg.phi, reg.y);
+  if (sol.rank < d && rank_deficient) {
+    *rank_deficient = true;
+    return Arx();
+  }
   if (sol.rank < d)
     throw Error(who + ": the regression matrix has rank " + std::to_string(sol.rank) + " < " +
                     std::to_string(d) + " parameters for orders " + o.str() +

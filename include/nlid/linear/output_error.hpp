@@ -669,7 +669,7 @@ inline OutputError oe_estimate(const Dataset& data, const OeOrders& o, const OeO
           filtered.add(Experiment(std::move(uf), std::move(yf), ex.ts(), ex.name()));
         }
         const Arx step =
-            arx_estimate(filtered, ArxOrders(o.nf[i], o.nb[i], o.nk[i]), ArxOptions{}, 0, who);
+            arx_estimate(filtered, ArxOrders(o.nf[i], o.nb[i], o.nk[i]), ArxOptions{}, 0, who, nullptr);
         Eigen::VectorXd fnew(o.nf[i] + 1);
         fnew << 1.0, step.a();
         fpoly = stable_polynomial(fnew);

@@ -1,0 +1,102 @@
+// ARX order selection: the criteria pick the true order of a synthetic ARX system; the table and
+// chart print; candidates share their samples; bad grids are reported.
+#include <catch2/catch.hpp>
+
+#include <cmath>
+
+#include "linear_test_util.hpp"
+#include "nlid/linear/order_selection.hpp"
+
+namespace {
+Eigen::VectorXd vec(std::initializer_list<double> v) {
+  Eigen::VectorXd x(static_cast<Eigen::Index>(v.size()));
+  Eigen::Index k = 0;
+  for (double d : v) x(k++) = d;
+  return x;
+}
+// True system: ARX [2 2 1], poles 0.75 +/- 0.37i.
+nlid::Arx truth() { return nlid::Arx(vec({-1.5, 0.7}), {vec({1.0, 0.5})}, {1}, 0.1); }
+}  // namespace
+
+TEST_CASE("Order selection picks the true ARX order", "[linear][order]") {
+  const nlid::Experiment est = nlid_test::arx_data(truth(), nlid_test::white_noise(3000, 1, 1), 0.5, 2, "est");
+  const nlid::Experiment val = nlid_test::arx_data(truth(), nlid_test::white_noise(2000, 1, 3), 0.5, 4, "val");
+  const nlid::OrderSelection sel = nlid::arx_order_selection(est, val);
+  CHECK(sel.candidates.size() == 48);
+  CHECK(sel.first_row == 5);  // largest lag of the grid: nk 2 + nb 4 - 1
+  CHECK(sel.num_samples == 3000 - 5);
+  const nlid::ArxOrders want(2, 2, 1);
+  CHECK(sel.best(nlid::OrderCriterion::mdl).orders.str() == want.str());
+  // AIC is not consistent (Ljung 1999, §16.4): it may add a parameter or two, but its pick must
+  // contain the true structure (na = 2, lags 1..2 of u covered) and not be far larger.
+  const nlid::OrderCandidate& a = sel.best(nlid::OrderCriterion::aic);
+  CHECK(a.orders.na == 2);
+  CHECK(a.orders.nk[0] <= 1);
+  CHECK(a.orders.nk[0] + a.orders.nb[0] - 1 >= 2);
+  CHECK(a.num_parameters <= 6);
+  CHECK(sel.best(nlid::OrderCriterion::validation_loss).orders.na >= 2);
+  // The criteria are exactly the stated formulas on the common N.
+  for (const auto& c : sel.candidates) {
+    REQUIRE(c.valid);
+    const double n = static_cast<double>(sel.num_samples);
+    CHECK(c.aic == Approx(n * std::log(c.loss) + 2.0 * c.num_parameters));
+    CHECK(c.mdl == Approx(n * std::log(c.loss) + c.num_parameters * std::log(n)));
+    REQUIRE(c.validation_fit.has_value());
+  }
+  // Under-modelled candidates have visibly larger loss than the true order.
+  const double v_true = sel.best(nlid::OrderCriterion::mdl).loss;
+  CHECK(sel.candidates.front().loss > 1.5 * v_true);  // [1 1 0]
+  CHECK(v_true == Approx(0.25).epsilon(0.1));           // noise variance 0.5^2
+}
+
+TEST_CASE("Order selection prints a table and a bar chart", "[linear][order]") {
+  const nlid::Experiment est = nlid_test::arx_data(truth(), nlid_test::white_noise(800, 1, 5), 0.3, 6);
+  nlid::ArxOrderGrid grid;
+  grid.na = {1, 2, 3};
+  grid.nb = {1, 2};
+  grid.nk = {1};
+  const nlid::OrderSelection sel = nlid::arx_order_selection(est, grid);
+  const std::string t = sel.table();
+  CHECK(t.find("6 candidates") != std::string::npos);
+  CHECK(t.find("[2 2 1]") != std::string::npos);
+  CHECK(t.find("<MDL") != std::string::npos);
+  CHECK(t.find("Best by AIC: ") != std::string::npos);
+  CHECK(t.find("val. loss") == std::string::npos);
+  const std::string c = sel.bar_chart(40);
+  CHECK(c.find("d= 4 [2 2 1]") != std::string::npos);
+  CHECK(c.find("#") != std::string::npos);
+  CHECK(c.find("<MDL") != std::string::npos);
+  CHECK_THROWS_WITH(sel.best(nlid::OrderCriterion::validation_fit), Catch::Contains("needs validation data"));
+}
+
+TEST_CASE("Order selection keeps rank-deficient candidates as rows", "[linear][order]") {
+  // A sinusoid excites only order 2: nb = 4 is not identifiable.
+  Eigen::MatrixXd u(400, 1);
+  for (int t = 0; t < 400; ++t) u(t, 0) = std::sin(0.3 * t);
+  const nlid::Experiment e = nlid_test::arx_data(truth(), u, 0.0, 0);
+  nlid::ArxOrderGrid grid;
+  grid.na = {2};
+  grid.nb = {2, 4};
+  grid.nk = {1};
+  const nlid::OrderSelection sel = nlid::arx_order_selection(e, grid);
+  REQUIRE(sel.candidates.size() == 2);
+  CHECK(sel.candidates[0].valid);
+  CHECK_FALSE(sel.candidates[1].valid);
+  CHECK(sel.table().find("rank deficient") != std::string::npos);
+  CHECK(sel.best(nlid::OrderCriterion::aic).orders.nb[0] == 2);
+}
+
+TEST_CASE("Order selection rejects bad grids and data", "[linear][order]") {
+  const nlid::Experiment e = nlid_test::arx_data(truth(), nlid_test::white_noise(100, 1, 7), 0.1, 8, "e");
+  nlid::ArxOrderGrid grid;
+  grid.na = {-1, 2};
+  CHECK_THROWS_WITH(nlid::arx_order_selection(e, grid), Catch::Contains("na must be >= 0"));
+  grid.na = {};
+  CHECK_THROWS_WITH(nlid::arx_order_selection(e, grid), Catch::Contains("at least one value"));
+  grid = {};
+  grid.nb = {60};
+  const nlid::Experiment s(e.u().topRows(50), e.y().topRows(50), 0.1, "half");
+  CHECK_THROWS_WITH(nlid::arx_order_selection(nlid::Dataset{e, s}, grid), Catch::Contains("experiment 1 ('half') has 50 samples"));
+  const nlid::Experiment two(Eigen::MatrixXd::Random(100, 2), e.y(), 0.1);
+  CHECK_THROWS_WITH(nlid::arx_order_selection(e, two), Catch::Contains("validation data have 2 inputs"));
+}
