@@ -217,3 +217,25 @@ TEST_CASE("resample: spline up-sampling and filtered down-sampling", "[data][res
     CHECK_THROWS_WITH(nlid::resample(e, -1.0), Contains("got -1"));
   }
 }
+
+TEST_CASE("select_channels picks channels by name, in the order given", "[data][preprocess]") {
+  nlid::Experiment e(Eigen::MatrixXd::Random(6, 2), Eigen::MatrixXd::Random(6, 3), 0.5, "mimo");
+  e.set_input_names({"volt", "load"});
+  e.set_output_names({"angle", "rate", "current"});
+  e.set_output_units({"deg", "deg/s", "A"});
+  e.set_t0(1.0);
+  const nlid::Experiment s = nlid::select_channels(e, {"load"}, {"current", "angle"});
+  CHECK(s.u().col(0) == e.u().col(1));
+  CHECK(s.y().col(0) == e.y().col(2));
+  CHECK(s.y().col(1) == e.y().col(0));
+  CHECK(s.output_units() == std::vector<std::string>{"A", "deg"});
+  CHECK(s.t0() == 1.0);
+  CHECK(nlid::select_channels(e, {}, {"rate"}).num_inputs() == 0);
+  CHECK_THROWS_WITH(
+      nlid::select_channels(e, {"volt"}, {"speed"}),
+      Contains("no output channel named 'speed'; available: 'angle', 'rate', 'current'"));
+  const auto err = error_of([&] { (void)nlid::select_channels(nlid::Dataset{e, e}, {"x"}, {}); });
+  CHECK(err.where().experiment == 0);
+  // Integer offsets pick the scalar overload (Eigen's vector constructors are explicit).
+  CHECK(nlid::remove_offset(s, 0, 1).y()(0, 0) == s.y()(0, 0) - 1.0);
+}

@@ -1,9 +1,9 @@
 #pragma once
 /// @file
 /// Preprocessing of experiments: offsets, means, linear trends, time windows; plus (through
-/// resample.hpp) decimation and resampling. Every function returns a new experiment and leaves a
-/// note in its history; every one has a `Dataset` overload applied per experiment whose errors
-/// name the experiment index.
+/// resample.hpp) decimation and resampling, and channel selection. Every function returns a new
+/// experiment and leaves a note in its history; every one has a `Dataset` overload applied per
+/// experiment whose errors name the experiment index.
 ///
 /// Offsets and trends (Ljung 1999, sec. 14.1, "Slow disturbances: offsets, trends and drift").
 /// A linear model describes deviations from an operating point, so levels that the model cannot
@@ -27,10 +27,12 @@
 /// so a window of a record still lines up with the record.
 
 #include <Eigen/Core>
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <string>
 #include <utility>
+#include <vector>
 
 #include "nlid/core/error.hpp"
 #include "nlid/data/dataset.hpp"
@@ -239,6 +241,50 @@ inline Experiment select(const Experiment& e, double t_begin, double t_end) {
   Experiment out = select_samples(e, first, last - first + 1);
   out.add_note("selected time window " + range);
   return out;
+}
+
+/// The named input and output channels, in the order given (MATLAB `z(:, 'y2', 'u1')`); names,
+/// units and times are kept. Throws naming an unknown channel and listing the available ones.
+inline Experiment select_channels(const Experiment& e, const std::vector<std::string>& inputs,
+                                  const std::vector<std::string>& outputs) {
+  e.validate(true);
+  auto pick = [](const Eigen::MatrixXd& x, const std::vector<std::string>& have,
+                 const std::vector<std::string>& units, const std::vector<std::string>& want,
+                 const char* kind, std::vector<std::string>& out_units) {
+    Eigen::MatrixXd out(x.rows(), static_cast<Eigen::Index>(want.size()));
+    for (std::size_t j = 0; j < want.size(); ++j) {
+      const auto it = std::find(have.begin(), have.end(), want[j]);
+      if (it == have.end()) {
+        std::string list;
+        for (const auto& h : have) list += (list.empty() ? "'" : ", '") + h + "'";
+        throw Error(std::string("no ") + kind + " channel named '" + want[j] +
+                        "'; available: " + (list.empty() ? "(none)" : list),
+                    at_parameter(std::string(kind) + "s"));
+      }
+      const auto c = static_cast<std::size_t>(it - have.begin());
+      out.col(static_cast<Eigen::Index>(j)) = x.col(static_cast<Eigen::Index>(c));
+      out_units.push_back(units[c]);
+    }
+    return out;
+  };
+  std::vector<std::string> iu, ou;
+  Eigen::MatrixXd u = pick(e.u(), e.input_names(), e.input_units(), inputs, "input", iu);
+  Eigen::MatrixXd y = pick(e.y(), e.output_names(), e.output_units(), outputs, "output", ou);
+  Experiment out(std::move(u), std::move(y), e.ts(), e.name(), NonFinitePolicy::keep);
+  out.set_t0(e.t0());
+  out.set_input_names(inputs);
+  out.set_output_names(outputs);
+  out.set_input_units(std::move(iu));
+  out.set_output_units(std::move(ou));
+  for (const auto& n : e.notes()) out.add_note(n);
+  return out;
+}
+
+/// The same channels taken from every experiment.
+inline Dataset select_channels(const Dataset& d, const std::vector<std::string>& inputs,
+                               const std::vector<std::string>& outputs) {
+  return detail::per_experiment(
+      d, [&](const Experiment& e) { return select_channels(e, inputs, outputs); });
 }
 
 /// Same offsets removed from every experiment.
