@@ -122,7 +122,7 @@ struct Dual {
   Dual& operator/=(const Dual& o) {
     if (&o == this) return *this /= Dual(o);  // x /= x: read o before it changes
     const T inv = T(1) / o.a;
-    a *= inv;
+    a /= o.a;  // a true division, so the value is bit-identical to the plain-T evaluation
     v *= inv;
     detail::add_scaled(v, o.v, T(-a * inv));
     return *this;
@@ -146,7 +146,7 @@ struct Dual {
   // (x/s)' = x'/s
   Dual& operator/=(const T& s) {
     const T inv = T(1) / s;
-    a *= inv;
+    a /= s;
     v *= inv;
     return *this;
   }
@@ -232,7 +232,7 @@ template <class T, int N> Dual<T, N> operator/(Dual<T, N> x, const std::type_ide
 /// Scalar over dual.
 template <class T, int N> Dual<T, N> operator/(const std::type_identity_t<T>& s, const Dual<T, N>& x) {
   const T inv = T(1) / x.a;
-  const T r = s * inv;
+  const T r = s / x.a;
   return Dual<T, N>(r, x.v * T(-r * inv));
 }
 

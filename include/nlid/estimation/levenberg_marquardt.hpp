@@ -64,7 +64,7 @@
 
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
-#include <Eigen/Householder>
+#include <Eigen/Householder>  // makeHouseholderInPlace
 
 #include "nlid/core/error.hpp"
 #include "nlid/estimation/concepts.hpp"
@@ -195,28 +195,35 @@ struct LmSummary {
 namespace detail {
 
 // Householder QR of a (rows × cols), in place: R in the upper triangle, the essential parts of
-// the reflectors below it, their coefficients in tau. ws needs cols entries. Unblocked, so it
-// allocates nothing (Eigen's blocked HouseholderQR allocates panel temporaries).
-template <class M, class V, class W>
-void householder_qr_in_place(M& a, V& tau, W& ws) {
+// the reflectors v = [1; a(k+1:, k)] below it, their coefficients in tau. The reflectors are
+// applied column by column with dot products, so nothing is allocated (Eigen's HouseholderQR and
+// applyHouseholderOnTheLeft evaluate panel / outer-product temporaries on the heap).
+template <class M, class V>
+void householder_qr_in_place(M& a, V& tau) {
   const Eigen::Index rows = a.rows(), cols = a.cols(), size = std::min(rows, cols);
   for (Eigen::Index k = 0; k < size; ++k) {
     double beta;
     a.col(k).tail(rows - k).makeHouseholderInPlace(tau[k], beta);
     a(k, k) = beta;
-    if (k + 1 < cols) {
-      a.bottomRightCorner(rows - k, cols - k - 1)
-          .applyHouseholderOnTheLeft(a.col(k).tail(rows - k - 1), tau[k], ws.data());
+    const Eigen::Index len = rows - k - 1;
+    for (Eigen::Index j = k + 1; j < cols; ++j) {
+      // a(k:, j) ← (I − τ v vᵀ) a(k:, j)
+      const double w = tau[k] * (a(k, j) + a.col(k).tail(len).dot(a.col(j).tail(len)));
+      a(k, j) -= w;
+      a.col(j).tail(len) -= w * a.col(k).tail(len);
     }
   }
 }
 
-// b ← Qᵀ b for the Q stored by householder_qr_in_place.
-template <class M, class V, class B, class W>
-void apply_qt(const M& a, const V& tau, B& b, W& ws) {
+// b ← Qᵀ b for the Q stored by householder_qr_in_place (Qᵀ = H_{s−1} ⋯ H_0).
+template <class M, class V, class B>
+void apply_qt(const M& a, const V& tau, B& b) {
   const Eigen::Index rows = a.rows(), size = std::min(rows, a.cols());
   for (Eigen::Index k = 0; k < size; ++k) {
-    b.tail(rows - k).applyHouseholderOnTheLeft(a.col(k).tail(rows - k - 1), tau[k], ws.data());
+    const Eigen::Index len = rows - k - 1;
+    const double w = tau[k] * (b[k] + a.col(k).tail(len).dot(b.tail(len)));
+    b[k] -= w;
+    b.tail(len) -= w * a.col(k).tail(len);
   }
 }
 
@@ -280,8 +287,6 @@ class LevenbergMarquardt {
     small_.resize(2 * n, n);
     small_rhs_.resize(2 * n);
     small_tau_.resize(n);
-    ws_.resize(n);
-    ws1_.resize(1);
     ldlt_.compute(Matrix::Identity(n, n));  // sizes LDLT's internal buffers now, not in solve
     r_.resize(m);
     r_trial_.resize(m);
@@ -615,9 +620,9 @@ class LevenbergMarquardt {
   // is not needed again before the next Jacobian evaluation.
   void prepare_qr() {
     for (int k = 0; k < n_; ++k) J_.col(k) *= free_[k] * s_[k];
-    detail::householder_qr_in_place(J_, tau_, ws_);
+    detail::householder_qr_in_place(J_, tau_);
     rw_ = -rw_;
-    detail::apply_qt(J_, tau_, rw_, ws1_);
+    detail::apply_qt(J_, tau_, rw_);
     R_.setZero();
     const Eigen::Index rows = std::min<Eigen::Index>(m_, n_);
     R_.topRows(rows) = J_.topRows(rows).template triangularView<Eigen::Upper>();
@@ -633,8 +638,8 @@ class LevenbergMarquardt {
     small_rhs_.setZero();
     const Eigen::Index rows = std::min<Eigen::Index>(m_, n_);
     small_rhs_.head(rows) = rw_.head(rows);
-    detail::householder_qr_in_place(small_, small_tau_, ws_);
-    detail::apply_qt(small_, small_tau_, small_rhs_, ws1_);
+    detail::householder_qr_in_place(small_, small_tau_);
+    detail::apply_qt(small_, small_tau_, small_rhs_);
     y_ = small_rhs_.head(n_);
     small_.topRows(n_).template triangularView<Eigen::Upper>().solveInPlace(y_);
     for (int k = 0; k < n_; ++k) {
@@ -657,8 +662,6 @@ class LevenbergMarquardt {
   SmallMatrix small_;
   SmallVector small_rhs_;
   Vector small_tau_;
-  Eigen::Matrix<double, 1, num_params> ws_;
-  Eigen::Matrix<double, 1, 1> ws1_;
   Eigen::LDLT<Matrix> ldlt_;
   // Residual-sized buffers and the Jacobian.
   Eigen::VectorXd r_, r_trial_, rw_, w_;

@@ -166,7 +166,7 @@ inline Eigen::VectorXd low_discrepancy_point(unsigned long long i, int d, StartS
   Eigen::VectorXd z(d);
   if (seq == StartSequence::automatic) seq = d <= 12 ? StartSequence::halton : StartSequence::kronecker;
   if (seq == StartSequence::halton) {
-    require(d <= 12, "Halton sequence supports at most 12 dimensions; use kronecker");
+    if (d > 12) throw Error("Halton sequence supports at most 12 dimensions; use kronecker");
     for (int j = 0; j < d; ++j) z[j] = radical_inverse(i, halton_primes[j]);
     return z;
   }
