@@ -217,7 +217,7 @@ class Arx {
   /// One-sigma standard deviations of `parameters()` (zeros for a hand-made model).
   [[nodiscard]] const Eigen::VectorXd& parameter_stddev() const { return stddev_; }
   /// How the model was estimated.
-  [[nodiscard]] const EstimationReport& report() const { return report_; }
+  [[nodiscard]] const LinearEstimationReport& report() const { return report_; }
 
   /// Poles: roots of A.
   [[nodiscard]] Eigen::VectorXcd poles() const { return roots(a_polynomial()); }
@@ -273,7 +273,7 @@ class Arx {
   [[nodiscard]] Eigen::MatrixXd simulate(const Experiment& e,
                                          InitialCondition ic = InitialCondition::zero) const {
     const bool need_y = ic == InitialCondition::estimate || ic == InitialCondition::measured;
-    detail::check_experiment(e, num_inputs(), 1, ts_, -1, "Arx::simulate", need_y);
+    detail::check_linear_experiment(e, num_inputs(), 1, ts_, -1, "Arx::simulate", need_y);
     const Eigen::Index N = e.size();
     Eigen::MatrixXd y(N, 1);
     switch (ic) {
@@ -309,7 +309,7 @@ class Arx {
   [[nodiscard]] Eigen::MatrixXd predict(const Experiment& e, int k) const {
     require(k >= 1, "Arx::predict: horizon k must be >= 1, got " + std::to_string(k),
             at_parameter("k"));
-    detail::check_experiment(e, num_inputs(), 1, ts_, -1, "Arx::predict", true);
+    detail::check_linear_experiment(e, num_inputs(), 1, ts_, -1, "Arx::predict", true);
     const Eigen::Index N = e.size();
     if (static_cast<Eigen::Index>(k) >= N) return simulate(e, InitialCondition::measured);
     const Eigen::Index n = std::min<Eigen::Index>(orders().max_lag(), N);
@@ -451,7 +451,7 @@ class Arx {
   double offset_ = 0.0;
   bool has_offset_ = false;
   Eigen::VectorXd stddev_;
-  EstimationReport report_;
+  LinearEstimationReport report_;
   std::vector<std::string> input_names_;
 };
 
@@ -492,9 +492,9 @@ inline ArxRegression arx_regression(const Dataset& data, const ArxOrders& o, boo
   Eigen::Index rows = 0;
   for (std::size_t e = 0; e < data.size(); ++e) {
     const Experiment& ex = data[e];
-    detail::check_experiment(ex, o.num_inputs(), 1, 0.0, static_cast<long>(e), who, true);
+    detail::check_linear_experiment(ex, o.num_inputs(), 1, 0.0, static_cast<long>(e), who, true);
     if (ex.size() <= start)
-      throw Error(who + ": " + experiment_label(ex, static_cast<long>(e)) + " has " +
+      throw Error(who + ": " + linear_experiment_label(ex, static_cast<long>(e)) + " has " +
                       std::to_string(ex.size()) + " samples but orders " + o.str() + " need more than " +
                       std::to_string(start) + " (the largest lag) to form one regression row",
                   at_experiment(static_cast<long>(e)));
@@ -579,7 +579,7 @@ inline Arx arx_estimate(const Dataset& data, const ArxOrders& o, const ArxOption
   const double sigma2 = N > d ? ssr / static_cast<double>(N - d) : 0.0;
   m.stddev_ = (sigma2 * sol.unscaled_variance.array()).sqrt().matrix();
   m.input_names_ = data[0].input_names();
-  EstimationReport& r = m.report_;
+  LinearEstimationReport& r = m.report_;
   r.method = "linear least squares (Householder QR)";
   r.focus = "prediction";
   r.num_experiments = static_cast<int>(data.size());

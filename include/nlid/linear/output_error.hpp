@@ -215,7 +215,7 @@ class OutputError {
   /// One-sigma standard deviations of `parameters()` (zeros for a hand-made model).
   [[nodiscard]] const Eigen::VectorXd& parameter_stddev() const { return stddev_; }
   /// How the model was estimated.
-  [[nodiscard]] const EstimationReport& report() const { return report_; }
+  [[nodiscard]] const LinearEstimationReport& report() const { return report_; }
 
   /// Poles: roots of every Fᵢ, input by input.
   [[nodiscard]] Eigen::VectorXcd poles() const {
@@ -282,7 +282,7 @@ class OutputError {
   [[nodiscard]] Eigen::MatrixXd simulate(const Experiment& e,
                                          InitialCondition ic = InitialCondition::zero) const {
     const bool need_y = ic == InitialCondition::estimate || ic == InitialCondition::measured;
-    detail::check_experiment(e, num_inputs(), 1, ts_, -1, "OutputError::simulate", need_y);
+    detail::check_linear_experiment(e, num_inputs(), 1, ts_, -1, "OutputError::simulate", need_y);
     Eigen::MatrixXd y = Eigen::MatrixXd::Constant(e.size(), 1, offset_);
     switch (ic) {
       case InitialCondition::zero:
@@ -433,7 +433,7 @@ class OutputError {
   double offset_ = 0.0;
   bool has_offset_ = false;
   Eigen::VectorXd stddev_;
-  EstimationReport report_;
+  LinearEstimationReport report_;
   std::vector<std::string> input_names_;
 };
 
@@ -608,9 +608,9 @@ inline OutputError oe_estimate(const Dataset& data, const OeOrders& o, const OeO
   for (std::size_t i = 0; i < o.nb.size(); ++i) d += o.nb[i] + o.nf[i];
   for (std::size_t e = 0; e < data.size(); ++e) {
     const Experiment& ex = data[e];
-    check_experiment(ex, o.num_inputs(), 1, 0.0, static_cast<long>(e), who, true);
+    check_linear_experiment(ex, o.num_inputs(), 1, 0.0, static_cast<long>(e), who, true);
     if (ex.size() <= max_lag)
-      throw Error(who + ": " + experiment_label(ex, static_cast<long>(e)) + " has " +
+      throw Error(who + ": " + linear_experiment_label(ex, static_cast<long>(e)) + " has " +
                       std::to_string(ex.size()) + " samples but orders " + o.str() +
                       " need more than " + std::to_string(max_lag),
                   at_experiment(static_cast<long>(e)));
@@ -756,7 +756,7 @@ inline OutputError oe_estimate(const Dataset& data, const OeOrders& o, const OeO
     yall.segment(row, ex.size()) = ex.y().col(0);
     row += ex.size();
   }
-  EstimationReport& rep = model.report_;
+  LinearEstimationReport& rep = model.report_;
   rep.method = "Steiglitz-McBride (" + std::to_string(sm_done) + " iterations)" +
                (refined ? " + prediction-error minimisation (Levenberg-Marquardt)" : "") +
                (est_ic ? ", initial conditions estimated" : ", zero initial conditions");

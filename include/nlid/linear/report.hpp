@@ -54,7 +54,7 @@ inline double fpe_criterion(double loss, Eigen::Index num_samples, int num_param
 }
 
 /// Summary of an estimation, kept in every estimated linear model (`model.report()`).
-struct EstimationReport {
+struct LinearEstimationReport {
   std::string method;            ///< e.g. "least squares (QR)", "Steiglitz-McBride + PEM"
   std::string focus;             ///< "prediction" or "simulation": which error was minimised
   int num_experiments = 0;       ///< experiments used

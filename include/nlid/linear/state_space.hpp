@@ -107,9 +107,9 @@ class StateSpace {
     offset_ = std::move(y0);
   }
   /// How the model was estimated (empty for a hand-made model).
-  [[nodiscard]] const EstimationReport& report() const { return report_; }
+  [[nodiscard]] const LinearEstimationReport& report() const { return report_; }
   /// Replaces the estimation report (used by the estimators).
-  void set_report(EstimationReport r) { report_ = std::move(r); }
+  void set_report(LinearEstimationReport r) { report_ = std::move(r); }
 
   /// Poles: eigenvalues of A.
   [[nodiscard]] Eigen::VectorXcd poles() const {
@@ -192,7 +192,7 @@ class StateSpace {
   /// Initial state x(0) chosen by the policy `ic` for experiment `e` (see file comment).
   [[nodiscard]] Eigen::VectorXd initial_state(const Experiment& e, InitialCondition ic) const {
     const bool need_y = ic == InitialCondition::estimate;
-    detail::check_experiment(e, num_inputs(), num_outputs(), ts_, -1, "StateSpace", need_y);
+    detail::check_linear_experiment(e, num_inputs(), num_outputs(), ts_, -1, "StateSpace", need_y);
     const int n = order();
     switch (ic) {
       case InitialCondition::zero:
@@ -301,7 +301,7 @@ class StateSpace {
   Eigen::MatrixXd a_, b_, c_, d_;
   Eigen::VectorXd offset_;
   double ts_ = 1.0;
-  EstimationReport report_;
+  LinearEstimationReport report_;
 };
 
 }  // namespace nlid

@@ -78,7 +78,7 @@ inline void check_subspace_data(const Dataset& data, const std::string& who) {
   require(data.size() > 0, who + ": the data set is empty", at_parameter("data"));
   require(data.num_outputs() >= 1, who + ": the data have no output", at_parameter("data"));
   for (std::size_t e = 0; e < data.size(); ++e)
-    check_experiment(data[e], data.num_inputs(), data.num_outputs(), 0.0, static_cast<long>(e),
+    check_linear_experiment(data[e], data.num_inputs(), data.num_outputs(), 0.0, static_cast<long>(e),
                      who, true);
 }
 
@@ -118,7 +118,7 @@ inline MoespSvd moesp_svd(const Dataset& data, int s, bool remove_means, const s
   for (std::size_t e = 0; e < data.size(); ++e) {
     const Experiment& ex = data[e];
     if (ex.size() < 2 * s)
-      throw Error(who + ": " + experiment_label(ex, static_cast<long>(e)) + " has " +
+      throw Error(who + ": " + linear_experiment_label(ex, static_cast<long>(e)) + " has " +
                       std::to_string(ex.size()) + " samples, fewer than 2 x horizon = " +
                       std::to_string(2 * s) + " needed for the Hankel matrices",
                   at_experiment(static_cast<long>(e)));
@@ -295,13 +295,13 @@ inline StateSpace moesp(const Dataset& data, int order, const SubspaceOptions& o
   const detail::BdFit fit = detail::fit_b_d(data, a, c, options);
   StateSpace model(a, fit.b, c, fit.d, data.ts());
   model.set_offset(fit.offset);
-  EstimationReport r;
+  LinearEstimationReport r;
   r.method = "PO-MOESP subspace (horizon " + std::to_string(s) +
              "), B, D, x0 by least squares on the simulation error";
   r.focus = "simulation";
   r.num_experiments = static_cast<int>(data.size());
   r.num_samples = fit.rows;
-  r.num_parameters = order * order + order * p + fit.params;
+  r.num_parameters = order * p + fit.params;  // identifiable: C (n p, A up to similarity) + B, D, y0, x0
   r.loss = fit.ssr / static_cast<double>(fit.rows);
   r.fit_percent = fit.spread > 0 ? 100.0 * (1.0 - std::sqrt(fit.ssr) / fit.spread) : 100.0;
   model.set_report(r);

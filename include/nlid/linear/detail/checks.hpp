@@ -14,14 +14,14 @@
 namespace nlid::detail {
 
 // "experiment 2 ('data3')" or "experiment 2"; index < 0 gives "experiment 'data3'".
-inline std::string experiment_label(const Experiment& e, long index) {
+inline std::string linear_experiment_label(const Experiment& e, long index) {
   std::string s = "experiment";
   if (index >= 0) s += " " + std::to_string(index);
   if (!e.name().empty()) s += index >= 0 ? " ('" + e.name() + "')" : " '" + e.name() + "'";
   return s;
 }
 
-inline Location experiment_location(long index) {
+inline Location linear_experiment_location(long index) {
   Location l;
   if (index >= 0) l.experiment = index;
   return l;
@@ -29,22 +29,22 @@ inline Location experiment_location(long index) {
 
 // Checks that `e` can drive a model with `nu` inputs and sample time `ts`; with `need_y` also
 // that it has `ny` finite outputs (for initial-state estimation or fitting).
-inline void check_experiment(const Experiment& e, int nu, int ny, double ts, long index,
+inline void check_linear_experiment(const Experiment& e, int nu, int ny, double ts, long index,
                              const std::string& who, bool need_y) {
-  const Location where = experiment_location(index);
+  const Location where = linear_experiment_location(index);
   if (e.num_inputs() != nu)
     throw Error(who + ": model has " + std::to_string(nu) + " input(s) but " +
-                    experiment_label(e, index) + " has " + std::to_string(e.num_inputs()),
+                    linear_experiment_label(e, index) + " has " + std::to_string(e.num_inputs()),
                 where);
   if (need_y && e.num_outputs() != ny)
     throw Error(who + ": model has " + std::to_string(ny) + " output(s) but " +
-                    experiment_label(e, index) + " has " + std::to_string(e.num_outputs()),
+                    linear_experiment_label(e, index) + " has " + std::to_string(e.num_outputs()),
                 where);
   if (ts > 0 && std::abs(e.ts() - ts) > 1e-6 * ts) {
     char buf[160];
     std::snprintf(buf, sizeof buf, "model sample time %.9g s differs from the sample time %.9g s of ",
                   ts, e.ts());
-    throw Error(who + ": " + buf + experiment_label(e, index) +
+    throw Error(who + ": " + buf + linear_experiment_label(e, index) +
                     " (delays are counted in samples; resample the data or the model)",
                 where);
   }
@@ -55,7 +55,7 @@ inline void check_experiment(const Experiment& e, int nu, int ny, double ts, lon
           Location l = where;
           l.row = static_cast<long>(k) + 1;
           l.column = static_cast<long>(c) + 1;
-          throw Error(who + ": " + experiment_label(e, index) + " has a missing (non-finite) " +
+          throw Error(who + ": " + linear_experiment_label(e, index) + " has a missing (non-finite) " +
                           kind + " sample at index " + std::to_string(k) +
                           "; fill or trim it first (Experiment::fill_missing, select)",
                       l);

@@ -1,0 +1,198 @@
+#pragma once
+/// @file
+/// Compare a model's simulated output with measured data: the fit per experiment and output.
+///
+/// For each experiment e of a data set and each output j, the model is simulated from the
+/// experiment's inputs alone (free run, from the chosen `InitialCondition`), and scored by
+///
+///     fit_ej = 100 · (1 − ‖y_ej − ŷ_ej‖ / ‖y_ej − mean(y_ej)‖)   [%]       (analysis/fit.hpp)
+///
+/// as the toolbox's `compare` does (Ljung 1999, §16.6). Validation means doing this on data the
+/// model was not estimated on. The result keeps the simulated outputs for plotting and prints
+/// as a table; `FitTable` collects the results of several models into one table (models as
+/// rows, experiments as columns), the form in which the study reports its models.
+///
+/// Errors are located: a simulation that returns the wrong shape, or an output that is constant
+/// in some experiment, throws `nlid::Error` naming the experiment.
+
+#include <algorithm>
+#include <cstdio>
+#include <ostream>
+#include <sstream>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "nlid/analysis/concepts.hpp"
+#include "nlid/analysis/fit.hpp"
+#include "nlid/core/error.hpp"
+#include "nlid/core/initial_condition.hpp"
+#include "nlid/data/dataset.hpp"
+
+namespace nlid {
+
+namespace detail {
+// Policy name for tables. (models/ has a public nlid::to_string for it; not reused here so this
+// header does not depend on the models layer.)
+inline const char* initial_condition_name(InitialCondition ic) {
+  switch (ic) {
+    case InitialCondition::zero: return "zero";
+    case InitialCondition::estimate: return "estimate";
+    case InitialCondition::equilibrium: return "equilibrium";
+    case InitialCondition::measured: return "measured";
+  }
+  return "?";
+}
+}  // namespace detail
+
+/// Outcome of `compare`: fit (%) per experiment and output, and the simulated outputs.
+struct CompareResult {
+  std::vector<std::string> experiment_names;  ///< one per experiment ("experiment k" if unnamed)
+  std::vector<std::string> output_names;      ///< one per output channel
+  Eigen::MatrixXd fit;                        ///< experiments x outputs, percent (−∞: diverged)
+  std::vector<Eigen::MatrixXd> simulated;     ///< per experiment, N x ny simulated output
+  InitialCondition initial_condition = InitialCondition::zero;  ///< policy used
+
+  /// Fit of experiment `e`, output `j`; throws if out of range.
+  [[nodiscard]] double fit_of(std::size_t e, int j = 0) const {
+    require(e < experiment_names.size() && j >= 0 && j < fit.cols(),
+            "CompareResult: experiment " + std::to_string(e) + ", output " + std::to_string(j) +
+                " out of range",
+            at_experiment(static_cast<long>(e)));
+    return fit(static_cast<Eigen::Index>(e), j);
+  }
+
+  /// Table: one row per experiment, one column per output, fit in percent.
+  [[nodiscard]] std::string table() const {
+    std::ostringstream os;
+    char buf[128];
+    os << "Fit (%) of the simulated output, initial condition '" << detail::initial_condition_name(initial_condition)
+       << "'\n";
+    std::snprintf(buf, sizeof buf, "%-20s", "experiment");
+    os << buf;
+    for (const auto& n : output_names) {
+      std::snprintf(buf, sizeof buf, " %10s", n.c_str());
+      os << buf;
+    }
+    os << "\n";
+    for (std::size_t e = 0; e < experiment_names.size(); ++e) {
+      std::snprintf(buf, sizeof buf, "%-20s", experiment_names[e].c_str());
+      os << buf;
+      for (Eigen::Index j = 0; j < fit.cols(); ++j) {
+        std::snprintf(buf, sizeof buf, " %10.2f", fit(static_cast<Eigen::Index>(e), j));
+        os << buf;
+      }
+      os << "\n";
+    }
+    return os.str();
+  }
+};
+
+/// Prints `r.table()`.
+inline std::ostream& operator<<(std::ostream& os, const CompareResult& r) { return os << r.table(); }
+
+/// Simulates `model` on every experiment of `data` from `ic` and scores it (see file comment).
+/// Throws `nlid::Error` naming the experiment if the simulated output has the wrong shape or a
+/// measured output is constant; errors of the model's own checks pass through.
+template <SimulationModel M>
+CompareResult compare(const M& model, const Dataset& data,
+                      InitialCondition ic = InitialCondition::zero) {
+  require(data.size() > 0, "compare: the data set is empty", at_parameter("data"));
+  CompareResult r;
+  r.initial_condition = ic;
+  r.output_names = data[0].output_names();
+  r.fit.resize(static_cast<Eigen::Index>(data.size()), data.num_outputs());
+  for (std::size_t e = 0; e < data.size(); ++e) {
+    const Experiment& ex = data[e];
+    const std::string label =
+        ex.name().empty() ? "experiment " + std::to_string(e) : ex.name();
+    r.experiment_names.push_back(label);
+    Eigen::MatrixXd yhat = model.simulate(ex, ic);
+    if (yhat.rows() != ex.size() || yhat.cols() != ex.num_outputs())
+      throw Error("compare: model returned a " + std::to_string(yhat.rows()) + " x " +
+                      std::to_string(yhat.cols()) + " output for experiment " +
+                      std::to_string(e) + " ('" + label + "') with " +
+                      std::to_string(ex.size()) + " samples and " +
+                      std::to_string(ex.num_outputs()) + " output(s)",
+                  at_experiment(static_cast<long>(e)));
+    try {
+      r.fit.row(static_cast<Eigen::Index>(e)) = fit_percent(ex.y(), yhat).transpose();
+    } catch (const Error& err) {
+      Location l = err.where();
+      l.experiment = static_cast<long>(e);
+      throw Error("compare: experiment '" + label + "': " + err.message(), l);
+    }
+    r.simulated.push_back(std::move(yhat));
+  }
+  return r;
+}
+
+/// Fit (%) of several models on several experiments, printed as one table (models as rows).
+/// Experiments are columns in order of first appearance (matched by name); a model not
+/// compared on an experiment shows "-". With several outputs, columns are experiment/output.
+class FitTable {
+ public:
+  /// Adds the results of one model under `model_name`.
+  void add(std::string model_name, const CompareResult& r) {
+    Row row;
+    row.name = std::move(model_name);
+    for (std::size_t e = 0; e < r.experiment_names.size(); ++e)
+      for (Eigen::Index j = 0; j < r.fit.cols(); ++j) {
+        std::string col = r.experiment_names[e];
+        if (r.fit.cols() > 1) col += "/" + r.output_names[static_cast<std::size_t>(j)];
+        std::size_t k = 0;
+        while (k < columns_.size() && columns_[k] != col) ++k;
+        if (k == columns_.size()) columns_.push_back(col);
+        row.cells.emplace_back(k, r.fit(static_cast<Eigen::Index>(e), j));
+      }
+    rows_.push_back(std::move(row));
+  }
+
+  /// The table as text, e.g. "model | data3lin | data2lin".
+  [[nodiscard]] std::string str() const {
+    std::size_t wname = 5;
+    for (const auto& r : rows_) wname = std::max(wname, r.name.size());
+    std::vector<std::size_t> w;
+    for (const auto& c : columns_) w.push_back(std::max<std::size_t>(9, c.size()));
+    std::ostringstream os;
+    auto pad = [](const std::string& s, std::size_t n, bool right) {
+      const std::string fill(n > s.size() ? n - s.size() : 0, ' ');
+      return right ? fill + s : s + fill;
+    };
+    os << pad("model", wname, false);
+    for (std::size_t k = 0; k < columns_.size(); ++k) os << " | " << pad(columns_[k], w[k], true);
+    os << "\n" << std::string(wname, '-');
+    for (std::size_t k = 0; k < columns_.size(); ++k) os << "-+-" << std::string(w[k], '-');
+    os << "\n";
+    for (const auto& r : rows_) {
+      os << pad(r.name, wname, false);
+      for (std::size_t k = 0; k < columns_.size(); ++k) {
+        std::string cell = "-";
+        for (const auto& [col, v] : r.cells)
+          if (col == k) {
+            char buf[32];
+            std::snprintf(buf, sizeof buf, "%.1f %%", v);
+            cell = buf;
+          }
+        os << " | " << pad(cell, w[k], true);
+      }
+      os << "\n";
+    }
+    return os.str();
+  }
+
+ private:
+  struct Row {
+    std::string name;
+    std::vector<std::pair<std::size_t, double>> cells;
+  };
+  std::vector<std::string> columns_;
+  std::vector<Row> rows_;
+};
+
+/// Prints `t.str()`.
+inline std::ostream& operator<<(std::ostream& os, const FitTable& t) { return os << t.str(); }
+
+}  // namespace nlid

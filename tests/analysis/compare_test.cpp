@@ -1,0 +1,118 @@
+// compare(): fit per experiment and output for any SimulationModel, tables, located errors.
+#include <catch2/catch.hpp>
+
+#include <cmath>
+
+#include "nlid/analysis/compare.hpp"
+#include "nlid/linear/arx.hpp"
+#include "nlid/linear/output_error.hpp"
+#include "nlid/linear/state_space.hpp"
+
+namespace {
+// A toy model: output = gain * input (one column per input), for testing compare itself.
+struct Gain {
+  double g = 1.0;
+  Eigen::MatrixXd simulate(const nlid::Experiment& e, nlid::InitialCondition) const { return g * e.u(); }
+};
+// A model that returns the wrong shape.
+struct Broken {
+  Eigen::MatrixXd simulate(const nlid::Experiment& e, nlid::InitialCondition) const {
+    return Eigen::MatrixXd::Zero(e.size() + 1, 1);
+  }
+};
+struct NotAModel {
+  int simulate(int) const { return 0; }
+};
+static_assert(nlid::SimulationModel<Gain>);
+static_assert(nlid::SimulationModel<nlid::Arx>);
+static_assert(nlid::SimulationModel<nlid::OutputError>);
+static_assert(nlid::SimulationModel<nlid::StateSpace>);
+static_assert(!nlid::SimulationModel<NotAModel>);
+static_assert(!nlid::SimulationModel<double>);
+
+Eigen::MatrixXd ramp(int n, double scale) {
+  Eigen::MatrixXd x(n, 1);
+  for (int k = 0; k < n; ++k) x(k, 0) = scale * k;
+  return x;
+}
+}  // namespace
+
+TEST_CASE("compare scores each experiment with the normalised fit", "[analysis][compare]") {
+  // y = 2u; model with gain 2 is perfect, gain 1 gives a known fit.
+  const nlid::Experiment a(ramp(10, 1.0), ramp(10, 2.0), 0.1, "a");
+  const nlid::Experiment b(ramp(20, -1.0), ramp(20, -2.0), 0.1, "b");
+  const nlid::Dataset data{a, b};
+  const nlid::CompareResult perfect = nlid::compare(Gain{2.0}, data);
+  CHECK(perfect.fit(0, 0) == Approx(100.0));
+  CHECK(perfect.fit(1, 0) == Approx(100.0));
+  const nlid::CompareResult half = nlid::compare(Gain{1.0}, data, nlid::InitialCondition::estimate);
+  const Eigen::VectorXd y = a.y().col(0);
+  const double expect = 100.0 * (1.0 - (y - 0.5 * y).norm() / (y.array() - y.mean()).matrix().norm());
+  CHECK(half.fit_of(0) == Approx(expect));
+  CHECK(half.experiment_names == std::vector<std::string>{"a", "b"});
+  REQUIRE(half.simulated.size() == 2);
+  CHECK((half.simulated[1] - b.u()).norm() == 0.0);
+  const std::string t = half.table();
+  CHECK(t.find("initial condition 'estimate'") != std::string::npos);
+  CHECK(t.find("a ") != std::string::npos);
+  CHECK_THROWS_WITH(half.fit_of(5), Catch::Contains("out of range"));
+}
+
+TEST_CASE("compare handles several outputs and unnamed experiments", "[analysis][compare]") {
+  Eigen::MatrixXd u(10, 2), y(10, 2);
+  u << ramp(10, 1.0), ramp(10, -3.0);
+  y = u;
+  y.col(1) *= 0.5;
+  const nlid::CompareResult r = nlid::compare(Gain{1.0}, nlid::Dataset{nlid::Experiment(u, y, 1.0)});
+  CHECK(r.fit.rows() == 1);
+  CHECK(r.fit.cols() == 2);
+  CHECK(r.fit(0, 0) == Approx(100.0));
+  CHECK(r.fit(0, 1) < 100.0);
+  CHECK(r.experiment_names[0] == "experiment 0");
+  CHECK(r.output_names == std::vector<std::string>{"y1", "y2"});
+  nlid::FitTable table;
+  table.add("gain", r);
+  CHECK(table.str().find("experiment 0/y2") != std::string::npos);
+}
+
+TEST_CASE("FitTable lists models against experiments", "[analysis][compare]") {
+  const nlid::Experiment a(ramp(10, 1.0), ramp(10, 2.0), 0.1, "data3lin");
+  const nlid::Experiment b(ramp(10, 1.0), ramp(10, 2.0), 0.1, "data2lin");
+  nlid::FitTable table;
+  table.add("perfect", nlid::compare(Gain{2.0}, nlid::Dataset{a, b}));
+  table.add("half", nlid::compare(Gain{1.0}, nlid::Dataset{b}));
+  const std::string s = table.str();
+  CHECK(s.find("data3lin") < s.find("data2lin"));
+  CHECK(s.find("100.0 %") != std::string::npos);
+  // "half" was not compared on data3lin: its cell shows "-".
+  const std::string half_row = s.substr(s.find("half"));
+  CHECK(half_row.find(" - ") != std::string::npos);
+}
+
+TEST_CASE("compare reports located errors", "[analysis][compare]") {
+  const nlid::Experiment ok(ramp(10, 1.0), ramp(10, 2.0), 0.1, "ok");
+  const nlid::Experiment flat(ramp(10, 1.0), Eigen::MatrixXd::Constant(10, 1, 15.0), 0.1, "flat");
+  try {
+    (void)nlid::compare(Gain{1.0}, nlid::Dataset{ok, flat});
+    FAIL("constant output accepted");
+  } catch (const nlid::Error& e) {
+    CHECK(std::string(e.what()).find("'flat'") != std::string::npos);
+    CHECK(std::string(e.what()).find("constant") != std::string::npos);
+    CHECK(e.where().experiment == 1);
+  }
+  CHECK_THROWS_WITH(nlid::compare(Broken{}, nlid::Dataset{ok}), Catch::Contains("11 x 1 output for experiment 0 ('ok') with 10 samples"));
+  CHECK_THROWS_WITH(nlid::compare(Gain{}, nlid::Dataset{}), Catch::Contains("empty"));
+}
+
+TEST_CASE("compare works on a linear model end to end", "[analysis][compare]") {
+  Eigen::VectorXd a(1), b(1);
+  a << -0.9;
+  b << 0.5;
+  const nlid::Arx m(a, {b}, {1}, 0.1);
+  Eigen::MatrixXd u(200, 1);
+  for (int k = 0; k < 200; ++k) u(k, 0) = (k / 20) % 2 ? 1.0 : -1.0;
+  const nlid::Experiment blank(u, Eigen::MatrixXd::Zero(200, 1), 0.1);
+  const nlid::Experiment e(u, m.simulate(blank), 0.1, "sim");
+  CHECK(nlid::compare(m, nlid::Dataset{e}).fit(0, 0) == Approx(100.0));
+  CHECK(nlid::compare(m.to_state_space(), nlid::Dataset{e}).fit(0, 0) == Approx(100.0));
+}
