@@ -1,0 +1,179 @@
+// Known-answer tests of grey-box estimation: records simulated from each catalogue model with
+// known parameters (plus noise) are fitted from the models' *default* guesses — only the data-
+// driven initialisation and multi-start stand between the defaults and the answer.
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <numbers>
+
+#include "nlid/models/greybox_estimate.hpp"
+#include "nlid/models/physics/catalogue.hpp"
+#include "test_data.hpp"
+
+using nlid::Dataset;
+using nlid::GreyBox;
+using nlid::InitialCondition;
+namespace physics = nlid::physics;
+
+namespace {
+
+nlid::GreyBoxEstimateOptions quick(int candidates, int starts) {
+  nlid::GreyBoxEstimateOptions o;
+  o.multi_start.num_candidates = candidates;
+  o.multi_start.num_starts = starts;
+  return o;
+}
+
+// Two throttle records (steps through both stops) in the units of `scale` (1 = degrees).
+Dataset throttle_data(double scale) {
+  GreyBox<physics::Throttle> truth;
+  Eigen::VectorXd p(7);
+  p << 30.0, 400.0, 1e5, 56000.0 * scale, 15.0 * scale, 90.0 * scale, 0.0;
+  truth.set_parameters(p);
+  const double ts = 0.01;
+  Dataset d;
+  d.add(nlid_test::simulated(truth, nlid_test::steps({0.0, 0.35, 0.8, 0.2, -0.2, 0.6}, 80, 480), ts,
+                             Eigen::Vector2d(15.0 * scale, 0.0), 0.2 * scale, 11, "steps"));
+  d.add(nlid_test::simulated(truth, nlid_test::steps({0.45, 0.9, 0.1, 0.5, -0.1}, 60, 420), ts,
+                             Eigen::Vector2d(15.0 * scale, 0.0), 0.2 * scale, 12, "pulses"));
+  return d;
+}
+
+}  // namespace
+
+TEST_CASE("Throttle: multi-start recovers c, k, K, b and the stops from default guesses",
+          "[greybox][estimate]") {
+  const Dataset d = throttle_data(1.0);
+  GreyBox<physics::Throttle> m;  // defaults: travel 0..1, c = 20, k = 100, K = 1e4, b = 100
+  const nlid::GreyBoxEstimate r = estimate(m, d);
+  INFO(r.report());
+  // Tolerances: 0.2 deg noise on 900 samples; K is only seen during brief contacts.
+  CHECK(m.parameter("c") == Approx(30.0).epsilon(0.03));
+  CHECK(m.parameter("k") == Approx(400.0).epsilon(0.03));
+  CHECK(m.parameter("b") == Approx(56000.0).epsilon(0.03));
+  CHECK(m.parameter("K") == Approx(1e5).epsilon(0.3));
+  CHECK(m.parameter("lower_stop") == Approx(15.0).margin(0.2));
+  CHECK(m.parameter("upper_stop") == Approx(90.0).margin(0.2));
+  CHECK(m.parameter("rest") == Approx(0.0).margin(1.0));
+  CHECK(r.fit.minCoeff() > 99.0);
+  // Independent starts agree on the optimum: the evidence multi-start exists for.
+  CHECK(r.multi_start.num_within_tolerance >= 2);
+  CHECK(r.multi_start.starts.size() == 6u);
+  CHECK(r.initial_states.size() == 2u);
+  CHECK(r.initial_states[0][0] == Approx(15.0).margin(0.5));
+  CHECK_THAT(r.report(), Catch::Contains("upper_stop") && Catch::Contains("fit steps"));
+}
+
+TEST_CASE("Throttle in radians: the catalogue does not assume the study's units",
+          "[greybox][estimate]") {
+  const double rad = std::numbers::pi / 180.0;
+  const Dataset d = throttle_data(rad);
+  GreyBox<physics::Throttle> m;
+  const nlid::GreyBoxEstimate r = estimate(m, d, quick(16, 4));
+  INFO(r.report());
+  CHECK(m.parameter("c") == Approx(30.0).epsilon(0.03));
+  CHECK(m.parameter("k") == Approx(400.0).epsilon(0.03));
+  CHECK(m.parameter("b") == Approx(56000.0 * rad).epsilon(0.03));
+  CHECK(m.parameter("lower_stop") == Approx(15.0 * rad).margin(0.2 * rad));
+  CHECK(m.parameter("upper_stop") == Approx(90.0 * rad).margin(0.2 * rad));
+  CHECK(r.fit.minCoeff() > 99.0);
+}
+
+TEST_CASE("Mass-spring-damper in millimetres", "[greybox][estimate]") {
+  GreyBox<physics::MassSpringDamper> truth;
+  truth.set_parameters(Eigen::Vector4d(8.0, 150.0, 3000.0, 40.0));  // rest 40 mm, 20 mm per unit
+  const Dataset d(nlid_test::simulated(truth, nlid_test::steps({0.0, 1.0, -0.5, 0.5}, 60, 360), 0.01,
+                                       Eigen::Vector2d(40.0, 0.0), 0.05, 21, "msd"));
+  GreyBox<physics::MassSpringDamper> m;
+  const auto r = estimate(m, d, quick(8, 2));
+  INFO(r.report());
+  CHECK(m.parameter("c") == Approx(8.0).epsilon(0.02));
+  CHECK(m.parameter("k") == Approx(150.0).epsilon(0.02));
+  CHECK(m.parameter("b") == Approx(3000.0).epsilon(0.02));
+  CHECK(m.parameter("rest") == Approx(40.0).margin(0.05));
+}
+
+TEST_CASE("Rigid body with friction and input offset", "[greybox][estimate]") {
+  GreyBox<physics::RigidBody> truth;
+  truth.set_parameters(Eigen::Vector3d(2.0, 50.0, 0.1));
+  const Dataset d(nlid_test::simulated(truth, nlid_test::steps({0.6, -0.4, 0.3, -0.1}, 50, 400), 0.01,
+                                       Eigen::Vector2d(100.0, 0.0), 0.02, 31, "cart"));
+  GreyBox<physics::RigidBody> m;
+  const auto r = estimate(m, d, quick(8, 2));
+  INFO(r.report());
+  CHECK(m.parameter("c") == Approx(2.0).epsilon(0.02));
+  CHECK(m.parameter("b") == Approx(50.0).epsilon(0.02));
+  CHECK(m.parameter("u_offset") == Approx(0.1).margin(0.002));
+  CHECK(r.initial_states[0][0] == Approx(100.0).margin(0.05));
+}
+
+TEST_CASE("First-order lag (thermal) in degrees Celsius", "[greybox][estimate]") {
+  GreyBox<physics::FirstOrder> truth;
+  truth.set_parameters(Eigen::Vector3d(12.0, 35.0, 21.0));  // τ = 12 s, 35 °C per unit, 21 °C ambient
+  const Dataset d(nlid_test::simulated(truth, nlid_test::steps({0.0, 1.0, 0.4, 0.8}, 60, 300), 1.0,
+                                       Eigen::VectorXd::Constant(1, 21.0), 0.1, 41, "oven"));
+  GreyBox<physics::FirstOrder> m;
+  const auto r = estimate(m, d, quick(8, 2));
+  INFO(r.report());
+  CHECK(m.parameter("tau") == Approx(12.0).epsilon(0.02));
+  CHECK(m.parameter("gain") == Approx(35.0).epsilon(0.01));
+  CHECK(m.parameter("offset") == Approx(21.0).margin(0.1));
+}
+
+TEST_CASE("Two tanks (Torricelli) with a pump", "[greybox][estimate]") {
+  GreyBox<physics::TwoTank> truth;
+  truth.set_parameters(Eigen::Vector4d(0.5, 0.3, 0.4, 0.0));
+  const Dataset d(nlid_test::simulated(truth, nlid_test::steps({1.0, 2.0, 0.5, 1.5}, 100, 400), 0.5,
+                                       Eigen::Vector2d(2.8, 1.6), 0.005, 51, "tanks"));
+  GreyBox<physics::TwoTank> m;
+  CHECK(m.is_fixed("offset"));  // a level sensor reads 0 at an empty tank unless freed
+  const auto r = estimate(m, d, quick(8, 3));
+  INFO(r.report());
+  CHECK(m.parameter("b") == Approx(0.5).epsilon(0.03));
+  CHECK(m.parameter("a1") == Approx(0.3).epsilon(0.03));
+  CHECK(m.parameter("a2") == Approx(0.4).epsilon(0.03));
+  CHECK(m.parameter("offset") == 0.0);
+}
+
+TEST_CASE("Fixed parameters stay bit-for-bit; zero and equilibrium starts work", "[greybox][estimate]") {
+  GreyBox<physics::MassSpringDamper> truth;
+  truth.set_parameters(Eigen::Vector4d(8.0, 150.0, 300.0, 0.0));
+  const Dataset d(nlid_test::simulated(truth, nlid_test::steps({0.0, 1.0, 0.5}, 60, 240), 0.01,
+                                       Eigen::Vector2d(0.0, 0.0), 0.01, 61, "msd"));
+  SECTION("zero") {
+    GreyBox<physics::MassSpringDamper> m;
+    m.set_parameter("rest", 0.0);
+    m.fix("rest");
+    auto o = quick(4, 1);
+    o.initial_condition = InitialCondition::zero;
+    const auto r = estimate(m, d, o);
+    CHECK(m.parameter("rest") == 0.0);
+    CHECK(m.parameter("k") == Approx(150.0).epsilon(0.01));
+    CHECK(r.initial_states[0].isZero());
+  }
+  SECTION("equilibrium") {
+    GreyBox<physics::MassSpringDamper> m;
+    auto o = quick(4, 1);
+    o.initial_condition = InitialCondition::equilibrium;
+    const auto r = estimate(m, d, o);
+    CHECK(m.parameter("k") == Approx(150.0).epsilon(0.01));
+    CHECK(r.initial_states[0][0] == Approx(0.0).margin(0.01));
+  }
+  SECTION("measured is rejected") {
+    GreyBox<physics::MassSpringDamper> m;
+    auto o = quick(4, 1);
+    o.initial_condition = InitialCondition::measured;
+    CHECK_THROWS_WITH(estimate(m, d, o), Catch::Contains("InitialCondition::measured"));
+  }
+}
+
+TEST_CASE("Values set by the user survive data-driven initialisation", "[greybox][estimate]") {
+  const Dataset d = throttle_data(1.0);
+  GreyBox<physics::Throttle> m;
+  m.set_parameter("upper_stop", 91.0);
+  m.initialize(d);
+  CHECK(m.parameter("upper_stop") == 91.0);
+  CHECK(m.parameter("lower_stop") == Approx(15.0).margin(0.3));  // read off the data
+  CHECK(m.parameter("b") > 1000.0);                              // rescaled from the default 100
+  CHECK(m.initialized());
+}
