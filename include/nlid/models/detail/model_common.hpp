@@ -94,7 +94,8 @@ bool is_finite_scalar(const T& x) {
   if constexpr (is_dual_v<T>) {
     return isfinite(x);
   } else {
-    return std::isfinite(x);
+    using std::isfinite;  // ADL: a Batch (core/batch.hpp) is finite if every lane is
+    return isfinite(x);
   }
 }
 

@@ -16,6 +16,7 @@
 #include <Eigen/QR>
 
 #include "nlid/ad/dual.hpp"
+#include "nlid/core/batch.hpp"
 #include "nlid/core/error.hpp"
 
 namespace nlid::detail {
@@ -29,16 +30,24 @@ inline T cast_to(double v) {
 /// Logistic function 1/(1+e^(−s)), evaluated so that neither branch overflows: for s < 0 the
 /// algebraically equal e^s/(1+e^s) is used. With the naive form a Dual at s ≪ 0 would get an
 /// infinite exp and a NaN derivative (∞·0).
+/// A lane-parallel `Batch` (core/batch.hpp) cannot branch; it evaluates the same two forms per
+/// lane from one exp(−|s|), which never overflows.
 template <class T>
 inline T logistic(const T& s) {
   using std::exp;
   const T one = cast_to<T>(1.0);
-  if (value_of(s) >= 0) {
-    const T e = exp(-s);
-    return one / (one + e);
+  if constexpr (is_batch_v<T>) {
+    using std::abs;
+    const T e = exp(-abs(s));
+    return select(s >= T(0), one, e) / (one + e);
+  } else {
+    if (value_of(s) >= 0) {
+      const T e = exp(-s);
+      return one / (one + e);
+    }
+    const T e = exp(s);
+    return e / (one + e);
   }
-  const T e = exp(s);
-  return e / (one + e);
 }
 
 /// Short fixed-precision text of a number for `describe` (6 significant digits).

@@ -1,0 +1,226 @@
+// Batch<T, W>: lane-wise arithmetic and math, masks without bool conversion, the explicit
+// conversion's "largest lane" meaning, and the point of the type — a batched simulation of W
+// parameter sets equals W single simulations (nlarx5-like sigmoid network, grey-box throttle).
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <limits>
+#include <random>
+#include <span>
+#include <type_traits>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "nlid/core/batch.hpp"
+#include "nlid/models/greybox_simulate.hpp"
+#include "nlid/models/nlarx.hpp"
+#include "nlid/nonlinearities/sigmoid_network.hpp"
+#include "nlid/regressors/lagged.hpp"
+
+namespace {
+
+using B4 = nlid::Batch<double, 4>;
+using B8 = nlid::Batch<double, 8>;
+
+// ulp distance of two finite doubles of the same sign.
+double ulps(double a, double b) {
+  if (a == b) return 0.0;
+  return std::abs(a - b) / std::abs(std::nextafter(b, 2 * b) - b);
+}
+
+// The throttle study's grey-box equation with its four parameters (stops at 15° and 90°):
+// y'' + c y' + k y + K (max(y, 90) − 90 + min(y, 15) − 15) = b u. Branch-free, so it batches.
+struct StudyThrottle {
+  static constexpr int num_states = 2, num_inputs = 1, num_outputs = 1, num_params = 4;
+  std::array<nlid::ParameterInfo, 4> parameter_info() const {
+    return {{{"c", "1/s", "", 20.0}, {"k", "1/s^2", "", 100.0}, {"K", "1/s^2", "", 1e4}, {"b", "", "", 100.0}}};
+  }
+  template <class T>
+  void derivative(const T* x, const T* u, const T* p, T* dx) const {
+    using std::max;
+    using std::min;
+    const T stop = max(x[0], T(90.0)) - 90.0 + min(x[0], T(15.0)) - 15.0;
+    dx[0] = x[1];
+    dx[1] = p[3] * u[0] - p[0] * x[1] - p[1] * x[0] - p[2] * stop;
+  }
+  template <class T>
+  void output(const T* x, const T*, const T*, T* y) const {
+    y[0] = x[0];
+  }
+};
+
+}  // namespace
+
+TEST_CASE("Batch arithmetic acts lane by lane", "[core][batch]") {
+  B4 a, b;
+  for (int i = 0; i < 4; ++i) {
+    a[i] = 1.5 + i;
+    b[i] = -0.25 * (i + 1);
+  }
+  const B4 s = a + b, d = a - b, p = a * b, q = a / b, c = 2.0 - a * 3.0 + b / 4.0, n = -a;
+  for (int i = 0; i < 4; ++i) {
+    CHECK(s[i] == a[i] + b[i]);
+    CHECK(d[i] == a[i] - b[i]);
+    CHECK(p[i] == a[i] * b[i]);
+    CHECK(q[i] == a[i] / b[i]);
+    CHECK(c[i] == 2.0 - a[i] * 3.0 + b[i] / 4.0);
+    CHECK(n[i] == -a[i]);
+  }
+  const B4 m = max(a, -b), mn = min(a, b), ab = abs(b), sq = sqrt(a), lg = log(a), th = tanh(b);
+  for (int i = 0; i < 4; ++i) {
+    CHECK(m[i] == std::max(a[i], -b[i]));
+    CHECK(mn[i] == std::min(a[i], b[i]));
+    CHECK(ab[i] == std::abs(b[i]));
+    CHECK(sq[i] == std::sqrt(a[i]));
+    CHECK(lg[i] == std::log(a[i]));
+    CHECK(th[i] == std::tanh(b[i]));
+  }
+  CHECK(B4(0)[3] == 0.0);  // int broadcast (generic code writes T(0))
+}
+
+TEST_CASE("Batch exp is within 2 ulp of std::exp and keeps its special values", "[core][batch]") {
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> dist(-700.0, 700.0);
+  double worst = 0.0;
+  for (int rep = 0; rep < 20000; ++rep) {
+    B8 x;
+    for (int i = 0; i < 8; ++i) x[i] = rep < 10000 ? dist(rng) : dist(rng) / 100.0;
+    const B8 e = exp(x);
+    for (int i = 0; i < 8; ++i) worst = std::max(worst, ulps(e[i], std::exp(x[i])));
+  }
+  CHECK(worst <= 2.0);
+  const double inf = std::numeric_limits<double>::infinity(), nan = std::numeric_limits<double>::quiet_NaN();
+  B8 s;
+  const double special[8] = {0.0, 709.5, 710.0, -720.0, -746.0, inf, -inf, nan};
+  for (int i = 0; i < 8; ++i) s[i] = special[i];
+  const B8 e = exp(s);
+  CHECK(e[0] == 1.0);
+  CHECK(e[1] == std::exp(709.5));
+  CHECK(e[2] == inf);
+  CHECK(e[3] == std::exp(-720.0));  // subnormal result
+  CHECK(e[4] == 0.0);
+  CHECK(e[5] == inf);
+  CHECK(e[6] == 0.0);
+  CHECK(std::isnan(e[7]));
+  // float lanes go through std::exp.
+  nlid::Batch<float, 4> f(0.5f);
+  CHECK(exp(f)[2] == std::exp(0.5f));
+}
+
+TEST_CASE("Batch comparisons give masks that cannot be used as a bool", "[core][batch]") {
+  B4 a;
+  for (int i = 0; i < 4; ++i) a[i] = i - 1.5;  // −1.5 −0.5 0.5 1.5
+  const auto k = a > 0.0;
+  CHECK_FALSE(k[0]);
+  CHECK(k[3]);
+  CHECK(any(k));
+  CHECK_FALSE(all(k));
+  CHECK(all(k || !k));
+  CHECK_FALSE(any(k && !k));
+  const B4 r = select(k, a, B4(0.0));
+  CHECK(r[0] == 0.0);
+  CHECK(r[3] == 1.5);
+  // A branch on a batched comparison has no single answer: it must not compile.
+  static_assert(!std::is_convertible_v<nlid::BatchMask<4>, bool>);
+  static_assert(!std::is_constructible_v<bool, nlid::BatchMask<4>>);
+  static_assert(nlid::BatchScalar<B4> && !nlid::BatchScalar<double>);
+}
+
+TEST_CASE("Batch converts explicitly to its largest lane, NaN first", "[core][batch]") {
+  B4 a;
+  a[0] = 1.0;
+  a[1] = -7.0;
+  a[2] = 3.0;
+  a[3] = 0.0;
+  CHECK(static_cast<double>(a) == -7.0);
+  CHECK(nlid::isfinite(a));
+  a[2] = std::numeric_limits<double>::quiet_NaN();
+  CHECK(std::isnan(static_cast<double>(a)));
+  CHECK_FALSE(nlid::isfinite(a));
+  CHECK(nlid::isnan(a));
+  static_assert(!std::is_convertible_v<B4, double>);  // never silently
+}
+
+TEST_CASE("Batched nlarx5-like simulation equals W single simulations", "[core][batch][models]") {
+  using Regs = nlid::LaggedRegressors<3, 3, 0>;
+  using Net = nlid::SigmoidNet<6, 5>;
+  nlid::Nlarx<Regs, Net> model;
+  constexpr int P = Net::num_params;
+  const int n = 1500;
+  Eigen::MatrixXd u(n, 1);
+  for (int t = 0; t < n; ++t) u(t, 0) = ((t / 97) % 3 == 0 ? 0.8 : -0.3) + 0.2 * std::sin(0.05 * t);
+  // A stable base network: the linear part is an AR(3) with poles inside the unit circle; the
+  // units add a bounded nonlinearity. Each lane perturbs it.
+  Eigen::VectorXd base = Eigen::VectorXd::Zero(P);
+  base(0) = 1.2;
+  base(1) = -0.5;
+  base(2) = 0.1;
+  base(3) = 0.6;
+  base(4) = 0.2;
+  base(6) = 0.3;
+  std::mt19937_64 rng(3);
+  std::normal_distribution<double> nd(0.0, 1.0);
+  for (int i = 7; i < P; ++i) base(i) = 0.5 * nd(rng);
+  constexpr int W = 8;
+  const int runs = 11;  // one full batch and a padded one
+  Eigen::MatrixXd thetas(P, runs), x0s(model.state_dimension(), runs);
+  for (int k = 0; k < runs; ++k) {
+    for (int i = 0; i < P; ++i) thetas(i, k) = base(i) + 0.02 * nd(rng);
+    for (int i = 0; i < x0s.rows(); ++i) x0s(i, k) = 0.5 * nd(rng);
+  }
+  const Eigen::MatrixXd yb = nlid::simulate_batched<W>(model, u, thetas, x0s);
+  REQUIRE(yb.rows() == n);
+  REQUIRE(yb.cols() == runs);
+  double worst = 0.0, scale = 0.0;
+  for (int k = 0; k < runs; ++k) {
+    Eigen::VectorXd th = thetas.col(k), x0 = x0s.col(k), y(n);
+    REQUIRE(model.simulate(u, std::span<const double>(th.data(), P), std::span<const double>(x0.data(), x0.size()),
+                           std::span<double>(y.data(), n)));
+    worst = std::max(worst, (y - yb.col(k)).cwiseAbs().maxCoeff());
+    scale = std::max(scale, y.cwiseAbs().maxCoeff());
+  }
+  CHECK(scale > 0.5);  // the runs do something
+  CHECK(worst <= 1e-12 * scale);
+  // Without x0s every run starts from the zero state.
+  const Eigen::MatrixXd y0 = nlid::simulate_batched<4>(model, u, thetas.leftCols(3));
+  Eigen::VectorXd th = thetas.col(2), y(n);
+  REQUIRE(model.simulate(u, std::span<const double>(th.data(), P), std::span<const double>(), std::span<double>(y.data(), n)));
+  CHECK((y - y0.col(2)).cwiseAbs().maxCoeff() <= 1e-12 * scale);
+  CHECK_THROWS_WITH(nlid::simulate_batched<4>(model, u, thetas, x0s.leftCols(2)),
+                    Catch::Contains("x0s has 2 columns for 11 parameter sets"));
+}
+
+TEST_CASE("Batched grey-box throttle (RK4) equals W single simulations", "[core][batch][greybox]") {
+  constexpr int W = 4;
+  using B = nlid::Batch<double, W>;
+  StudyThrottle phys;
+  nlid::IntegratorOptions opt;
+  const int n = 800;
+  const double ts = 0.01;
+  Eigen::MatrixXd u(n, 1);
+  for (int t = 0; t < n; ++t) u(t, 0) = (t / 150) % 2 == 0 ? 1.2 : 0.2;  // drives into both stops
+  const double p0[4] = {22.0, 110.0, 1.2e4, 9000.0};
+  std::array<B, 4> pb;
+  std::array<B, 2> xb{B(20.0), B(0.0)};
+  for (int j = 0; j < 4; ++j)
+    for (int w = 0; w < W; ++w) pb[j][w] = p0[j] * (1.0 + 0.05 * w * (j % 2 == 0 ? 1 : -1));
+  std::vector<B> yb(n);
+  const int sub = 10;
+  REQUIRE(nlid::simulate_physics<B>(phys, opt, sub, u, ts, pb.data(), xb.data(),
+                                    [&](Eigen::Index k, const B* y) { yb[static_cast<std::size_t>(k)] = y[0]; }) == n);
+  double hit_upper = 0, worst = 0;
+  for (int w = 0; w < W; ++w) {
+    double p[4], x[2] = {20.0, 0.0};
+    for (int j = 0; j < 4; ++j) p[j] = pb[j][w];
+    std::vector<double> y(n);
+    REQUIRE(nlid::simulate_physics<double>(phys, opt, sub, u, ts, p, x,
+                                           [&](Eigen::Index k, const double* v) { y[static_cast<std::size_t>(k)] = v[0]; }) == n);
+    for (int t = 0; t < n; ++t) {
+      worst = std::max(worst, std::abs(y[static_cast<std::size_t>(t)] - yb[static_cast<std::size_t>(t)][w]));
+      hit_upper = std::max(hit_upper, y[static_cast<std::size_t>(t)]);
+    }
+  }
+  CHECK(hit_upper > 90.0);  // the contact term is exercised
+  CHECK(worst <= 1e-12 * 100.0);
+}
