@@ -1,0 +1,149 @@
+// Residual analysis: white noise passes, an AR(1) residual fails at lag 1, an input-correlated
+// residual fails the cross test at the right lag; model-based use (prediction residuals of an
+// Nlarx), bounds formula, bad input with located messages, chart markup.
+#include <catch2/catch.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+
+#include "nlid/analysis/resid.hpp"
+#include "nlid/models/nlarx.hpp"
+#include "nlid/nonlinearities/linear.hpp"
+#include "nlid/regressors.hpp"
+
+namespace {
+Eigen::VectorXd white(int n, unsigned seed, double sd = 1.0) {
+  std::mt19937 gen(seed);
+  std::normal_distribution<double> d(0.0, sd);
+  Eigen::VectorXd v(n);
+  for (int i = 0; i < n; ++i) v(i) = d(gen);
+  return v;
+}
+bool contains(const std::vector<int>& v, int x) { return std::find(v.begin(), v.end(), x) != v.end(); }
+}  // namespace
+
+TEST_CASE("white residuals independent of the input pass both tests", "[analysis][resid]") {
+  const int n = 4000;
+  const Eigen::VectorXd e = white(n, 1);
+  const Eigen::MatrixXd u = white(n, 2);
+  const nlid::ResidAnalysis r = nlid::resid({e}, {u});
+  CHECK(r.white());
+  CHECK(r.independent());
+  CHECK(r.num_samples == n);
+  // Bound of the whiteness test: z_{0.995}/sqrt(N) = 2.5758/sqrt(4000).
+  CHECK(r.whiteness.bound[1] == Approx(2.5758293035489 / std::sqrt(4000.0)).epsilon(1e-9));
+  CHECK(r.whiteness.value[0] == Approx(1.0));
+  CHECK(r.inputs.size() == 1);
+  CHECK(r.inputs[0].lags.front() == -25);
+  CHECK(r.inputs[0].lags.back() == 25);
+  // For white e the cross bound reduces to about z/sqrt(N) as well.
+  CHECK(r.inputs[0].bound[0] == Approx(2.5758 / std::sqrt(4000.0)).epsilon(0.1));
+  CHECK(r.verdict().find("white; independent of u1") != std::string::npos);
+}
+
+TEST_CASE("white noise passes in (almost) every seed: the joint tests hold their level", "[analysis][resid]") {
+  int failed = 0;
+  for (unsigned s = 0; s < 40; ++s) {
+    const nlid::ResidAnalysis r = nlid::resid({white(2000, 100 + s)}, {white(2000, 500 + s)});
+    failed += (!r.white()) + (!r.independent());
+  }
+  // Each test has level <= ~2 %: 80 tests give ~1.6 expected failures; 6 or more is a broken test.
+  CHECK(failed <= 5);
+}
+
+TEST_CASE("an AR(1) residual fails whiteness at lag 1", "[analysis][resid]") {
+  const int n = 3000;
+  const Eigen::VectorXd w = white(n, 3);
+  Eigen::VectorXd e(n);
+  e(0) = w(0);
+  for (int t = 1; t < n; ++t) e(t) = 0.5 * e(t - 1) + w(t);
+  const nlid::ResidAnalysis r = nlid::resid({e}, {white(n, 4)});
+  CHECK_FALSE(r.white());
+  CHECK(contains(r.whiteness.outside, 1));
+  CHECK(r.whiteness.value[1] == Approx(0.5).margin(0.05));
+  CHECK(r.whiteness.verdict().rfind("correlated at lags 1", 0) == 0);
+  CHECK(r.independent());
+  CHECK(r.verdict().find("not white") != std::string::npos);
+}
+
+TEST_CASE("a residual driven by u(t-3) fails the cross test at lag 3 only", "[analysis][resid]") {
+  const int n = 3000;
+  const Eigen::MatrixXd u = white(n, 5);
+  const Eigen::VectorXd w = white(n, 6);
+  Eigen::VectorXd e = w;
+  for (int t = 3; t < n; ++t) e(t) += 0.4 * u(t - 3, 0);
+  const nlid::ResidAnalysis r = nlid::resid({e}, {u}, {}, {"throttle_cmd"});
+  CHECK(r.white());  // still white in itself: u is white
+  REQUIRE_FALSE(r.independent());
+  const auto& t = r.inputs[0];
+  CHECK(t.input == "throttle_cmd");
+  REQUIRE(contains(t.outside, 3));
+  CHECK_FALSE(contains(t.outside, -3));
+  CHECK(t.outside.size() <= 2);  // lag 3, plus at most one chance excursion
+  CHECK(r.verdict().find("correlated with throttle_cmd") != std::string::npos);
+}
+
+TEST_CASE("pooled multi-experiment residuals: lags never cross an experiment boundary", "[analysis][resid]") {
+  // Two experiments whose residuals are each constant-sign ramps would correlate across the seam;
+  // here each is white, and the pooled count is the sum.
+  const nlid::ResidAnalysis r = nlid::resid({white(1500, 7), white(1700, 8)}, {white(1500, 9), white(1700, 10)});
+  CHECK(r.num_samples == 3200);
+  CHECK(r.white());
+}
+
+TEST_CASE("prediction residuals of a true Nlarx are white; a wrong pole makes them correlated", "[analysis][resid]") {
+  using Model = nlid::Nlarx<nlid::LaggedRegressors<1, 1, 0>, nlid::LinearMap<2>>;
+  const int n = 3000;
+  const Eigen::MatrixXd u = white(n, 11);
+  const Eigen::VectorXd v = white(n, 12, 0.1);
+  Eigen::VectorXd y(n);
+  y(0) = v(0);
+  for (int t = 1; t < n; ++t) y(t) = 0.8 * y(t - 1) + 0.5 * u(t, 0) + v(t);
+  const nlid::Experiment ex(u, y, 0.01, "arx");
+  Model m(nlid::LaggedRegressors<1, 1, 0>{}, nlid::LinearMap<2>{}, 0.01);
+  Eigen::VectorXd th(3);
+  th << 0.8, 0.5, 0.0;
+  m.set_parameters(th);
+  const nlid::ResidAnalysis good = nlid::resid(m, ex);
+  CHECK(good.source == "one-step prediction");
+  CHECK(good.num_samples == n - 1);  // the first sample is the measured past
+  CHECK(good.white());
+  CHECK(good.independent());
+  CHECK(good.residual_rms == Approx(0.1).epsilon(0.05));
+  th << 0.6, 0.5, 0.0;  // wrong pole: ε(t) = v(t) + 0.2 y(t−1) is coloured and input-correlated
+  m.set_parameters(th);
+  const nlid::ResidAnalysis bad = nlid::resid(m, ex);
+  CHECK_FALSE(bad.white());
+  CHECK_FALSE(bad.independent());
+  CHECK(contains(bad.whiteness.outside, 1));
+  CHECK(contains(bad.inputs[0].outside, 1));
+  nlid::ResidOptions o;
+  o.source = nlid::ResidualSource::simulation;
+  CHECK(nlid::resid(m, ex, o).source == "simulation");
+}
+
+TEST_CASE("resid rejects bad input with located messages", "[analysis][resid]") {
+  const Eigen::VectorXd e = white(100, 13);
+  const Eigen::MatrixXd u = white(100, 14);
+  nlid::ResidOptions o;
+  o.max_lag = 60;
+  CHECK_THROWS_WITH(nlid::resid({e}, {u}, o), Catch::Contains("100 samples are too few for lags up to 60"));
+  o = {};
+  o.confidence = 1.5;
+  CHECK_THROWS_WITH(nlid::resid({e}, {u}, o), Catch::Contains("confidence must be in (0, 1)"));
+  Eigen::VectorXd bad = e;
+  bad(17) = std::nan("");
+  CHECK_THROWS_WITH(nlid::resid({bad}, {u}), Catch::Contains("not finite at sample 17"));
+  CHECK_THROWS_WITH(nlid::resid({e}, {Eigen::MatrixXd(white(90, 1))}), Catch::Contains("experiment 0 has 100 residuals"));
+  CHECK_THROWS_WITH(nlid::resid({Eigen::VectorXd::Constant(100, 2.0)}, {u}), Catch::Contains("constant"));
+}
+
+TEST_CASE("resid chart: stems and the confidence band as SVG", "[analysis][resid]") {
+  const nlid::ResidAnalysis r = nlid::resid({white(1000, 15)}, {white(1000, 16)});
+  const std::string svg = nlid::resid_chart_svg(r.whiteness);
+  CHECK(svg.rfind("<svg", 0) == 0);
+  CHECK(svg.find("autocorrelation of e") != std::string::npos);
+  CHECK(svg.find("99 % confidence") != std::string::npos);
+  CHECK(nlid::resid_chart_svg(r.inputs[0]).find("cross-correlation u1") != std::string::npos);
+}
