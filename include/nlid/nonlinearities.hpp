@@ -13,6 +13,7 @@
 /// | `Saturation`                          | clamp(x, lower, upper)                  | 1   | 2               |
 /// | `DeadZone`                            | 0 on [lower, upper], slope 1 outside    | 1   | 2               |
 /// | `Poly1d<Degree>`                      | Σ c[k] xᵏ                               | 1   | D + 1           |
+/// | `TreePartition<M, Depth>`             | affine model of the tree leaf x is in   | M   | 2^D (M + 1)     |
 
 #include "nlid/nonlinearities/concepts.hpp"
 #include "nlid/nonlinearities/dead_zone.hpp"
@@ -22,5 +23,6 @@
 #include "nlid/nonlinearities/polynomial.hpp"
 #include "nlid/nonlinearities/saturation.hpp"
 #include "nlid/nonlinearities/sigmoid_network.hpp"
+#include "nlid/nonlinearities/tree_partition.hpp"
 #include "nlid/nonlinearities/unit_gain.hpp"
 #include "nlid/nonlinearities/wavelet_network.hpp"

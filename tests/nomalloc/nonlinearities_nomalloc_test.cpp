@@ -61,4 +61,5 @@ TEST_CASE("fixed-size nonlinearities evaluate without heap allocation", "[nomall
   check_no_heap(nlid::Saturation{});
   check_no_heap(nlid::DeadZone{});
   check_no_heap(nlid::Poly1d<3>{});
+  check_no_heap(nlid::TreePartition<3, 2>{});
 }

@@ -96,6 +96,8 @@ static_assert(nlid::Nonlinearity<nlid::Saturation>);
 static_assert(nlid::Nonlinearity<nlid::DeadZone>);
 static_assert(nlid::Nonlinearity<nlid::Poly1d<3>>);
 static_assert(nlid::Nonlinearity<nlid::Poly1d<Dynamic>>);
+static_assert(nlid::Nonlinearity<nlid::TreePartition<3, 2>>);
+static_assert(nlid::Nonlinearity<nlid::TreePartition<Dynamic, Dynamic>>);
 
 // Hammerstein–Wiener blocks: one input.
 static_assert(nlid::ScalarNonlinearity<nlid::UnitGain>);
@@ -117,6 +119,7 @@ static_assert(nlid::PwLinear<10>::num_params == 20);
 static_assert(nlid::PwLinear<Dynamic>::num_params == Dynamic);
 static_assert(nlid::Poly1d<3>::num_params == 4);
 static_assert(nlid::Saturation::num_params == 2 && nlid::DeadZone::num_params == 2);
+static_assert(nlid::TreePartition<3, 2>::num_params == 4 * 4);
 
 // Sizes that make no sense do not instantiate (requires-clauses, not deep errors).
 template <int M, int U>

@@ -41,6 +41,9 @@ TEST_CASE("bad structure arguments name the parameter", "[nonlinearities][errors
                 "breakpoints = 2 contradicts the compile-time value 3");
   require_error([] { nlid::PwLinear<Dynamic> f(std::vector<double>{0, std::nan(""), 1}); }, "breakpoints",
                 "breakpoint 1 is not finite");
+  require_error([] { nlid::TreePartition<Dynamic, Dynamic> f(2, 0); }, "depth", "depth must be at least 1");
+  require_error([] { nlid::TreePartition<Dynamic, Dynamic> f(2, 13); }, "depth", "at most 12");
+  require_error([] { nlid::TreePartition<2, 2> f; (void)f.split_threshold(3); }, "node", "node 3 does not exist");
   require_error([] { nlid::Saturation f(90, 15); }, "lower", "lower limit 90 exceeds upper limit 15");
   require_error([] { nlid::DeadZone f(1, -1); }, "lower", "lower limit 1 exceeds upper limit -1");
   require_error([] { nlid::Saturation f(0, std::numeric_limits<double>::infinity()); }, "upper", "finite");

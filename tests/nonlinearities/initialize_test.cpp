@@ -222,3 +222,22 @@ TEST_CASE("LinearMap initialisation is ordinary least squares", "[nonlinearities
   CHECK(th[2] == Approx(0.25).epsilon(1e-12));
   CHECK(th[3] == Approx(-2.0).epsilon(1e-12));
 }
+
+TEST_CASE("TreePartition initialisation finds a regime boundary", "[nonlinearities][initialize]") {
+  const Eigen::MatrixXd X = uniform_x(1000, 2, -2, 2, 17);
+  Eigen::VectorXd y(1000);
+  for (int i = 0; i < 1000; ++i) {
+    const double a = X(i, 0), b = X(i, 1);
+    y(i) = a < 0 ? 1 + 2 * a + b : 3 - a + 0.5 * b;  // two regimes, a jump at a = 0
+  }
+  nlid::TreePartition<2, 2> f;
+  const auto th = init(f, X, y);
+  const double r2 = nlid::r_squared(f, X, y, th);
+  INFO("R^2 = " << r2);
+  CHECK(r2 > 0.99);
+  // The root splits along the first regressor, near a = 0.
+  const Eigen::VectorXd v = f.split_direction(0);
+  CHECK(std::abs(v(0)) > 0.99);
+  const double boundary = f.center()(0) + f.scale()(0) * f.split_threshold(0) / v(0);
+  CHECK(boundary == Approx(0.0).margin(0.1));
+}

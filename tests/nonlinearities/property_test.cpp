@@ -27,6 +27,8 @@ F make() {
     return F(4);
   } else if constexpr (std::is_same_v<F, nlid::Poly1d<Dynamic>>) {
     return F(3);
+  } else if constexpr (std::is_same_v<F, nlid::TreePartition<Dynamic, Dynamic>>) {
+    return F(2, 2);
   } else {
     return F{};
   }
@@ -105,7 +107,8 @@ struct Setup {
   nlid::UnitGain, nlid::LinearMap<3>, nlid::LinearMap<Dynamic>, (nlid::SigmoidNet<2, 3>),            \
       (nlid::SigmoidNet<3, 2, false>), (nlid::SigmoidNet<Dynamic, Dynamic>), (nlid::WaveletNet<2, 3>), \
       (nlid::WaveletNet<1, 2, false>), (nlid::WaveletNet<Dynamic, Dynamic>), nlid::PwLinear<5>,     \
-      nlid::PwLinear<Dynamic>, nlid::Saturation, nlid::DeadZone, nlid::Poly1d<3>, nlid::Poly1d<Dynamic>
+      nlid::PwLinear<Dynamic>, nlid::Saturation, nlid::DeadZone, nlid::Poly1d<3>, nlid::Poly1d<Dynamic>,           \
+      (nlid::TreePartition<2, 2>), (nlid::TreePartition<Dynamic, Dynamic>)
 
 TEMPLATE_TEST_CASE("nonlinearity sizes, names and describe agree", "[nonlinearities][property]",
                    NLID_ALL_NONLINEARITIES) {

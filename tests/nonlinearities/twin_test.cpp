@@ -56,4 +56,5 @@ TEST_CASE("Dynamic twins equal the fixed-size nonlinearities", "[nonlinearities]
   check_twins(nlid::WaveletNet<1, 3, false>{}, nlid::WaveletNet<1, Dynamic, false>(1, 3));
   check_twins(nlid::PwLinear<6>{}, nlid::PwLinear<Dynamic>(6));
   check_twins(nlid::Poly1d<3>{}, nlid::Poly1d<Dynamic>(3));
+  check_twins(nlid::TreePartition<2, 3>{}, nlid::TreePartition<Dynamic, Dynamic>(2, 3));
 }

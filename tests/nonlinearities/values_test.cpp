@@ -145,3 +145,17 @@ TEST_CASE("Poly1d evaluates ascending coefficients by Horner", "[nonlinearities]
   CHECK(g.num_parameters() == 5);
   CHECK(eval(g, {2.0}, {0, 0, 0, 0, 1}) == 16.0);
 }
+
+TEST_CASE("TreePartition routes x to its leaf's affine model", "[nonlinearities][values]") {
+  nlid::TreePartition<1, 1> f;
+  f.set_split(0, Eigen::VectorXd::Ones(1), 0.5);  // right if z > 0.5 (r = 0, s = 1)
+  const std::vector<double> th{2, 1, -1, 3};       // leaf 0: 2z + 1, leaf 1: −z + 3
+  CHECK(eval(f, {0.2}, th) == Approx(1.4).epsilon(1e-15));
+  CHECK(eval(f, {1.0}, th) == Approx(2.0).epsilon(1e-15));
+  const double x = 1.0;
+  CHECK(f.leaf_of(std::span<const double>(&x, 1)) == 1);
+  CHECK(f.parameter_names() == std::vector<std::string>{"L[0][0]", "d[0]", "L[1][0]", "d[1]"});
+  const std::string d = f.describe(th);
+  CHECK(contains(d, "0: 1*z(x) > 0.5"));
+  CHECK(contains(d, "1: L = [-1], d = 3"));
+}

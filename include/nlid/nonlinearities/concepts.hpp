@@ -70,6 +70,7 @@ concept EvaluatesOn = requires(const F& f, std::span<const T> x, std::span<const
 /// A static map g: Rᵐ → R with external parameters θ (see the file comment for the contract).
 /// Satisfied by UnitGain, LinearMap<M>, SigmoidNet<M, Units, LinearTerm>,
 /// WaveletNet<M, Units, LinearTerm>, PwLinear<Breakpoints>, Saturation, DeadZone, Poly1d<Degree>,
+/// TreePartition<M, Depth>,
 /// and any user type with the same members that evaluates on double and Dual.
 template <class F>
 concept Nonlinearity =
