@@ -5,6 +5,8 @@
 
 #include <cmath>
 #include <string>
+#include <thread>
+#include <vector>
 
 #include "nlid/estimation.hpp"
 #include "test_problems.hpp"
@@ -164,4 +166,53 @@ TEST_CASE("FunctionProblem validates its sizes", "[estimation][problem]") {
   CHECK_THROWS_WITH(nlid::make_problem<2>(3, 4, fn2), Contains("differs from the static count 2"));
   const auto ok = nlid::make_problem<2>(2, 4, fn2);
   CHECK(ok.num_residuals() == 4);
+}
+
+TEST_CASE("one problem object may be evaluated from several threads at once",
+          "[estimation][autodiff][threads]") {
+  // Parallel multi-start solves share one const problem: per-thread scratch must keep the
+  // Jacobians of different θ apart.
+  const nlid_test::SigmoidNetFit f(4, 200);
+  AutoDiffProblem ad(f);
+  NumericDiffProblem nd(f);
+  nlid::StackedProblem<AutoDiffProblem<nlid_test::SigmoidNetFit>> stacked({ad, ad});
+  constexpr int kThreads = 4;
+  auto theta_for = [](int t) {
+    Eigen::VectorXd th(13);
+    for (int k = 0; k < 13; ++k) th[k] = 0.1 * t + 0.3 * std::sin(1.3 * k + t);
+    return th;
+  };
+  std::vector<Eigen::MatrixXd> serial(kThreads), parallel(kThreads), fd(kThreads), st(kThreads);
+  for (int t = 0; t < kThreads; ++t) {
+    Eigen::VectorXd r(200);
+    serial[t].resize(200, 13);
+    REQUIRE(ad.evaluate(theta_for(t), r, &serial[t]));
+  }
+  std::vector<int> ok(kThreads, 0);
+  {
+    std::vector<std::thread> pool;
+    for (int t = 0; t < kThreads; ++t) {
+      pool.emplace_back([&, t] {
+        Eigen::VectorXd r(200), r2(400);
+        parallel[t].resize(200, 13);
+        fd[t].resize(200, 13);
+        st[t].resize(400, 13);
+        bool good = true;
+        for (int rep = 0; rep < 20; ++rep) {
+          good = good && ad.evaluate(theta_for(t), r, &parallel[t]);
+          good = good && nd.evaluate(theta_for(t), r, &fd[t]);
+          good = good && stacked.evaluate(theta_for(t), r2, &st[t]);
+        }
+        ok[t] = good ? 1 : 0;
+      });
+    }
+    for (auto& th : pool) th.join();
+  }
+  for (int t = 0; t < kThreads; ++t) {
+    CHECK(ok[t] == 1);
+    CHECK(parallel[t] == serial[t]);
+    CHECK((fd[t] - serial[t]).cwiseAbs().maxCoeff() < 1e-6);
+    CHECK(st[t].topRows(200) == serial[t]);
+    CHECK(st[t].bottomRows(200) == serial[t]);
+  }
 }

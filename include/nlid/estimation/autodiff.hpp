@@ -16,10 +16,11 @@
 ///   price of re-evaluating the value part ⌈n/C⌉ times (see docs/performance.md for the
 ///   measured trade-off).
 ///
-/// Invariants: the dual buffers for θ and r are allocated in the constructor (and re-sized only
-/// if the functor's residual count changes), so `evaluate` allocates nothing for static n.
-/// Because those buffers are members, one object must not be evaluated from two threads at once;
-/// copy it per thread.
+/// Memory and threads: the dual images of θ and r live in per-thread scratch buffers (one per
+/// dual type), sized in the constructor for the constructing thread and grown only when a longer
+/// residual vector is met, so `evaluate` allocates nothing in steady state. `evaluate` is const
+/// and thread-safe if the functor's `residuals` is: several threads (e.g. parallel multi-start
+/// solves) may share one problem object. A thread keeps its scratch until it exits.
 
 #include <algorithm>
 #include <span>
@@ -33,6 +34,17 @@
 #include "nlid/estimation/concepts.hpp"
 
 namespace nlid {
+
+namespace detail {
+// Per-thread scratch of at least `size` duals of type D. Grows, never shrinks; the Eigen
+// container makes any growth visible to EIGEN_RUNTIME_NO_MALLOC tests.
+template <class D>
+Eigen::Matrix<D, Eigen::Dynamic, 1>& ad_scratch(Eigen::Index size) {
+  thread_local Eigen::Matrix<D, Eigen::Dynamic, 1> buffer;
+  if (buffer.size() < size) buffer.resize(size);
+  return buffer;
+}
+}  // namespace detail
 
 /// Adapts a residual functor into a `LeastSquaresProblem` with an exact (AD) Jacobian.
 /// `ChunkSize` is the number of derivatives per pass when `F::num_params` is `Dynamic`.
@@ -60,8 +72,7 @@ class AutoDiffProblem {
     if (f_.num_residuals() < 1) {
       throw Error("AutoDiffProblem: functor reports no residuals", at_parameter("num_residuals"));
     }
-    theta_d_.resize(n);
-    r_d_.resize(f_.num_residuals());
+    detail::ad_scratch<DualScalar>(static_cast<Eigen::Index>(n) + f_.num_residuals());
   }
 
   /// n.
@@ -81,25 +92,28 @@ class AutoDiffProblem {
       return f_.residuals(std::span<const double>(theta.data(), static_cast<std::size_t>(n)),
                           std::span<double>(r.data(), static_cast<std::size_t>(m)));
     }
-    if (r_d_.size() != m) r_d_.resize(m);  // only if the functor's data length changed
-    const std::span<const DualScalar> th(theta_d_.data(), static_cast<std::size_t>(n));
-    const std::span<DualScalar> rd(r_d_.data(), static_cast<std::size_t>(m));
+    // One scratch block per thread: θ's dual image first, then r's.
+    auto& scratch = detail::ad_scratch<DualScalar>(static_cast<Eigen::Index>(n) + m);
+    DualScalar* theta_d = scratch.data();
+    DualScalar* r_d = scratch.data() + n;
+    const std::span<const DualScalar> th(theta_d, static_cast<std::size_t>(n));
+    const std::span<DualScalar> rd(r_d, static_cast<std::size_t>(m));
 
     for (int k = 0; k < n; ++k) {
-      theta_d_[k].a = theta[k];
-      theta_d_[k].v.setZero();
+      theta_d[k].a = theta[k];
+      theta_d[k].v.setZero();
     }
     // Pass c seeds parameters [c·C, c·C + w) as derivative directions 0..w−1.
     for (int first = 0; first < n; first += chunk_size) {
       const int w = std::min(chunk_size, n - first);
-      for (int j = 0; j < w; ++j) theta_d_[first + j].v[j] = 1.0;
+      for (int j = 0; j < w; ++j) theta_d[first + j].v[j] = 1.0;
       if (!f_.residuals(th, rd)) return false;
-      for (int j = 0; j < w; ++j) theta_d_[first + j].v[j] = 0.0;
+      for (int j = 0; j < w; ++j) theta_d[first + j].v[j] = 0.0;
       if (first == 0) {
-        for (Eigen::Index i = 0; i < m; ++i) r[i] = r_d_[i].a;
+        for (Eigen::Index i = 0; i < m; ++i) r[i] = r_d[i].a;
       }
       for (Eigen::Index i = 0; i < m; ++i) {
-        for (int j = 0; j < w; ++j) (*J)(i, first + j) = r_d_[i].v[j];
+        for (int j = 0; j < w; ++j) (*J)(i, first + j) = r_d[i].v[j];
       }
     }
     return true;
@@ -127,9 +141,6 @@ class AutoDiffProblem {
   }
 
   F f_;
-  // Dual images of θ and r (mutable: scratch space of a logically const evaluation).
-  mutable Eigen::Matrix<DualScalar, num_params, 1> theta_d_;
-  mutable Eigen::Matrix<DualScalar, Eigen::Dynamic, 1> r_d_;
 };
 
 }  // namespace nlid

@@ -41,8 +41,9 @@ inline void check_relative_step(double eta) {
 }  // namespace detail
 
 /// Adapts a residual functor into a `LeastSquaresProblem` whose Jacobian is computed by central
-/// differences of the `double` residuals. Workspace is allocated in the constructor; not
-/// thread-safe (copy per thread).
+/// differences of the `double` residuals. Scratch vectors are per thread (sized in the
+/// constructor for the constructing thread), so `evaluate` is const, thread-safe if the functor
+/// is, and allocation-free in steady state.
 template <ResidualFunctor F>
 class NumericDiffProblem {
  public:
@@ -60,9 +61,7 @@ class NumericDiffProblem {
                       " parameters but its static num_params is " + std::to_string(num_params),
                   at_parameter("num_parameters"));
     }
-    theta_.resize(n);
-    r_plus_.resize(f_.num_residuals());
-    r_minus_.resize(f_.num_residuals());
+    scratch(n, f_.num_residuals());
   }
 
   /// n.
@@ -83,21 +82,19 @@ class NumericDiffProblem {
     }
     if (!call(theta, r)) return false;
     if (J == nullptr) return true;
-    if (r_plus_.size() != m) {
-      r_plus_.resize(m);
-      r_minus_.resize(m);
-    }
-    theta_ = theta;
+    Scratch& w = scratch(n, m);
+    Parameters& th = w.theta;
+    th = theta;
     for (int k = 0; k < n; ++k) {
       const double h = eta_ * std::max(std::abs(theta[k]), 1.0);
-      theta_[k] = theta[k] + h;
-      const double hp = theta_[k] - theta[k];  // the step actually representable
-      if (!call(theta_, r_plus_)) return false;
-      theta_[k] = theta[k] - h;
-      const double hm = theta[k] - theta_[k];
-      if (!call(theta_, r_minus_)) return false;
-      theta_[k] = theta[k];
-      J->col(k) = (r_plus_ - r_minus_) / (hp + hm);
+      th[k] = theta[k] + h;
+      const double hp = th[k] - theta[k];  // the step actually representable
+      if (!call(th, w.r_plus)) return false;
+      th[k] = theta[k] - h;
+      const double hm = theta[k] - th[k];
+      if (!call(th, w.r_minus)) return false;
+      th[k] = theta[k];
+      J->col(k) = (w.r_plus - w.r_minus) / (hp + hm);
     }
     return true;
   }
@@ -107,10 +104,23 @@ class NumericDiffProblem {
     return f_.residuals(std::span<const double>(th.data(), static_cast<std::size_t>(th.size())),
                         std::span<double>(out.data(), static_cast<std::size_t>(out.size())));
   }
+  struct Scratch {
+    Parameters theta;
+    Eigen::VectorXd r_plus, r_minus;
+  };
+  // Per-thread buffers (one set per functor type), resized only when the sizes change.
+  static Scratch& scratch(int n, Eigen::Index m) {
+    thread_local Scratch s;
+    if (s.theta.size() != n) s.theta.resize(n);
+    if (s.r_plus.size() != m) {
+      s.r_plus.resize(m);
+      s.r_minus.resize(m);
+    }
+    return s;
+  }
+
   F f_;
   double eta_;
-  mutable Parameters theta_;
-  mutable Eigen::VectorXd r_plus_, r_minus_;
 };
 
 /// Central-difference Jacobian of any `LeastSquaresProblem` at θ (its own Jacobian is not used).

@@ -76,9 +76,11 @@ FunctionProblem<P, Fn> make_problem(int n, Eigen::Index m, Fn fn) {
 }
 
 /// Several problems of the same type sharing one parameter vector; residuals are stacked in the
-/// order the parts were given. Buffers for each part's residuals and Jacobian are allocated in
-/// the constructor, so `evaluate` allocates nothing (if the parts allocate nothing).
-/// Not thread-safe: `evaluate` writes those buffers.
+/// order the parts were given. Each part evaluates into a per-thread buffer that is then copied
+/// into its rows (the contract hands a part a whole `VectorXd`, not a segment). The buffers are
+/// sized in the constructor for the constructing thread and re-sized only when a different
+/// stack is evaluated on the same thread, so `evaluate` allocates nothing in steady state; it is
+/// const and thread-safe if the parts' `evaluate` is.
 template <LeastSquaresProblem Pb>
 class StackedProblem {
  public:
@@ -102,10 +104,10 @@ class StackedProblem {
         throw Error("StackedProblem: part " + std::to_string(k) + " has no residuals",
                     at_experiment(static_cast<long>(k)));
       }
-      r_.emplace_back(mk);
-      J_.emplace_back(mk, n_);
+      sizes_.push_back(mk);
       m_ += mk;
     }
+    scratch();
   }
   /// Shared parameter count.
   int num_parameters() const { return n_; }
@@ -118,30 +120,49 @@ class StackedProblem {
   /// Offset of part k's residuals in the stacked vector.
   Eigen::Index offset(std::size_t k) const {
     Eigen::Index o = 0;
-    for (std::size_t j = 0; j < k && j < parts_.size(); ++j) o += r_[j].size();
+    for (std::size_t j = 0; j < k && j < parts_.size(); ++j) o += sizes_[j];
     return o;
   }
 
   /// Evaluates every part; false as soon as one part is not evaluable.
   bool evaluate(const ParameterVector<num_params>& theta, Eigen::VectorXd& r,
                 JacobianMatrix<num_params>* J) const {
+    Scratch& s = scratch();
     Eigen::Index row = 0;
     for (std::size_t k = 0; k < parts_.size(); ++k) {
-      const Eigen::Index mk = r_[k].size();
-      if (!parts_[k].evaluate(theta, r_[k], J ? &J_[k] : nullptr)) return false;
-      r.segment(row, mk) = r_[k];
-      if (J) J->middleRows(row, mk) = J_[k];
+      const Eigen::Index mk = sizes_[k];
+      if (!parts_[k].evaluate(theta, s.r[k], J ? &s.J[k] : nullptr)) return false;
+      r.segment(row, mk) = s.r[k];
+      if (J) J->middleRows(row, mk) = s.J[k];
       row += mk;
     }
     return true;
   }
 
  private:
+  struct Scratch {
+    std::vector<Eigen::VectorXd> r;
+    std::vector<JacobianMatrix<num_params>> J;
+  };
+  // This thread's buffers, shaped for this stack (re-shaped only if another stack of the same
+  // type was evaluated on this thread in between).
+  Scratch& scratch() const {
+    thread_local Scratch s;
+    if (s.r.size() != sizes_.size()) {
+      s.r.resize(sizes_.size());
+      s.J.resize(sizes_.size());
+    }
+    for (std::size_t k = 0; k < sizes_.size(); ++k) {
+      if (s.r[k].size() != sizes_[k]) s.r[k].resize(sizes_[k]);
+      if (s.J[k].rows() != sizes_[k] || s.J[k].cols() != n_) s.J[k].resize(sizes_[k], n_);
+    }
+    return s;
+  }
+
   std::vector<Pb> parts_;
+  std::vector<Eigen::Index> sizes_;
   int n_ = 0;
   Eigen::Index m_ = 0;
-  mutable std::vector<Eigen::VectorXd> r_;
-  mutable std::vector<JacobianMatrix<num_params>> J_;
 };
 
 }  // namespace nlid
