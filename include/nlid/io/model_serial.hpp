@@ -1,0 +1,733 @@
+#pragma once
+/// @file
+/// Models in model files: `ModelSerial<M>` for nonlinear ARX, Hammerstein–Wiener, grey-box and
+/// the linear ARX / output-error / state-space models (the file envelope is in model_file.hpp).
+///
+/// Every model writes the same top-level members (docs/model_files.md):
+///
+///     "kind"              "nlarx" | "hammerstein_wiener" | "greybox" | "arx" | "output_error" | "state_space"
+///     "ts"                sample time in seconds (0: not set)
+///     "inputs", "outputs" [{"name": "u1", "unit": "V"}, …]
+///     "initial_condition" the policy a simulation of this model should start from by default
+///     "structure"         kind-specific: regressors + nonlinearity, blocks, physics, polynomials
+///     "parameters"        {"names": [...], "values": [...]} — θ, exact
+///     "report"            what the estimation did (fit, iterations, cost, status, time)
+///
+/// `ModelSerial<M>`: `kind`; `save(j, model, info)` fills those members; `load(j, info)` builds an
+/// M from a file (for the types whose structure can be rebuilt from text); `restore(j, model,
+/// info)` checks that a prototype has the file's structure and copies the rest into it (for
+/// models holding C++ lambdas, e.g. custom regressors or user physics).
+
+#include <cmath>
+#include <limits>
+#include <optional>
+#include <string>
+#include <type_traits>
+#include <utility>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "nlid/core/error.hpp"
+#include "nlid/core/initial_condition.hpp"
+#include "nlid/io/json.hpp"
+#include "nlid/io/json_eigen.hpp"
+#include "nlid/io/nonlinearity_serial.hpp"
+#include "nlid/io/regressor_serial.hpp"
+#include "nlid/io/serial_common.hpp"
+#include "nlid/linear/arx.hpp"
+#include "nlid/linear/output_error.hpp"
+#include "nlid/linear/state_space.hpp"
+#include "nlid/models/greybox.hpp"
+#include "nlid/models/greybox_dynamic.hpp"
+#include "nlid/models/greybox_estimate.hpp"
+#include "nlid/models/hammerstein_wiener.hpp"
+#include "nlid/models/nlarx.hpp"
+#include "nlid/models/transfer_function_block.hpp"
+
+namespace nlid {
+
+/// What a model file holds besides the model object itself: channel units, the default
+/// initial-condition policy, a description, the creation time, and (for models that do not keep
+/// one, e.g. grey-box) the estimation report.
+struct ModelFileInfo {
+  std::vector<std::string> input_units;   ///< one per input, or empty
+  std::vector<std::string> output_units;  ///< one per output, or empty
+  /// Policy a simulation should start from by default; empty: the estimation's, else zero.
+  std::optional<InitialCondition> initial_condition;
+  std::string description;                ///< free text (e.g. "nlarx5 of the throttle study")
+  std::string created;                    ///< ISO 8601 UTC time; filled by save when empty
+  std::optional<EstimationReport> report;  ///< report of a model that holds none itself
+};
+
+/// The estimation report of a grey-box estimation, in the common form kept in model files.
+[[nodiscard]] inline EstimationReport estimation_report(const GreyBoxEstimate& g) {
+  EstimationReport r;
+  r.estimated = true;
+  r.focus = "simulation";
+  r.initial_condition = "estimate";
+  r.iterations = g.summary.iterations;
+  r.initial_cost = g.summary.initial_cost;
+  r.final_cost = g.cost;
+  r.seconds = g.seconds;
+  r.status = g.summary.message();
+  r.data_names = g.experiment_names;
+  for (Eigen::Index e = 0; e < g.fit.rows(); ++e) r.fit_percent.push_back(g.fit.cols() > 0 ? g.fit(e, 0) : 0.0);
+  r.initial_states = g.initial_states;
+  return r;
+}
+
+/// Serialiser of model type M (see the file comment).
+template <class M>
+struct ModelSerial;
+
+/// A model type that can be saved. Satisfied by Nlarx and HammersteinWiener of savable
+/// components, GreyBox, Arx, OutputError and StateSpace.
+template <class M>
+concept SavableModel = requires(const M& m, Json& j, const ModelFileInfo& info) {
+  { ModelSerial<M>::kind } -> std::convertible_to<std::string>;
+  ModelSerial<M>::save(j, m, info);
+};
+
+/// A model type that can be rebuilt from a file alone (no lambdas in its structure).
+template <class M>
+concept LoadableModel = SavableModel<M> && requires(const JsonView& v, ModelFileInfo& info) {
+  { ModelSerial<M>::load(v, info) } -> std::same_as<M>;
+};
+
+/// A model type whose prototype can take the state a file holds.
+template <class M>
+concept RestorableModel = SavableModel<M> && requires(const JsonView& v, M& m, ModelFileInfo& info) {
+  ModelSerial<M>::restore(v, m, info);
+};
+
+namespace detail {
+
+inline Json channel_list(const std::vector<std::string>& names, const std::vector<std::string>& units) {
+  Json::Array a;
+  for (std::size_t i = 0; i < names.size(); ++i) {
+    a.push_back(Json::object({{"name", names[i]}, {"unit", i < units.size() ? units[i] : std::string()}}));
+  }
+  return Json(std::move(a));
+}
+
+/// Reads "inputs"/"outputs": names, and units into `units`.
+inline std::vector<std::string> read_channels(const JsonView& v, std::vector<std::string>& units) {
+  std::vector<std::string> names;
+  units.clear();
+  for (std::size_t i = 0; i < v.as_array().size(); ++i) {
+    const JsonView c = v.at(i);
+    c.check_keys({"name", "unit"});
+    names.push_back(c.at("name").as_string());
+    units.push_back(c.value_or<std::string>("unit", ""));
+  }
+  bool any = false;
+  for (const auto& u : units) any = any || !u.empty();
+  if (!any) units.clear();
+  return names;
+}
+
+inline Json parameters_json(const std::vector<std::string>& names, const Eigen::VectorXd& values) {
+  Json j = Json::object();
+  j["names"] = string_list(names);
+  j["values"] = values;
+  return j;
+}
+
+/// θ of `n` values from "parameters"; checks the count.
+inline Eigen::VectorXd read_parameters(const JsonView& file, int n) {
+  const JsonView p = file.at("parameters");
+  p.check_keys({"names", "values"});
+  const Eigen::VectorXd th = read_vector(p.at("values"));
+  if (th.size() != n) {
+    p.at("values").fail("the file has " + std::to_string(th.size()) + " parameter values at " +
+                        p.at("values").path_text() + ", the model structure has " + std::to_string(n));
+  }
+  if (!th.allFinite()) p.at("values").fail("non-finite parameter value at " + p.at("values").path_text());
+  return th;
+}
+
+inline void write_common(Json& j, double ts, const std::vector<std::string>& in, const std::vector<std::string>& out,
+                         const ModelFileInfo& info, const EstimationReport* report) {
+  j["ts"] = ts;
+  j["inputs"] = channel_list(in, info.input_units);
+  j["outputs"] = channel_list(out, info.output_units);
+  InitialCondition ic = InitialCondition::zero;
+  if (info.initial_condition) {
+    ic = *info.initial_condition;
+  } else if (report != nullptr && report->estimated) {
+    for (InitialCondition c : {InitialCondition::zero, InitialCondition::estimate, InitialCondition::equilibrium,
+                               InitialCondition::measured})
+      if (report->initial_condition == to_string(c)) ic = c;
+  }
+  j["initial_condition"] = to_string(ic);
+}
+
+/// Reads the common members into `info`; returns ts and the channel names.
+inline double read_common(const JsonView& file, ModelFileInfo& info, std::vector<std::string>& in,
+                          std::vector<std::string>& out) {
+  const double ts = file.at("ts").as_number();
+  if (!(ts >= 0) || !std::isfinite(ts)) file.at("ts").fail("sample time at ts must be >= 0 and finite");
+  in = read_channels(file.at("inputs"), info.input_units);
+  out = read_channels(file.at("outputs"), info.output_units);
+  info.initial_condition = read_initial_condition(file.at("initial_condition"));
+  return ts;
+}
+
+inline void expect_kind(const JsonView& file, const char* kind) {
+  const std::string& k = file.at("kind").as_string();
+  if (k != kind) file.at("kind").fail("the file holds a \"" + k + "\" model, expected \"" + kind + "\"");
+}
+
+inline void expect_channel_count(const JsonView& v, std::size_t got, int want, const char* what) {
+  if (static_cast<int>(got) != want) {
+    v.fail(std::string("the file lists ") + std::to_string(got) + " " + what + " at " + v.path_text() +
+           ", the model has " + std::to_string(want));
+  }
+}
+
+}  // namespace detail
+
+// ---- nonlinear ARX ----------------------------------------------------------------------------
+
+/// Nlarx<R, F>: "structure": {"regressors": {blocks, names}, "nonlinearity": {...}}.
+template <class R, class F>
+struct ModelSerial<Nlarx<R, F>> {
+  /// Kind name in the file.
+  static constexpr const char* kind = "nlarx";
+  /// Writes the model's members.
+  static void save(Json& j, const Nlarx<R, F>& m, const ModelFileInfo& info)
+    requires SavableRegressor<R> && SavableNonlinearity<F>
+  {
+    detail::write_common(j, m.ts(), m.input_names(), {m.output_name()}, info, &m.report());
+    Json s = Json::object();
+    s["regressors"] = regressors_to_json(m.regressors(), m.input_names(), m.output_name());
+    s["nonlinearity"] = NonlinearitySerial<F>::save(m.nonlinearity());
+    j["structure"] = std::move(s);
+    j["parameters"] = detail::parameters_json(m.parameter_names(), m.parameters());
+    j["report"] = report_to_json(m.report());
+  }
+  /// Builds the model from the file.
+  static Nlarx<R, F> load(const JsonView& file, ModelFileInfo& info)
+    requires LoadableRegressor<R> && LoadableNonlinearity<F>
+  {
+    detail::expect_kind(file, kind);
+    std::vector<std::string> in, out;
+    const double ts = detail::read_common(file, info, in, out);
+    const JsonView s = file.at("structure");
+    s.check_keys({"regressors", "nonlinearity"});
+    const JsonView regs = s.at("regressors");
+    regs.check_keys({"blocks", "names"});
+    const JsonView blocks = regs.at("blocks");
+    std::size_t next = 0;
+    const std::string out_name = out.empty() ? std::string("y1") : out[0];
+    R r = RegressorSerial<R>::load(blocks, next, in, out_name);
+    if (next != blocks.as_array().size()) {
+      blocks.at(next).fail("regressor block " + blocks.at(next).path_text() + " is not used by this model type");
+    }
+    F f = NonlinearitySerial<F>::load(s.at("nonlinearity"));
+    if (f.input_dimension() != r.size()) {
+      s.at("nonlinearity").fail("the nonlinearity at " + s.at("nonlinearity").path_text() + " takes " +
+                                std::to_string(f.input_dimension()) + " inputs but there are " +
+                                std::to_string(r.size()) + " regressors");
+    }
+    Nlarx<R, F> m(std::move(r), std::move(f), ts);
+    finish(file, m, in, out, info);
+    return m;
+  }
+  /// Fills a prototype whose regressors (by getreg names) and nonlinearity match the file.
+  static void restore(const JsonView& file, Nlarx<R, F>& m, ModelFileInfo& info)
+    requires SavableRegressor<R> && SavableNonlinearity<F>
+  {
+    detail::expect_kind(file, kind);
+    std::vector<std::string> in, out;
+    const double ts = detail::read_common(file, info, in, out);
+    const JsonView s = file.at("structure");
+    s.check_keys({"regressors", "nonlinearity"});
+    check_regressor_names(s.at("regressors"), m.regressors(), in, out.empty() ? std::string("y1") : out[0]);
+    NonlinearitySerial<F>::restore(s.at("nonlinearity"), m.nonlinearity());
+    m.set_ts(ts);
+    finish(file, m, in, out, info);
+  }
+
+ private:
+  static void finish(const JsonView& file, Nlarx<R, F>& m, const std::vector<std::string>& in,
+                     const std::vector<std::string>& out, ModelFileInfo& info) {
+    detail::expect_channel_count(file.at("outputs"), out.size(), 1, "outputs");
+    if (static_cast<int>(in.size()) < m.num_inputs()) {
+      detail::expect_channel_count(file.at("inputs"), in.size(), m.num_inputs(), "inputs");
+    }
+    m.set_channel_names(in, out[0]);
+    m.set_parameters(detail::read_parameters(file, m.num_parameters()));
+    m.set_report(report_from_json(file.at("report")));
+    info.report.reset();
+  }
+};
+
+// ---- Hammerstein–Wiener -----------------------------------------------------------------------
+
+/// The linear block: {"nb", "nf", "nk"}.
+template <int Nb, int Nf, int Nk>
+struct LinearBlockSerial {
+  /// Writes the orders.
+  static Json save(const TransferFunctionBlock<Nb, Nf, Nk>& l) {
+    return Json::object({{"type", "transfer_function"}, {"nb", l.nb()}, {"nf", l.nf()}, {"nk", l.nk()}});
+  }
+  /// Builds the block (orders must fit the compile-time ones).
+  static TransferFunctionBlock<Nb, Nf, Nk> load(const JsonView& v) {
+    v.check_keys({"type", "nb", "nf", "nk"});
+    if (v.at("type").as_string() != "transfer_function") {
+      v.at("type").fail("unknown linear block \"" + v.at("type").as_string() + "\" at " + v.at("type").path_text() +
+                        " (accepted: transfer_function)");
+    }
+    try {
+      return TransferFunctionBlock<Nb, Nf, Nk>(read_int(v.at("nb"), 1, 100000), read_int(v.at("nf"), 0, 100000),
+                                               read_int(v.at("nk"), 0, 100000));
+    } catch (const Error& e) {
+      if (e.where().file.empty()) v.fail(e.message() + " (at " + v.path_text() + ")");
+      throw;
+    }
+  }
+};
+
+/// HammersteinWiener<In, TransferFunctionBlock, Out>: "structure": {"input_nonlinearity",
+/// "linear": {"type": "transfer_function", "nb", "nf", "nk"}, "output_nonlinearity"}.
+template <class In, int Nb, int Nf, int Nk, class Out>
+struct ModelSerial<HammersteinWiener<In, TransferFunctionBlock<Nb, Nf, Nk>, Out>> {
+  /// The model type.
+  using M = HammersteinWiener<In, TransferFunctionBlock<Nb, Nf, Nk>, Out>;
+  /// Kind name in the file.
+  static constexpr const char* kind = "hammerstein_wiener";
+  /// Writes the model's members.
+  static void save(Json& j, const M& m, const ModelFileInfo& info)
+    requires SavableNonlinearity<In> && SavableNonlinearity<Out>
+  {
+    detail::write_common(j, m.ts(), {m.input_name()}, {m.output_name()}, info, &m.report());
+    Json s = Json::object();
+    s["input_nonlinearity"] = NonlinearitySerial<In>::save(m.input_nonlinearity());
+    s["linear"] = LinearBlockSerial<Nb, Nf, Nk>::save(m.linear_block());
+    s["output_nonlinearity"] = NonlinearitySerial<Out>::save(m.output_nonlinearity());
+    j["structure"] = std::move(s);
+    j["parameters"] = detail::parameters_json(m.parameter_names(), m.parameters());
+    j["report"] = report_to_json(m.report());
+  }
+  /// Builds the model from the file.
+  static M load(const JsonView& file, ModelFileInfo& info)
+    requires LoadableNonlinearity<In> && LoadableNonlinearity<Out>
+  {
+    detail::expect_kind(file, kind);
+    std::vector<std::string> in, out;
+    const double ts = detail::read_common(file, info, in, out);
+    const JsonView s = file.at("structure");
+    s.check_keys({"input_nonlinearity", "linear", "output_nonlinearity"});
+    In f = NonlinearitySerial<In>::load(s.at("input_nonlinearity"));
+    auto l = LinearBlockSerial<Nb, Nf, Nk>::load(s.at("linear"));
+    Out h = NonlinearitySerial<Out>::load(s.at("output_nonlinearity"));
+    if (f.input_dimension() != 1) s.at("input_nonlinearity").fail("the input nonlinearity at " + s.at("input_nonlinearity").path_text() + " must have one input");
+    if (h.input_dimension() != 1) s.at("output_nonlinearity").fail("the output nonlinearity at " + s.at("output_nonlinearity").path_text() + " must have one input");
+    M m(std::move(f), std::move(l), std::move(h), ts);
+    finish(file, m, in, out, info);
+    return m;
+  }
+  /// Fills a prototype of the file's structure.
+  static void restore(const JsonView& file, M& m, ModelFileInfo& info)
+    requires SavableNonlinearity<In> && SavableNonlinearity<Out>
+  {
+    detail::expect_kind(file, kind);
+    std::vector<std::string> in, out;
+    const double ts = detail::read_common(file, info, in, out);
+    const JsonView s = file.at("structure");
+    s.check_keys({"input_nonlinearity", "linear", "output_nonlinearity"});
+    NonlinearitySerial<In>::restore(s.at("input_nonlinearity"), m.input_nonlinearity());
+    const auto l = LinearBlockSerial<Dynamic, Dynamic, Dynamic>::load(s.at("linear"));
+    if (l.nb() != m.linear_block().nb() || l.nf() != m.linear_block().nf() || l.nk() != m.linear_block().nk()) {
+      s.at("linear").fail("the file's linear block [nb nf nk] = [" + std::to_string(l.nb()) + " " +
+                          std::to_string(l.nf()) + " " + std::to_string(l.nk()) + "] at " +
+                          s.at("linear").path_text() + " differs from this model's");
+    }
+    NonlinearitySerial<Out>::restore(s.at("output_nonlinearity"), m.output_nonlinearity());
+    m.set_ts(ts);
+    finish(file, m, in, out, info);
+  }
+
+ private:
+  static void finish(const JsonView& file, M& m, const std::vector<std::string>& in,
+                     const std::vector<std::string>& out, ModelFileInfo& info) {
+    detail::expect_channel_count(file.at("inputs"), in.size(), 1, "inputs");
+    detail::expect_channel_count(file.at("outputs"), out.size(), 1, "outputs");
+    m.set_channel_names(in[0], out[0]);
+    m.set_parameters(detail::read_parameters(file, m.num_parameters()));
+    m.set_report(report_from_json(file.at("report")));
+    info.report.reset();
+  }
+};
+
+// ---- grey box ---------------------------------------------------------------------------------
+
+namespace detail {
+
+inline const char* integrator_name(IntegratorMethod m) {
+  switch (m) {
+    case IntegratorMethod::euler: return "euler";
+    case IntegratorMethod::rk4: return "rk4";
+    case IntegratorMethod::dormand_prince: return "dormand_prince";
+  }
+  return "rk4";
+}
+
+inline Json integrator_json(const IntegratorOptions& o) {
+  Json j = Json::object();
+  j["method"] = integrator_name(o.method);
+  j["substeps"] = o.substeps;
+  j["min_substeps"] = o.min_substeps;
+  j["max_substeps"] = o.max_substeps;
+  j["stability_target"] = o.stability_target;
+  j["relative_tolerance"] = o.relative_tolerance;
+  j["absolute_tolerance"] = o.absolute_tolerance;
+  j["max_adaptive_steps"] = o.max_adaptive_steps;
+  return j;
+}
+
+inline IntegratorOptions integrator_from_json(const JsonView& v) {
+  v.check_keys({"method", "substeps", "min_substeps", "max_substeps", "stability_target", "relative_tolerance",
+                "absolute_tolerance", "max_adaptive_steps"});
+  IntegratorOptions o;
+  const std::string& m = v.at("method").as_string();
+  if (m == "euler") o.method = IntegratorMethod::euler;
+  else if (m == "rk4") o.method = IntegratorMethod::rk4;
+  else if (m == "dormand_prince") o.method = IntegratorMethod::dormand_prince;
+  else v.at("method").fail("unknown integrator \"" + m + "\" at " + v.at("method").path_text() + " (accepted: euler, rk4, dormand_prince)");
+  o.substeps = read_int(v.at("substeps"), 0, 1 << 30);
+  o.min_substeps = read_int(v.at("min_substeps"), 0, 1 << 30);
+  o.max_substeps = read_int(v.at("max_substeps"), 0, 1 << 30);
+  o.stability_target = v.at("stability_target").as_number();
+  o.relative_tolerance = v.at("relative_tolerance").as_number();
+  o.absolute_tolerance = v.at("absolute_tolerance").as_number();
+  o.max_adaptive_steps = read_int(v.at("max_adaptive_steps"), 0, std::numeric_limits<int>::max());
+  return o;
+}
+
+template <class P>
+GreyBox<P> make_greybox_for(const std::string& name, const JsonView& where) {
+  if constexpr (std::is_same_v<P, AnyPhysics>) {
+    try {
+      return make_greybox(name);
+    } catch (const Error& e) {
+      where.fail(e.message() + " (physics at " + where.path_text() + ")");
+    }
+  } else {
+    GreyBox<P> m;
+    if (m.name() != name) {
+      where.fail("the file's grey-box physics is \"" + name + "\" (at " + where.path_text() + "), this model's is \"" +
+                 m.name() + "\"");
+    }
+    return m;
+  }
+}
+
+}  // namespace detail
+
+/// GreyBox<P>: "structure": {"physics": name, "parameter_table": [...], "integrator": {...},
+/// "initial_state_window": n, "states": [...]}, "estimated_initial_states": [[...], ...].
+template <class P>
+struct ModelSerial<GreyBox<P>> {
+  /// Kind name in the file.
+  static constexpr const char* kind = "greybox";
+  /// Writes the model's members.
+  static void save(Json& j, const GreyBox<P>& m, const ModelFileInfo& info) {
+    const EstimationReport report = info.report ? *info.report : EstimationReport{};
+    detail::write_common(j, 0.0, default_input_names(m.input_dimension()), output_names(m.output_dimension()), info,
+                         &report);
+    if (!info.initial_condition && !report.estimated) j["initial_condition"] = "estimate";
+    Json s = Json::object();
+    s["physics"] = m.name();
+    Json::Array table;
+    for (const ParameterInfo& q : m.parameter_info()) {
+      Json p = Json::object();
+      p["name"] = q.name;
+      p["unit"] = q.unit;
+      p["lower"] = extended_number(q.lower);
+      p["upper"] = extended_number(q.upper);
+      p["range_lower"] = extended_number(q.range_lower);
+      p["range_upper"] = extended_number(q.range_upper);
+      p["log_scale"] = q.log_scale;
+      p["fixed"] = q.fixed;
+      table.push_back(std::move(p));
+    }
+    s["parameter_table"] = Json(std::move(table));
+    s["integrator"] = detail::integrator_json(m.integrator());
+    s["initial_state_window"] = static_cast<long long>(m.initial_state_window());
+    Json::Array states;
+    for (const StateInfo& st : m.state_info()) states.emplace_back(st.name);
+    s["states"] = Json(std::move(states));
+    j["structure"] = std::move(s);
+    j["parameters"] = detail::parameters_json(m.parameter_names(), Eigen::VectorXd(m.parameters()));
+    Json::Array x0;
+    for (const auto& x : m.estimated_initial_states()) x0.push_back(extended_vector(x));
+    j["estimated_initial_states"] = Json(std::move(x0));
+    j["report"] = report_to_json(report);
+  }
+  /// Builds the model (catalogue physics by name for `GreyBox<AnyPhysics>`).
+  static GreyBox<P> load(const JsonView& file, ModelFileInfo& info)
+    requires std::is_same_v<P, AnyPhysics> || std::default_initializable<P>
+  {
+    detail::expect_kind(file, kind);
+    const JsonView name = file.at("structure").at("physics");
+    GreyBox<P> m = detail::make_greybox_for<P>(name.as_string(), name);
+    restore(file, m, info);
+    return m;
+  }
+  /// Fills a prototype of the same physics.
+  static void restore(const JsonView& file, GreyBox<P>& m, ModelFileInfo& info) {
+    detail::expect_kind(file, kind);
+    std::vector<std::string> in, out;
+    (void)detail::read_common(file, info, in, out);
+    detail::expect_channel_count(file.at("inputs"), in.size(), m.input_dimension(), "inputs");
+    detail::expect_channel_count(file.at("outputs"), out.size(), m.output_dimension(), "outputs");
+    const JsonView s = file.at("structure");
+    s.check_keys({"physics", "parameter_table", "integrator", "initial_state_window", "states"});
+    if (s.at("physics").as_string() != m.name()) {
+      s.at("physics").fail("the file's grey-box physics is \"" + s.at("physics").as_string() + "\", this model's is \"" +
+                           m.name() + "\"");
+    }
+    const JsonView table = s.at("parameter_table");
+    detail::expect_channel_count(table, table.as_array().size(), m.num_parameters(), "parameters");
+    const Eigen::VectorXd values = detail::read_parameters(file, m.num_parameters());
+    const auto names = m.parameter_names();
+    for (int i = 0; i < m.num_parameters(); ++i) {
+      const JsonView q = table.at(static_cast<std::size_t>(i));
+      q.check_keys({"name", "unit", "lower", "upper", "range_lower", "range_upper", "log_scale", "fixed"});
+      const std::string& name = names[static_cast<std::size_t>(i)];
+      if (q.at("name").as_string() != name) {
+        q.at("name").fail("parameter " + std::to_string(i) + " is '" + q.at("name").as_string() + "' in the file (at " +
+                          q.at("name").path_text() + ") but '" + name + "' in physics '" + m.name() + "'");
+      }
+      const double lo = read_extended_number(q.at("lower")), hi = read_extended_number(q.at("upper"));
+      const double v = values(i);
+      if (!(lo <= v && v <= hi)) {
+        q.fail("value of '" + name + "' lies outside its bounds in the file (at " + q.path_text() + ")");
+      }
+      // Open the bounds, set the value, then close them: the old bounds need not contain it.
+      const double inf = std::numeric_limits<double>::infinity();
+      m.set_bounds(name, -inf, inf);
+      m.set_parameter(name, v);
+      m.set_bounds(name, lo, hi);
+      const double rl = read_extended_number(q.at("range_lower")), ru = read_extended_number(q.at("range_upper"));
+      if (std::isfinite(rl) && std::isfinite(ru)) m.set_range(name, rl, ru, q.at("log_scale").as_bool());
+      m.fix(name, q.at("fixed").as_bool());
+    }
+    try {
+      m.set_integrator(detail::integrator_from_json(s.at("integrator")));
+    } catch (const Error& e) {
+      if (e.where().file.empty()) s.at("integrator").fail(e.message() + " (at " + s.at("integrator").path_text() + ")");
+      throw;
+    }
+    m.set_initial_state_window(static_cast<Eigen::Index>(s.at("initial_state_window").as_integer()));
+    std::vector<Eigen::VectorXd> x0;
+    const JsonView xs = file.at("estimated_initial_states");
+    for (std::size_t i = 0; i < xs.as_array().size(); ++i) {
+      x0.push_back(read_extended_vector(xs.at(i)));
+      if (x0.back().size() != m.state_dimension()) {
+        xs.at(i).fail("initial state at " + xs.at(i).path_text() + " has " + std::to_string(x0.back().size()) +
+                      " entries, the model has " + std::to_string(m.state_dimension()) + " states");
+      }
+    }
+    m.set_estimated_initial_states(std::move(x0));
+    m.set_units(info.output_units.empty() ? std::string() : info.output_units[0],
+                info.input_units.empty() ? std::string() : info.input_units[0]);
+    info.report = report_from_json(file.at("report"));
+  }
+
+ private:
+  static std::vector<std::string> output_names(int n) {
+    std::vector<std::string> s;
+    for (int i = 0; i < n; ++i) s.push_back("y" + std::to_string(i + 1));
+    return s;
+  }
+};
+
+// ---- linear models ----------------------------------------------------------------------------
+
+namespace detail {
+inline Json vector_list(const std::vector<Eigen::VectorXd>& v) {
+  Json::Array a;
+  for (const auto& x : v) a.emplace_back(x);
+  return Json(std::move(a));
+}
+inline std::vector<Eigen::VectorXd> read_vector_list(const JsonView& v) {
+  std::vector<Eigen::VectorXd> out;
+  for (std::size_t i = 0; i < v.as_array().size(); ++i) out.push_back(read_vector(v.at(i)));
+  return out;
+}
+/// Rethrows a constructor error of a linear model located at the structure.
+template <class Fn>
+auto located(const JsonView& where, Fn&& fn) {
+  try {
+    return fn();
+  } catch (const Error& e) {
+    if (!e.where().file.empty()) throw;
+    where.fail(e.message() + " (at " + where.path_text() + ")");
+  }
+}
+}  // namespace detail
+
+/// Arx: "structure": {"a": [a₁…], "b": [[b₁…], …], "nk": [...], "offset": c}.
+template <>
+struct ModelSerial<Arx> {
+  /// Kind name in the file.
+  static constexpr const char* kind = "arx";
+  /// Writes the model's members.
+  static void save(Json& j, const Arx& m, const ModelFileInfo& info) {
+    detail::write_common(j, m.ts(), names(m), {"y1"}, info, nullptr);
+    Json s = Json::object();
+    s["a"] = m.a();
+    std::vector<Eigen::VectorXd> b;
+    std::vector<int> nk;
+    for (int i = 0; i < m.num_inputs(); ++i) {
+      b.push_back(m.b(i));
+      nk.push_back(m.nk(i));
+    }
+    s["b"] = detail::vector_list(b);
+    s["nk"] = Json(nk);
+    s["offset"] = m.offset();
+    j["structure"] = std::move(s);
+    j["parameters"] = detail::parameters_json(m.parameter_names(), m.parameters());
+    j["report"] = linear_report_to_json(m.report());
+  }
+  /// Builds the model.
+  static Arx load(const JsonView& file, ModelFileInfo& info) {
+    detail::expect_kind(file, kind);
+    std::vector<std::string> in, out;
+    const double ts = detail::read_common(file, info, in, out);
+    const JsonView s = file.at("structure");
+    s.check_keys({"a", "b", "nk", "offset"});
+    Arx m = detail::located(s, [&] {
+      return Arx(read_vector(s.at("a")), detail::read_vector_list(s.at("b")), s.at("nk").get<std::vector<int>>(), ts,
+                 s.at("offset").as_number());
+    });
+    detail::expect_channel_count(file.at("inputs"), in.size(), m.num_inputs(), "inputs");
+    m.set_input_names(in);
+    return m;
+  }
+  /// Replaces the prototype by the file's model.
+  static void restore(const JsonView& file, Arx& m, ModelFileInfo& info) { m = load(file, info); }
+
+ private:
+  static std::vector<std::string> names(const Arx& m) {
+    auto n = m.input_names();
+    if (static_cast<int>(n.size()) != m.num_inputs()) n = default_input_names(m.num_inputs());
+    return n;
+  }
+};
+
+/// OutputError: "structure": {"b": [[...]], "f": [[...]], "nk": [...], "offset": c}.
+template <>
+struct ModelSerial<OutputError> {
+  /// Kind name in the file.
+  static constexpr const char* kind = "output_error";
+  /// Writes the model's members.
+  static void save(Json& j, const OutputError& m, const ModelFileInfo& info) {
+    detail::write_common(j, m.ts(), default_input_names(m.num_inputs()), {"y1"}, info, nullptr);
+    Json s = Json::object();
+    std::vector<Eigen::VectorXd> b, f;
+    std::vector<int> nk;
+    for (int i = 0; i < m.num_inputs(); ++i) {
+      b.push_back(m.b(i));
+      f.push_back(m.f(i));
+      nk.push_back(m.nk(i));
+    }
+    s["b"] = detail::vector_list(b);
+    s["f"] = detail::vector_list(f);
+    s["nk"] = Json(nk);
+    s["offset"] = m.offset();
+    j["structure"] = std::move(s);
+    j["parameters"] = detail::parameters_json(m.parameter_names(), m.parameters());
+    j["report"] = linear_report_to_json(m.report());
+  }
+  /// Builds the model.
+  static OutputError load(const JsonView& file, ModelFileInfo& info) {
+    detail::expect_kind(file, kind);
+    std::vector<std::string> in, out;
+    const double ts = detail::read_common(file, info, in, out);
+    const JsonView s = file.at("structure");
+    s.check_keys({"b", "f", "nk", "offset"});
+    OutputError m = detail::located(s, [&] {
+      return OutputError(detail::read_vector_list(s.at("b")), detail::read_vector_list(s.at("f")),
+                         s.at("nk").get<std::vector<int>>(), ts, s.at("offset").as_number());
+    });
+    detail::expect_channel_count(file.at("inputs"), in.size(), m.num_inputs(), "inputs");
+    return m;
+  }
+  /// Replaces the prototype by the file's model.
+  static void restore(const JsonView& file, OutputError& m, ModelFileInfo& info) { m = load(file, info); }
+};
+
+/// StateSpace: "structure": {"A": [[...]], "B", "C", "D", "offset": [...]}.
+template <>
+struct ModelSerial<StateSpace> {
+  /// Kind name in the file.
+  static constexpr const char* kind = "state_space";
+  /// Writes the model's members.
+  static void save(Json& j, const StateSpace& m, const ModelFileInfo& info) {
+    std::vector<std::string> out;
+    for (int i = 0; i < m.num_outputs(); ++i) out.push_back("y" + std::to_string(i + 1));
+    detail::write_common(j, m.ts(), default_input_names(m.num_inputs()), out, info, nullptr);
+    Json s = Json::object();
+    s["A"] = to_json(m.a());
+    s["B"] = to_json(m.b());
+    s["C"] = to_json(m.c());
+    s["D"] = to_json(m.d());
+    s["offset"] = m.offset();
+    j["structure"] = std::move(s);
+    Eigen::VectorXd th(m.a().size() + m.b().size() + m.c().size() + m.d().size());
+    std::vector<std::string> names;
+    Eigen::Index k = 0;
+    const auto add = [&](const Eigen::MatrixXd& x, const char* n) {
+      for (Eigen::Index r = 0; r < x.rows(); ++r)
+        for (Eigen::Index c = 0; c < x.cols(); ++c) {
+          th(k++) = x(r, c);
+          names.push_back(std::string(n) + "(" + std::to_string(r + 1) + "," + std::to_string(c + 1) + ")");
+        }
+    };
+    add(m.a(), "A");
+    add(m.b(), "B");
+    add(m.c(), "C");
+    add(m.d(), "D");
+    j["parameters"] = detail::parameters_json(names, th);
+    j["report"] = linear_report_to_json(m.report());
+  }
+  /// Builds the model.
+  static StateSpace load(const JsonView& file, ModelFileInfo& info) {
+    detail::expect_kind(file, kind);
+    std::vector<std::string> in, out;
+    const double ts = detail::read_common(file, info, in, out);
+    const JsonView s = file.at("structure");
+    s.check_keys({"A", "B", "C", "D", "offset"});
+    const auto mat = [&](const char* k) {
+      const JsonView v = s.at(k);
+      // An empty matrix (no states) is written as [] and has no column count: derive it.
+      if (v.as_array().empty()) return Eigen::MatrixXd();
+      return v.get<Eigen::MatrixXd>();
+    };
+    Eigen::MatrixXd A = mat("A"), B = mat("B"), C = mat("C"), D = mat("D");
+    const auto nu = static_cast<Eigen::Index>(in.size()), ny = static_cast<Eigen::Index>(out.size());
+    if (A.size() == 0) {
+      A.resize(0, 0);
+      B.resize(0, nu);
+      C.resize(ny, 0);
+    }
+    StateSpace m = detail::located(s, [&] { return StateSpace(A, B, C, D, ts); });
+    detail::expect_channel_count(file.at("inputs"), in.size(), m.num_inputs(), "inputs");
+    detail::expect_channel_count(file.at("outputs"), out.size(), m.num_outputs(), "outputs");
+    detail::located(s.at("offset"), [&] {
+      m.set_offset(read_vector(s.at("offset"), m.num_outputs()));
+      return 0;
+    });
+    m.set_report(linear_report_from_json(file.at("report")));
+    return m;
+  }
+  /// Replaces the prototype by the file's model.
+  static void restore(const JsonView& file, StateSpace& m, ModelFileInfo& info) { m = load(file, info); }
+};
+
+}  // namespace nlid

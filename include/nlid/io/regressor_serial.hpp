@@ -1,0 +1,312 @@
+#pragma once
+/// @file
+/// Regressors in model files: a flat list of blocks, written by every regressor type and read
+/// back into compile-time sets or into the run-time `RegressorList`.
+///
+/// Layout (docs/model_files.md):
+///
+///     "regressors": {
+///       "blocks": [ {"type": "output_lags", "na": 2},
+///                   {"type": "input_lags", "nb": 1, "nk": 0, "channel": 0},
+///                   {"type": "custom", "expression": "max(y1(t-1),90)+min(y1(t-1),15)-105"} ],
+///       "names":  [ "y1(t-1)", "y1(t-2)", "u1(t)", "max(y1(t-1),90)+min(y1(t-1),15)-105" ] }
+///
+/// `names` is the getreg list (for people, and to check a compile-time prototype against the
+/// file). A C++ lambda regressor (`CustomRegressor`) is written with its display name as the
+/// expression when that name parses (the recommended spelling, e.g. the study's hard-stop
+/// regressor); otherwise as {"type": "custom", "expression": null, "name": "..."}, which only a
+/// program holding the lambda can load (`load_model(path, prototype)`).
+///
+/// `RegressorSerial<R>`: `save_blocks(r, blocks)` appends r's blocks; `load(view, next)` builds an
+/// R from the blocks starting at index `next` and advances it (for the types that can be rebuilt:
+/// `OutputLags`, `InputLags`, `LaggedRegressors`, `ExpressionRegressor`, `RegressorList` and sets
+/// of them).
+
+#include <cstddef>
+#include <string>
+#include <tuple>
+#include <utility>
+#include <vector>
+
+#include "nlid/core/error.hpp"
+#include "nlid/io/json.hpp"
+#include "nlid/io/serial_common.hpp"
+#include "nlid/regressors/custom.hpp"
+#include "nlid/regressors/expression.hpp"
+#include "nlid/regressors/lagged.hpp"
+#include "nlid/regressors/regressor_set.hpp"
+
+namespace nlid {
+
+/// Serialiser of regressor type R (see the file comment).
+template <class R>
+struct RegressorSerial;
+
+/// A regressor type whose blocks can be written. Satisfied by every nlid regressor type.
+template <class R>
+concept SavableRegressor = requires(const R& r, Json::Array& a) { RegressorSerial<R>::save_blocks(r, a); };
+
+/// A regressor type that can be rebuilt from a file's blocks.
+/// Satisfied by OutputLags, InputLags, LaggedRegressors, ExpressionRegressor, RegressorList and
+/// RegressorSet of such terms (not by lambda `CustomRegressor`s: load those into a prototype).
+template <class R>
+concept LoadableRegressor = requires(const JsonView& v, std::size_t& next, const std::vector<std::string>& in,
+                                     const std::string& out) {
+  { RegressorSerial<R>::load(v, next, in, out) } -> std::same_as<R>;
+};
+
+namespace detail {
+
+inline Json output_lags_block(int na) { return Json::object({{"type", "output_lags"}, {"na", na}}); }
+inline Json input_lags_block(int nb, int nk, int channel) {
+  return Json::object({{"type", "input_lags"}, {"nb", nb}, {"nk", nk}, {"channel", channel}});
+}
+
+/// The next block, checked to be of `type` (fails naming the path and what was expected).
+inline JsonView take_block(const JsonView& blocks, std::size_t& next, const char* type) {
+  if (next >= blocks.as_array().size()) {
+    blocks.fail("the regressor blocks at " + blocks.path_text() + " end after " + std::to_string(next) +
+                " block(s), but this model needs a \"" + type + "\" block next");
+  }
+  const JsonView b = blocks.at(next++);
+  const std::string& got = b.at("type").as_string();
+  if (got != type) {
+    b.at("type").fail("regressor block " + b.path_text() + " is \"" + got + "\", this model needs \"" + type + "\"");
+  }
+  return b;
+}
+
+/// The expression of a "custom" block, parsed with the model's channel names; a parse error is
+/// located in the file (line, and the column inside the JSON string).
+inline Expression custom_block_expression(const JsonView& b, const std::vector<std::string>& input_names,
+                                          const std::string& output_name) {
+  b.check_keys({"type", "expression", "name"});
+  const JsonView e = b.at("expression");
+  if (e.json().is_null()) {
+    const std::string name = b.contains("name") ? b.at("name").as_string() : std::string("?");
+    b.fail("custom regressor '" + name + "' at " + b.path_text() +
+           " was a C++ function without an expression; load this file into a model built in C++ "
+           "(load_model(path, prototype)) or save the regressor as an expression");
+  }
+  try {
+    return Expression::parse(e.as_string(), input_names, output_name);
+  } catch (const Error& err) {
+    Location where;
+    where.file = e.json().source();
+    where.row = e.json().line() > 0 ? e.json().line() : -1;
+    // Column of the token inside the file: the string's opening quote + the token's column.
+    where.column = e.json().column() > 0 ? e.json().column() + err.where().column : err.where().column;
+    where.parameter = "expression";
+    throw Error(err.message() + " (custom regressor at " + e.path_text() + ")", where);
+  }
+}
+
+/// Builds a RegressorList from all blocks (the run-time reader).
+inline RegressorList regressor_list_from_blocks(const JsonView& blocks, std::size_t& next,
+                                                const std::vector<std::string>& input_names,
+                                                const std::string& output_name) {
+  RegressorList r;
+  for (; next < blocks.as_array().size(); ++next) {
+    const JsonView b = blocks.at(next);
+    const std::string& type = b.at("type").as_string();
+    if (type == "output_lags") {
+      b.check_keys({"type", "na"});
+      r.add_output_lags(read_int(b.at("na"), 0, 100000));
+    } else if (type == "input_lags") {
+      b.check_keys({"type", "nb", "nk", "channel"});
+      r.add_input_lags(read_int(b.at("nb"), 0, 100000), read_int(b.at("nk"), 0, 100000),
+                       read_int(b.at("channel"), 0, 100000));
+    } else if (type == "custom") {
+      r.add_custom(custom_block_expression(b, input_names, output_name));
+    } else {
+      b.at("type").fail("unknown regressor block \"" + type + "\" at " + b.at("type").path_text() +
+                        " (accepted: output_lags, input_lags, custom)");
+    }
+  }
+  return r;
+}
+
+}  // namespace detail
+
+/// y(t−1) … y(t−na): one "output_lags" block.
+template <int Na>
+struct RegressorSerial<OutputLags<Na>> {
+  /// Appends the block.
+  static void save_blocks(const OutputLags<Na>& r, Json::Array& a) { a.push_back(detail::output_lags_block(r.size())); }
+  /// Reads one "output_lags" block.
+  static OutputLags<Na> load(const JsonView& blocks, std::size_t& next,
+                      [[maybe_unused]] const std::vector<std::string>& input_names = {},
+                      [[maybe_unused]] const std::string& output_name = "y1") {
+    const JsonView b = detail::take_block(blocks, next, "output_lags");
+    b.check_keys({"type", "na"});
+    try {
+      return OutputLags<Na>(read_int(b.at("na"), 0, 100000));
+    } catch (const Error& e) {
+      b.at("na").fail(e.message() + " (at " + b.at("na").path_text() + ")");
+    }
+  }
+};
+
+/// u_c(t−nk) …: one "input_lags" block (channel must equal C).
+template <int Nb, int Nk, int C>
+struct RegressorSerial<InputLags<Nb, Nk, C>> {
+  /// Appends the block.
+  static void save_blocks(const InputLags<Nb, Nk, C>& r, Json::Array& a) {
+    a.push_back(detail::input_lags_block(r.size(), r.delay(), C));
+  }
+  /// Reads one "input_lags" block.
+  static InputLags<Nb, Nk, C> load(const JsonView& blocks, std::size_t& next,
+                      [[maybe_unused]] const std::vector<std::string>& input_names = {},
+                      [[maybe_unused]] const std::string& output_name = "y1") {
+    const JsonView b = detail::take_block(blocks, next, "input_lags");
+    b.check_keys({"type", "nb", "nk", "channel"});
+    if (read_int(b.at("channel"), 0, 100000) != C) {
+      b.at("channel").fail("regressor block " + b.path_text() + " reads input channel " +
+                           std::to_string(b.at("channel").as_integer()) + ", this model's block reads channel " +
+                           std::to_string(C));
+    }
+    try {
+      return InputLags<Nb, Nk, C>(read_int(b.at("nb"), 0, 100000), read_int(b.at("nk"), 0, 100000));
+    } catch (const Error& e) {
+      b.fail(e.message() + " (at " + b.path_text() + ")");
+    }
+  }
+};
+
+/// [na nb nk]: an "output_lags" and an "input_lags" block.
+template <int Na, int Nb, int Nk>
+struct RegressorSerial<LaggedRegressors<Na, Nb, Nk>> {
+  /// Appends the two blocks.
+  static void save_blocks(const LaggedRegressors<Na, Nb, Nk>& r, Json::Array& a) {
+    a.push_back(detail::output_lags_block(r.na()));
+    a.push_back(detail::input_lags_block(r.nb(), r.nk(), 0));
+  }
+  /// Reads the two blocks.
+  static LaggedRegressors<Na, Nb, Nk> load(const JsonView& blocks, std::size_t& next,
+                      [[maybe_unused]] const std::vector<std::string>& input_names = {},
+                      [[maybe_unused]] const std::string& output_name = "y1") {
+    const std::size_t first = next;
+    const OutputLags<Dynamic> y = RegressorSerial<OutputLags<Dynamic>>::load(blocks, next, input_names, output_name);
+    const InputLags<Dynamic, Dynamic, 0> u = RegressorSerial<InputLags<Dynamic, Dynamic, 0>>::load(blocks, next, input_names, output_name);
+    try {
+      return LaggedRegressors<Na, Nb, Nk>(y.size(), u.size(), u.delay());
+    } catch (const Error& e) {
+      blocks.at(first).fail(e.message() + " (at " + blocks.at(first).path_text() + ")");
+    }
+  }
+};
+
+/// A lambda custom regressor: written with its name as the expression (see the file comment).
+template <class Fn, class... Args>
+struct RegressorSerial<CustomRegressor<Fn, Args...>> {
+  /// Appends one "custom" block.
+  static void save_blocks(const CustomRegressor<Fn, Args...>& r, Json::Array& a) {
+    const std::string name = r.names(default_input_names(r.num_input_channels()), "y1")[0];
+    Json b = Json::object({{"type", "custom"}});
+    try {
+      (void)Expression::parse(name);
+      b["expression"] = name;
+    } catch (const Error&) {
+      b["expression"] = nullptr;
+      b["name"] = name;
+    }
+    a.push_back(std::move(b));
+  }
+};
+
+/// An expression regressor: one "custom" block.
+template <>
+struct RegressorSerial<ExpressionRegressor> {
+  /// Appends the block.
+  static void save_blocks(const ExpressionRegressor& r, Json::Array& a) {
+    a.push_back(Json::object({{"type", "custom"}, {"expression", r.expression().text()}}));
+  }
+  /// Reads one "custom" block (signals spelled y1/u<k>).
+  static ExpressionRegressor load(const JsonView& blocks, std::size_t& next,
+                      [[maybe_unused]] const std::vector<std::string>& input_names = {},
+                      [[maybe_unused]] const std::string& output_name = "y1") {
+    const JsonView b = detail::take_block(blocks, next, "custom");
+    return ExpressionRegressor(detail::custom_block_expression(b, input_names, output_name));
+  }
+};
+
+/// A run-time list: its blocks as they are.
+template <>
+struct RegressorSerial<RegressorList> {
+  /// Appends every block.
+  static void save_blocks(const RegressorList& r, Json::Array& a) {
+    for (const auto& b : r.blocks()) {
+      switch (b.kind) {
+        case RegressorList::Kind::output_lags: a.push_back(detail::output_lags_block(b.na)); break;
+        case RegressorList::Kind::input_lags: a.push_back(detail::input_lags_block(b.nb, b.nk, b.channel)); break;
+        case RegressorList::Kind::custom:
+          a.push_back(Json::object({{"type", "custom"}, {"expression", b.expression.text()}}));
+          break;
+      }
+    }
+  }
+  /// Reads all remaining blocks (expressions may use the model's channel names).
+  static RegressorList load(const JsonView& blocks, std::size_t& next,
+                      [[maybe_unused]] const std::vector<std::string>& input_names = {},
+                      [[maybe_unused]] const std::string& output_name = "y1") {
+    return detail::regressor_list_from_blocks(blocks, next, input_names, output_name);
+  }
+};
+
+/// A compile-time set: its terms' blocks in order.
+template <class... Terms>
+struct RegressorSerial<RegressorSet<Terms...>> {
+  /// Appends every term's blocks.
+  static void save_blocks(const RegressorSet<Terms...>& r, Json::Array& a) {
+    save_terms(r, a, std::index_sequence_for<Terms...>{});
+  }
+  /// Reads the terms in order.
+  static RegressorSet<Terms...> load(const JsonView& blocks, std::size_t& next,
+                      [[maybe_unused]] const std::vector<std::string>& input_names = {},
+                      [[maybe_unused]] const std::string& output_name = "y1")
+    requires(LoadableRegressor<Terms> && ...)
+  {
+    // Braced initialisation evaluates the terms left to right, consuming blocks in order.
+    return std::apply([](auto&&... t) { return RegressorSet<Terms...>(std::move(t)...); },
+                      std::tuple<Terms...>{RegressorSerial<Terms>::load(blocks, next, input_names, output_name)...});
+  }
+
+ private:
+  template <std::size_t... I>
+  static void save_terms(const RegressorSet<Terms...>& r, Json::Array& a, std::index_sequence<I...>) {
+    (RegressorSerial<std::remove_cvref_t<decltype(r.template term<I>())>>::save_blocks(r.template term<I>(), a), ...);
+  }
+};
+
+/// The "regressors" object of a model file: blocks and getreg names.
+template <SavableRegressor R>
+[[nodiscard]] Json regressors_to_json(const R& r, const std::vector<std::string>& input_names,
+                                      const std::string& output_name) {
+  Json::Array blocks;
+  RegressorSerial<R>::save_blocks(r, blocks);
+  Json j = Json::object();
+  j["blocks"] = Json(std::move(blocks));
+  j["names"] = string_list(r.names(input_names, output_name));
+  return j;
+}
+
+/// Checks that regressors `r` (e.g. of a prototype) are the ones the file describes, by their
+/// getreg names; fails naming the first difference.
+template <Regressor R>
+void check_regressor_names(const JsonView& regs, const R& r, const std::vector<std::string>& input_names,
+                           const std::string& output_name) {
+  const auto want = r.names(input_names, output_name);
+  const auto got = read_string_list(regs.at("names"));
+  if (got.size() != want.size()) {
+    regs.at("names").fail("the file's model has " + std::to_string(got.size()) + " regressors at " +
+                          regs.at("names").path_text() + ", this model has " + std::to_string(want.size()));
+  }
+  for (std::size_t i = 0; i < got.size(); ++i) {
+    if (got[i] != want[i]) {
+      regs.at("names").at(i).fail("regressor " + std::to_string(i) + " is '" + got[i] + "' in the file (at " +
+                                  regs.at("names").at(i).path_text() + ") but '" + want[i] + "' in this model");
+    }
+  }
+}
+
+}  // namespace nlid
