@@ -1,0 +1,159 @@
+#pragma once
+/// @file
+/// C code for a grey-box model `GreyBox<P>`: the physics' f and g traced into C functions, and
+/// the same zero-order-hold integrator nlid simulates with (classical RK4 or Euler, the same
+/// number of sub-steps, the same operation order), so the generated step reproduces
+/// `GreyBox::simulate` to rounding:
+///
+///     y(t_k) = g(x_k, u_k, p)
+///     x_{k+1} = Φ(x_k, u_k): n sub-steps of h = T_s/n,   k₁ = f(x), k₂ = f(x + h/2·k₁),
+///               k₃ = f(x + h/2·k₂), k₄ = f(x + h·k₃),   x ← x + h/6·((k₁ + k₄) + 2(k₂ + k₃))
+///
+/// (Hairer, Nørsett & Wanner 1993, Table 1.2; n from nlid's sub-step rule, integrators.hpp).
+/// The physics is written once as `template <class T> derivative(...)`; tracing it on
+/// `TraceScalar` emits its C, including its branches (a smoothed hard stop becomes an if/else
+/// on the penetration) — grey-box code generation the toolbox did not offer.
+///
+/// Generated state: the physical state x (names in the header). NAME_init starts at the
+/// equilibrium for `CodegenOptions::equilibrium_input` if given (solved at generation time by
+/// `physics_equilibrium`, as `InitialCondition::equilibrium` does), else at zero.
+///
+/// Limits: the adaptive Dormand–Prince method is not generated (its step sequence depends on
+/// the data); run-time physics (`GreyBox<AnyPhysics>`) cannot be traced (virtual functions on
+/// double and Dual only). Both are reported as `nlid::Error`.
+
+#include <span>
+#include <string>
+#include <type_traits>
+#include <vector>
+
+#include "nlid/codegen/emitter.hpp"
+#include "nlid/codegen/trace_scalar.hpp"
+#include "nlid/models/equilibrium.hpp"
+#include "nlid/models/greybox.hpp"
+#include "nlid/models/greybox_simulate.hpp"
+
+namespace nlid {
+
+namespace codegen::detail {
+/// A physics whose f and g can be evaluated on `TraceScalar` (compile-time, templated physics).
+template <class P>
+concept TraceablePhysics = requires(const P& p, const TraceScalar* x, TraceScalar* out) {
+  p.derivative(x, x, x, out);
+  p.output(x, x, x, out);
+};
+}  // namespace codegen::detail
+
+/// Generates C99 code for a grey-box model at sample time `options.ts` (required). Throws
+/// `nlid::Error` for a missing sample time, the adaptive integrator, an untraceable physics, a
+/// missing equilibrium, or a bad name.
+template <class P>
+GeneratedCode generate_c(const GreyBox<P>& model, const CodegenOptions& options) {
+  codegen::check_name(options.name);
+  if constexpr (!codegen::detail::TraceablePhysics<P>) {
+    throw Error("codegen: the physics of grey-box model '" + model.name() +
+                    "' is chosen at run time (AnyPhysics) and cannot be traced; generate code from the compile-time "
+                    "physics type (GreyBox<physics::...>)",
+                at_parameter("physics"));
+  } else {
+    require(options.ts > 0 && std::isfinite(options.ts),
+            "codegen: a grey-box model is continuous; set CodegenOptions::ts to the sample time of the generated step",
+            at_parameter("ts"));
+    const IntegratorOptions& io = model.integrator();
+    require(io.method != IntegratorMethod::dormand_prince,
+            "codegen: the adaptive Dormand-Prince integrator is not generated; use IntegratorMethod::rk4 (or euler) "
+            "with fixed sub-steps",
+            at_parameter("integrator"));
+    codegen::ModelShape m;
+    m.name = options.name;
+    m.kind = "grey-box (" + model.name() + ")";
+    m.description = model.describe();
+    m.nx = model.state_dimension();
+    m.nu = model.input_dimension();
+    m.ny = model.output_dimension();
+    m.ts = options.ts;
+    const Eigen::VectorXd pv = model.parameters();
+    m.parameters = pv;
+    m.parameter_names = model.parameter_names();
+    m.state_doc = "the physical state x = [";
+    for (std::size_t i = 0; i < model.state_info().size(); ++i) m.state_doc += (i ? ", " : "") + model.state_info()[i].name;
+    m.state_doc += "]";
+    Eigen::VectorXd u_sub = Eigen::VectorXd::Zero(m.nu);
+    if (options.equilibrium_input) {
+      const OperatingPoint op = equilibrium(model, *options.equilibrium_input);
+      m.x0 = op.x;
+      u_sub = *options.equilibrium_input;
+      m.x0_doc = "the equilibrium for u held at " + detail::format_value((*options.equilibrium_input)(0), 17);
+    } else {
+      m.x0 = Eigen::VectorXd::Zero(m.nx);
+      m.x0_doc = "zero";
+    }
+    // The sub-step count GreyBox::simulate would use when started from x0 with input u_sub.
+    const int sub = options.substeps > 0
+                        ? options.substeps
+                        : substeps_for(m.ts, physics_spectral_radius(model.physics(), pv.data(), m.x0.data(), u_sub.data()), io);
+    const std::string name = m.name;
+    const auto pspan = std::span<const double>(pv.data(), static_cast<std::size_t>(pv.size()));
+    const int nx = m.nx, nu = m.nu, ny = m.ny;
+    const auto& phys = model.physics();
+    const codegen::TracedFunction fd = codegen::trace_paths(
+        [&] {
+          const std::vector<TraceScalar> x = codegen::signals("x", nx), u = codegen::signals("u", nu),
+                                         p = codegen::parameters(name, pspan);
+          std::vector<TraceScalar> dx(static_cast<std::size_t>(nx));
+          phys.derivative(x.data(), u.data(), p.data(), dx.data());
+          return dx;
+        },
+        options.limits);
+    const codegen::TracedFunction fg = codegen::trace_paths(
+        [&] {
+          const std::vector<TraceScalar> x = codegen::signals("x", nx), u = codegen::signals("u", nu),
+                                         p = codegen::parameters(name, pspan);
+          std::vector<TraceScalar> y(static_cast<std::size_t>(ny));
+          phys.output(x.data(), u.data(), p.data(), y.data());
+          return y;
+        },
+        options.limits);
+    std::set<std::string> helpers = fd.helpers;
+    helpers.insert(fg.helpers.begin(), fg.helpers.end());
+    const std::string M = codegen::macro(name), N = std::to_string(nx);
+    std::string src = codegen::make_source_prelude(m, helpers);
+    src += "#define " + M + "_SUBSTEPS " + std::to_string(sub) + " /* integrator sub-steps per sample */\n\n";
+    std::string equation = "the physics";
+    if constexpr (detail::HasEquation<P>) equation = phys.equation();
+    src += "/* dx = f(x, u, p): " + equation +
+           " */\nstatic void " + name + "_derivative(const double* x, const double* u, double* dx) {\n  (void)x;\n  (void)u;\n" +
+           codegen::emit_c(fd, codegen::targets("dx", nx), "  ") + "}\n\n";
+    src += "/* y = g(x, u, p) */\nstatic void " + name + "_output(const double* x, const double* u, double* y) {\n  (void)x;\n  (void)u;\n" +
+           codegen::emit_c(fg, codegen::targets("y", ny), "  ") + "}\n\n";
+    src += "void " + name + "_step(" + name + "_state* s, const double* u, double* y) {\n";
+    src += "  const double h = " + M + "_SAMPLE_TIME / " + M + "_SUBSTEPS;\n";
+    src += "  double k1[" + N + "], k2[" + N + "], k3[" + N + "], k4[" + N + "], tmp[" + N + "];\n  int i, j;\n";
+    src += "  " + name + "_output(s->x, u, y);\n";
+    if (io.method == IntegratorMethod::euler) {
+      src += "  (void)k2;\n  (void)k3;\n  (void)k4;\n  (void)tmp;\n";
+      src += "  for (i = 0; i < " + M + "_SUBSTEPS; ++i) {\n    " + name + "_derivative(s->x, u, k1);\n";
+      src += "    for (j = 0; j < " + N + "; ++j) s->x[j] += h * k1[j];\n  }\n}\n";
+    } else {
+      src += "  {\n    const double half = 0.5 * h, sixth = h / 6.0;\n";
+      src += "    for (i = 0; i < " + M + "_SUBSTEPS; ++i) {\n";
+      src += "      " + name + "_derivative(s->x, u, k1);\n";
+      src += "      for (j = 0; j < " + N + "; ++j) tmp[j] = s->x[j] + half * k1[j];\n";
+      src += "      " + name + "_derivative(tmp, u, k2);\n";
+      src += "      for (j = 0; j < " + N + "; ++j) tmp[j] = s->x[j] + half * k2[j];\n";
+      src += "      " + name + "_derivative(tmp, u, k3);\n";
+      src += "      for (j = 0; j < " + N + "; ++j) tmp[j] = s->x[j] + h * k3[j];\n";
+      src += "      " + name + "_derivative(tmp, u, k4);\n";
+      src += "      for (j = 0; j < " + N + "; ++j) {\n        tmp[j] = k1[j] + k4[j];\n        tmp[j] += 2.0 * (k2[j] + k3[j]);\n"
+             "        s->x[j] += sixth * tmp[j];\n      }\n    }\n  }\n}\n";
+    }
+    GeneratedCode g;
+    g.name = name;
+    g.paths = fd.paths;
+    g.header = codegen::make_header(m);
+    g.source = src;
+    return g;
+  }
+}
+
+}  // namespace nlid

@@ -1,0 +1,77 @@
+#pragma once
+/// @file
+/// C code for a Hammerstein–Wiener model: input map f, linear block B/F (transposed direct
+/// form II, the state nlid uses) and output map h, traced into one step function:
+///
+///     w = f(u(t)),   x(t) = β₀ w + s₁,   s ← next block state,   y(t) = h(x(t)).
+///
+/// Generated state (NAME_NUM_STATES = max(nf, nk + nb − 1)): the linear block's state s, the
+/// x0 of `HammersteinWiener::simulate`. NAME_init gives the block at rest (the study's `nlhw2`,
+/// initial state zero) or, with `CodegenOptions::equilibrium_input`, its steady state for that
+/// input. Saturation, dead zone and piecewise-linear maps become nested if/else on the signal
+/// (their branches are explored while tracing; see trace_scalar.hpp).
+
+#include <span>
+#include <string>
+#include <vector>
+
+#include "nlid/codegen/emitter.hpp"
+#include "nlid/codegen/trace_scalar.hpp"
+#include "nlid/models/equilibrium.hpp"
+#include "nlid/models/hammerstein_wiener.hpp"
+
+namespace nlid {
+
+/// Generates C99 code for a Hammerstein–Wiener model (see the file comment and emitter.hpp).
+template <class In, class L, class Out>
+GeneratedCode generate_c(const HammersteinWiener<In, L, Out>& model, const CodegenOptions& options = {}) {
+  codegen::check_name(options.name);
+  codegen::ModelShape m;
+  m.name = options.name;
+  m.kind = "Hammerstein-Wiener";
+  m.description = model.describe();
+  m.nx = model.state_dimension();
+  m.nu = 1;
+  m.ny = 1;
+  m.ts = options.ts > 0 ? options.ts : model.ts();
+  require(m.ts > 0, "codegen: the model has no sample time; set it (set_ts) or CodegenOptions::ts", at_parameter("ts"));
+  m.parameters = model.parameters();
+  m.parameter_names = model.parameter_names();
+  m.state_doc = "the linear block's state s1 … s" + std::to_string(m.nx) +
+                " (transposed direct form II: x(t) = b0*w(t) + s1(t))";
+  if (options.equilibrium_input) {
+    const OperatingPoint op = equilibrium(model, *options.equilibrium_input);
+    m.x0 = op.x;
+    m.x0_doc = "the steady state for u held at " + detail::format_value((*options.equilibrium_input)(0), 17) +
+               " (y = " + detail::format_value(op.y(0), 17) + ")";
+  } else {
+    m.x0 = Eigen::VectorXd::Zero(m.nx);
+    m.x0_doc = "zero (the linear block at rest)";
+  }
+  const int nx = m.nx;
+  const std::string name = m.name;
+  const int off_l = model.linear_offset(), off_h = model.output_offset();
+  const codegen::TracedFunction f = codegen::trace_paths(
+      [&] {
+        std::vector<TraceScalar> s = codegen::signals("s->x", nx);
+        const TraceScalar u = TraceScalar::signal("u[0]");
+        const std::vector<TraceScalar> tf = codegen::parameters(name, model.input_parameters(), 0);
+        const std::vector<TraceScalar> tl = codegen::parameters(name, model.linear_parameters(), off_l);
+        const std::vector<TraceScalar> th = codegen::parameters(name, model.output_parameters(), off_h);
+        const TraceScalar w = model.input_nonlinearity()(std::span<const TraceScalar>(&u, 1), std::span<const TraceScalar>(tf));
+        const TraceScalar x = model.linear_block().step(std::span<TraceScalar>(s), w, std::span<const TraceScalar>(tl));
+        std::vector<TraceScalar> out;
+        out.push_back(model.output_nonlinearity()(std::span<const TraceScalar>(&x, 1), std::span<const TraceScalar>(th)));
+        out.insert(out.end(), s.begin(), s.end());
+        return out;
+      },
+      options.limits);
+  GeneratedCode g;
+  g.name = name;
+  g.paths = f.paths;
+  g.header = codegen::make_header(m);
+  g.source = codegen::make_source_prelude(m, f.helpers) + codegen::discrete_step_function(m, f);
+  return g;
+}
+
+}  // namespace nlid

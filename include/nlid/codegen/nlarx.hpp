@@ -1,0 +1,85 @@
+#pragma once
+/// @file
+/// C code for a nonlinear ARX model `Nlarx<R, F>`: regressors (custom ones included) and the
+/// nonlinearity (sigmoid, wavelet, piecewise linear, saturation, dead zone, polynomial, linear,
+/// unit gain — any scalar-generic map) traced into one step function.
+///
+/// Generated state (NAME_NUM_STATES = Ly + n_u·Lu): the lag window of nlid's `Nlarx` x0,
+///
+///     x = [y(t−1) … y(t−Ly), u₁(t−1) … u₁(t−Lu), u₂(t−1) …],
+///
+/// and NAME_step computes ŷ(t) = F(φ(x, u(t))) and shifts the window — exactly the free-run
+/// simulation `Nlarx::simulate` (Ljung 1999, eq. 5.46 with simulated past outputs). Starting
+/// from NAME_init with the zero state reproduces `simulate(e, InitialCondition::zero)`; with
+/// `CodegenOptions::equilibrium_input` it reproduces a start from that equilibrium.
+///
+/// Custom regressors are generic lambdas; they are traced like everything else, which is why
+/// the toolbox's restriction ("code generation does not support custom regressors") does not
+/// apply. A regressor written with `nlid::max(y1, 90.0)` becomes `(x >= 90.0 ? x : 90.0)`.
+/// Note: include nlid/codegen.hpp (or this header) *before* defining a lambda that calls
+/// `nlid::max`/`nlid::min` with qualification, so that the `TraceScalar` overloads are visible.
+
+#include <span>
+#include <string>
+#include <vector>
+
+#include "nlid/analysis/linearize.hpp"
+#include "nlid/codegen/emitter.hpp"
+#include "nlid/codegen/trace_scalar.hpp"
+#include "nlid/models/equilibrium.hpp"
+#include "nlid/models/nlarx.hpp"
+
+namespace nlid {
+
+/// Generates C99 code for a nonlinear ARX model (see the file comment and emitter.hpp for the
+/// interface). Throws `nlid::Error` on a bad name, a missing sample time or an untraceable
+/// nonlinearity (too many branches).
+template <class R, class F>
+GeneratedCode generate_c(const Nlarx<R, F>& model, const CodegenOptions& options = {}) {
+  codegen::check_name(options.name);
+  codegen::ModelShape m;
+  m.name = options.name;
+  m.kind = "nonlinear ARX";
+  m.description = model.describe();
+  m.nx = model.state_dimension();
+  m.nu = model.num_inputs();
+  m.ny = 1;
+  m.ts = options.ts > 0 ? options.ts : model.ts();
+  require(m.ts > 0, "codegen: the model has no sample time; set it (set_ts) or CodegenOptions::ts", at_parameter("ts"));
+  m.parameters = model.parameters();
+  m.parameter_names = model.parameter_names();
+  const auto names = detail::nlarx_state_names(model);
+  m.state_doc = "the lag window x = [";
+  for (std::size_t i = 0; i < names.size(); ++i) m.state_doc += (i ? ", " : "") + names[i];
+  m.state_doc += "]" + std::string(names.empty() ? " (empty: the model has no memory)" : "");
+  if (options.equilibrium_input) {
+    const OperatingPoint op = equilibrium(model, *options.equilibrium_input);
+    m.x0 = op.x;
+    m.x0_doc = "the equilibrium for u held at " + detail::format_value((*options.equilibrium_input)(0), 17) +
+               " (y = " + detail::format_value(op.y(0), 17) + ")";
+  } else {
+    m.x0 = Eigen::VectorXd::Zero(m.nx);
+    m.x0_doc = "zero (all past outputs and inputs 0)";
+  }
+  const int nx = m.nx, nu = m.nu;
+  const std::string name = m.name;
+  const auto th_values = detail::as_const_span(model.parameters());
+  const codegen::TracedFunction f = codegen::trace_paths(
+      [&] {
+        const std::vector<TraceScalar> x = codegen::signals("s->x", nx);
+        const std::vector<TraceScalar> u = codegen::signals("u", nu);
+        const std::vector<TraceScalar> th = codegen::parameters(name, th_values);
+        std::vector<TraceScalar> out(static_cast<std::size_t>(1 + nx));
+        out[0] = detail::nlarx_step<TraceScalar>(model, x.data(), u.data(), std::span<const TraceScalar>(th), out.data() + 1);
+        return out;
+      },
+      options.limits);
+  GeneratedCode g;
+  g.name = name;
+  g.paths = f.paths;
+  g.header = codegen::make_header(m);
+  g.source = codegen::make_source_prelude(m, f.helpers) + codegen::discrete_step_function(m, f);
+  return g;
+}
+
+}  // namespace nlid

@@ -1,0 +1,241 @@
+// Generated C code: the tracer (literals, folding, branch exploration, limits), and the real
+// test of the feature — generated C for an nlarx with a custom regressor + sigmoid net, a
+// Hammerstein-Wiener with piecewise-linear input and saturated output, and the throttle grey box
+// is compiled with the system C compiler (-std=c99 -Wall -Wextra -pedantic -Werror), run on the
+// throttle data (data3 at 100 Hz) and must match nlid's own simulation to 1e-12 relative.
+#include <catch2/catch.hpp>
+
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <sstream>
+#include <string>
+
+#include <unistd.h>
+
+#include "nlid/codegen.hpp"  // before the custom regressor's lambda (nlid::max on TraceScalar)
+#include "nlid/data/csv.hpp"
+#include "nlid/data/resample.hpp"
+#include "nlid/models/physics/throttle.hpp"
+#include "nlid/models/transfer_function_block.hpp"
+#include "nlid/nonlinearities/piecewise_linear.hpp"
+#include "nlid/nonlinearities/saturation.hpp"
+#include "nlid/nonlinearities/sigmoid_network.hpp"
+#include "nlid/regressors.hpp"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+nlid::Experiment throttle(int k) {
+  const nlid::Experiment e =
+      nlid::read_csv(std::string(NLID_TEST_DATA_DIR) + "/throttle/data" + std::to_string(k) + ".csv");
+  nlid::Experiment d = nlid::decimate(e, 10);
+  d.set_name("data" + std::to_string(k));
+  return d;
+}
+
+auto spring() {
+  return nlid::custom_regressor<nlid::OutputLag<1>>(
+      "max(y1(t-1),90)+min(y1(t-1),15)-105",
+      [](auto y1) { return nlid::max(y1, 90.0) + nlid::min(y1, 15.0) - 105.0; });
+}
+
+fs::path temp_dir(const std::string& tag) {
+  const fs::path d = fs::temp_directory_path() / ("nlid_codegen_" + tag + "_" + std::to_string(::getpid()));
+  fs::create_directories(d);
+  return d;
+}
+
+// Writes the code and a driver, compiles with cc, runs on u, returns the outputs.
+Eigen::VectorXd run_generated(const nlid::GeneratedCode& g, const Eigen::MatrixXd& u, const std::string& tag) {
+  const fs::path dir = temp_dir(tag);
+  g.write(dir.string());
+  const std::string n = g.name;
+  std::ofstream(dir / "driver.c") << "#include <stdio.h>\n#include \"" << n << ".h\"\n"
+                                  << "int main(int argc, char** argv) {\n"
+                                  << "  double u[1], y[1];\n  " << n << "_state s;\n"
+                                  << "  FILE* in = argc > 1 ? fopen(argv[1], \"r\") : NULL;\n"
+                                  << "  if (!in) return 2;\n  " << n << "_init(&s);\n"
+                                  << "  while (fscanf(in, \"%lf\", &u[0]) == 1) {\n"
+                                  << "    " << n << "_step(&s, u, y);\n    printf(\"%.17g\\n\", y[0]);\n  }\n"
+                                  << "  fclose(in);\n  return 0;\n}\n";
+  {
+    std::ofstream in(dir / "u.txt");
+    char b[40];
+    for (Eigen::Index t = 0; t < u.rows(); ++t) {
+      std::snprintf(b, sizeof b, "%.17g\n", u(t, 0));
+      in << b;
+    }
+  }
+  const std::string exe = (dir / "driver").string();
+  const std::string cmd = "cc -std=c99 -O2 -Wall -Wextra -pedantic -Werror -o " + exe + " " + (dir / "driver.c").string() +
+                          " " + (dir / (n + ".c")).string() + " -lm > " + (dir / "cc.log").string() + " 2>&1";
+  const int rc = std::system(cmd.c_str());
+  if (rc != 0) {
+    std::ifstream log(dir / "cc.log");
+    std::stringstream ss;
+    ss << log.rdbuf();
+    FAIL("generated code does not compile:\n" << ss.str());
+  }
+  REQUIRE(std::system((exe + " " + (dir / "u.txt").string() + " > " + (dir / "y.txt").string()).c_str()) == 0);
+  std::ifstream out(dir / "y.txt");
+  std::vector<double> ys;
+  double v;
+  while (out >> v) ys.push_back(v);
+  fs::remove_all(dir);
+  return Eigen::Map<Eigen::VectorXd>(ys.data(), static_cast<Eigen::Index>(ys.size()));
+}
+
+double max_relative_error(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
+  const double scale = std::max(1.0, b.cwiseAbs().maxCoeff());
+  return (a - b).cwiseAbs().maxCoeff() / scale;
+}
+}  // namespace
+
+TEST_CASE("C literals read back to the same double", "[codegen]") {
+  for (double v : {0.1, -2.5e-300, 1.0 / 3.0, 90.0, -0.0, 6.02214076e23}) {
+    std::string s = nlid::codegen::c_literal(v);
+    if (s.front() == '(') s = s.substr(1, s.size() - 2);
+    CHECK(std::strtod(s.c_str(), nullptr) == v);
+  }
+  CHECK(nlid::codegen::c_literal(90.0) == "90.0");
+  CHECK(nlid::codegen::c_literal(-1.5) == "(-1.5)");
+  CHECK(nlid::codegen::c_literal(std::numeric_limits<double>::infinity()) == "HUGE_VAL");
+}
+
+TEST_CASE("tracing: folding, parameters, branch exploration and limits", "[codegen]") {
+  using nlid::TraceScalar;
+  // Literals fold, parameters stay named, signals produce SSA lines.
+  const auto f = nlid::codegen::trace_paths([] {
+    const TraceScalar x = TraceScalar::signal("u[0]");
+    const TraceScalar p = TraceScalar::parameter("m_p[0]", 2.0);
+    const TraceScalar c = TraceScalar(3.0) * TraceScalar(0.5);
+    return std::vector<TraceScalar>{x * p + c};
+  });
+  CHECK(f.paths == 1);
+  const std::string code = nlid::codegen::emit_c(f, {"y[0]"});
+  CHECK(code.find("u[0] * m_p[0]") != std::string::npos);
+  CHECK(code.find("+ 1.5") != std::string::npos);
+  // A saturation branches twice on its signal: three paths, nested if/else.
+  nlid::Saturation sat;
+  const std::vector<double> lim{15.0, 90.0};
+  const auto g = nlid::codegen::trace_paths([&] {
+    const TraceScalar x = TraceScalar::signal("u[0]");
+    const auto th = nlid::codegen::parameters("m", lim);
+    return std::vector<TraceScalar>{sat(std::span<const TraceScalar>(&x, 1), std::span<const TraceScalar>(th))};
+  });
+  CHECK(g.paths == 3);
+  const std::string sc = nlid::codegen::emit_c(g, {"y[0]"});
+  CHECK(sc.find("if (u[0] < m_p[0])") != std::string::npos);
+  CHECK(sc.find("y[0] = m_p[1];") != std::string::npos);
+  // Comparing parameters only is decided at generation time (no branch in the code).
+  const auto h = nlid::codegen::trace_paths([] {
+    const TraceScalar a = TraceScalar::parameter("m_p[0]", 1.0), b = TraceScalar::parameter("m_p[1]", 2.0);
+    return std::vector<TraceScalar>{a < b ? a : b};
+  });
+  CHECK(h.paths == 1);
+  // Too many paths: an error, not exponential code.
+  nlid::codegen::TraceLimits lim8;
+  lim8.max_paths = 8;
+  CHECK_THROWS_WITH(nlid::codegen::trace_paths(
+                        [] {
+                          TraceScalar acc = 0.0;
+                          for (int i = 0; i < 5; ++i) {
+                            const TraceScalar x = TraceScalar::signal("u[" + std::to_string(i) + "]");
+                            acc += x > TraceScalar(0.0) ? x : -x;
+                          }
+                          return std::vector<TraceScalar>{acc};
+                        },
+                        lim8),
+                    Catch::Contains("more than 8 paths"));
+  // A traced signal used outside a trace is an error.
+  CHECK_THROWS_WITH(TraceScalar::signal("u[0]") + 1.0, Catch::Contains("outside a trace"));
+}
+
+TEST_CASE("generated C of an nlarx with a custom regressor and a sigmoid net matches nlid to 1e-12", "[codegen]") {
+  using Regs = nlid::RegressorSet<nlid::LaggedRegressors<2, 1, 0>, decltype(spring())>;
+  using Model = nlid::Nlarx<Regs, nlid::SigmoidNet<4, 5>>;
+  const nlid::Experiment e1 = throttle(1), e3 = throttle(3);
+  Model m(Regs(nlid::LaggedRegressors<2, 1, 0>{}, spring()), nlid::SigmoidNet<4, 5>{}, e1.ts());
+  const Eigen::MatrixXd X = m.regressor_values(e1);
+  Eigen::VectorXd theta(m.num_parameters());
+  m.nonlinearity().initialize(X, e1.y().col(0).tail(X.rows()), std::span<double>(theta.data(), theta.size()));
+  m.set_parameters(theta);
+  const Eigen::VectorXd ref = m.simulate(e3, nlid::InitialCondition::zero).col(0);
+  nlid::CodegenOptions o;
+  o.name = "nlarx_sig";
+  const nlid::GeneratedCode g = nlid::generate_c(m, o);
+  CHECK(g.source.find("nlid_logistic") != std::string::npos);
+  CHECK(g.source.find(">= 90.0 ?") != std::string::npos);  // the custom regressor's max
+  CHECK(g.header.find("#define NLARX_SIG_NUM_STATES 2") != std::string::npos);
+  const Eigen::VectorXd yc = run_generated(g, e3.u(), "nlarx");
+  REQUIRE(yc.size() == ref.size());
+  CHECK(max_relative_error(yc, ref) <= 1e-12);
+}
+
+TEST_CASE("generated C of a Hammerstein-Wiener with pwlinear input and saturated output matches nlid", "[codegen]") {
+  using Block = nlid::TransferFunctionBlock<3, 3, 0>;
+  using Model = nlid::HammersteinWiener<nlid::PwLinear<4>, Block, nlid::Saturation>;
+  const nlid::Experiment e3 = throttle(3);
+  Model m(nlid::PwLinear<4>{}, Block{}, nlid::Saturation{}, e3.ts());
+  Eigen::VectorXd th(16);
+  std::vector<double> pw(8);
+  const std::vector<double> bx{-0.5, 0.0, 0.3, 1.0}, by{-5.0, 3.0, 20.0, 40.0};
+  m.input_nonlinearity().theta_from_breakpoints(bx, by, pw);
+  for (int i = 0; i < 8; ++i) th(i) = pw[static_cast<std::size_t>(i)];
+  // B = [0.02 0.01 0.005], F from poles 0.9, 0.8, 0.5 (DC gain 3.5); saturation [15, 90].
+  th.segment(8, 6) << 0.02, 0.01, 0.005, -2.2, 1.57, -0.36;
+  th.tail(2) << 15.0, 90.0;
+  m.set_parameters(th);
+  const Eigen::VectorXd ref = m.simulate(e3, nlid::InitialCondition::zero).col(0);
+  REQUIRE(ref.maxCoeff() == 90.0);  // the run exercises the upper limit ...
+  REQUIRE(ref.minCoeff() == 15.0);  // ... and the lower one
+  nlid::CodegenOptions o;
+  o.name = "nlhw";
+  const nlid::GeneratedCode g = nlid::generate_c(m, o);
+  CHECK(g.paths == 3 * 3);  // pwlinear: 3 segments, saturation: 3 regions
+  const Eigen::VectorXd yc = run_generated(g, e3.u(), "hw");
+  REQUIRE(yc.size() == ref.size());
+  CHECK(max_relative_error(yc, ref) <= 1e-12);
+}
+
+TEST_CASE("generated C of the throttle grey box (RK4, smoothed stops) matches nlid from an equilibrium", "[codegen]") {
+  const nlid::Experiment e3 = throttle(3);
+  nlid::GreyBox<nlid::physics::Throttle> g;
+  Eigen::VectorXd p(7);
+  p << 30.0, 400.0, 4e4, 64000.0, 15.0, 90.0, 10.0;
+  g.set_parameters(p);
+  const Eigen::VectorXd ref = g.simulate(e3, nlid::InitialCondition::equilibrium).col(0);
+  REQUIRE(ref.maxCoeff() > 90.0);  // reaches the upper stop: contact branches are exercised
+  nlid::CodegenOptions o;
+  o.name = "throttle_model";
+  o.ts = e3.ts();
+  o.equilibrium_input = e3.u().row(0).transpose();
+  const nlid::GeneratedCode code = nlid::generate_c(g, o);
+  CHECK(code.source.find("#define THROTTLE_MODEL_SUBSTEPS " + std::to_string(g.substeps(e3.ts()))) != std::string::npos);
+  CHECK(code.source.find("log1p") != std::string::npos);  // the smoothed contact
+  const Eigen::VectorXd yc = run_generated(code, e3.u(), "greybox");
+  REQUIRE(yc.size() == ref.size());
+  CHECK(max_relative_error(yc, ref) <= 1e-12);
+}
+
+TEST_CASE("codegen rejects bad names, missing sample times and the adaptive integrator", "[codegen]") {
+  nlid::GreyBox<nlid::physics::Throttle> g;
+  nlid::CodegenOptions o;
+  o.name = "2fast";
+  o.ts = 0.01;
+  CHECK_THROWS_WITH(nlid::generate_c(g, o), Catch::Contains("is not a C identifier"));
+  o.name = "ok";
+  o.ts = 0.0;
+  CHECK_THROWS_WITH(nlid::generate_c(g, o), Catch::Contains("set CodegenOptions::ts"));
+  o.ts = 0.01;
+  nlid::IntegratorOptions io;
+  io.method = nlid::IntegratorMethod::dormand_prince;
+  g.set_integrator(io);
+  CHECK_THROWS_WITH(nlid::generate_c(g, o), Catch::Contains("Dormand-Prince"));
+  const nlid::GeneratedCode none{};
+  CHECK_THROWS_WITH(none.write("/nonexistent/dir"), Catch::Contains("does not exist"));
+}
