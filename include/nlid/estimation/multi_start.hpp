@@ -34,9 +34,10 @@
 /// candidates, results are reproducible.
 ///
 /// Threads. The problem's `evaluate` must be safe to call concurrently on one const object (it
-/// is for `GreyBoxProblem` and `AutoDiffProblem` of a stateless functor; `StackedProblem` keeps
-/// mutable buffers and is not — use `num_threads = 1` for such problems). The LM callback, if
-/// set, is called from several threads.
+/// is for `GreyBoxProblem`, and for `AutoDiffProblem`, `NumericDiffProblem` and `StackedProblem`
+/// of thread-safe parts, whose scratch buffers are per thread; a user problem with mutable
+/// buffers is not — use `num_threads = 1` for such problems). The LM callback, if set, is
+/// called from several threads.
 
 #include <algorithm>
 #include <atomic>
