@@ -272,15 +272,19 @@ class AnyModel {
     int num_inputs() const override {
       if constexpr (requires { m.num_inputs(); }) {
         return m.num_inputs();
-      } else {
+      } else if constexpr (requires { m.input_dimension(); }) {
         return m.input_dimension();
+      } else {
+        return 1;  // single-input models (e.g. augmented grey-box) name no count
       }
     }
     int num_outputs() const override {
       if constexpr (requires { m.num_outputs(); }) {
         return m.num_outputs();
-      } else {
+      } else if constexpr (requires { m.output_dimension(); }) {
         return m.output_dimension();
+      } else {
+        return 1;
       }
     }
     std::vector<std::string> input_names() const override {

@@ -1,0 +1,430 @@
+// Model files: round trips of every model kind (bit-exact simulation after reload), damaged and
+// newer-version files with message checks, atomic writes.
+#include <catch2/catch.hpp>
+
+#include <bit>
+#include <cmath>
+#include <cstdint>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "nlid/io/model_file.hpp"
+#include "nlid/models/any_model.hpp"
+#include "nlid/models/physics/catalogue.hpp"
+#include "nlid/nonlinearities.hpp"
+#include "nlid/regressors.hpp"
+#include "nlid/regressors/expression.hpp"
+
+namespace fs = std::filesystem;
+using namespace nlid;
+
+namespace {
+
+std::string temp_dir() {
+  const fs::path d = fs::temp_directory_path() / ("nlid_model_file_test_" + std::to_string(::getpid()));
+  fs::create_directories(d);
+  return d.string();
+}
+std::string temp_path(const std::string& name) { return (fs::path(temp_dir()) / name).string(); }
+
+// A throttle-like record: steps and pulses through a saturating second-order system, 100 Hz.
+Experiment test_experiment(int n = 600, unsigned seed = 3) {
+  std::mt19937 gen(seed);
+  std::uniform_real_distribution<double> level(-0.2, 1.0);
+  Eigen::MatrixXd u(n, 1);
+  Eigen::MatrixXd y(n, 1);
+  double x1 = 15, x2 = 0, cur = 0;
+  for (int k = 0; k < n; ++k) {
+    if (k % 60 == 0) cur = level(gen);
+    u(k, 0) = cur;
+    const double acc = -6.0 * x2 - 30.0 * (x1 - 15.0) + 2500.0 * cur - 400.0 * (std::max(x1, 90.0) - 90.0);
+    x2 += 0.01 * acc;
+    x1 += 0.01 * x2;
+    y(k, 0) = x1;
+  }
+  Experiment e(u, y, 0.01, "synthetic");
+  return e;
+}
+
+bool bit_equal(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
+  if (a.rows() != b.rows() || a.cols() != b.cols()) return false;
+  for (Eigen::Index i = 0; i < a.size(); ++i) {
+    if (std::bit_cast<std::uint64_t>(a.data()[i]) != std::bit_cast<std::uint64_t>(b.data()[i])) return false;
+  }
+  return true;
+}
+
+// Message of the nlid::Error thrown by f (empty if none).
+template <class F>
+std::string error_of(F&& f) {
+  try {
+    f();
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return {};
+}
+
+// Writes `text` to a file and returns its path.
+std::string write_text(const std::string& name, const std::string& text) {
+  const std::string p = temp_path(name);
+  std::ofstream(p) << text;
+  return p;
+}
+
+std::string read_text(const std::string& p) { return read_file(p); }
+
+// Replaces the first occurrence of `from` in a file's text.
+std::string edited(const std::string& text, const std::string& from, const std::string& to) {
+  const auto i = text.find(from);
+  REQUIRE(i != std::string::npos);
+  std::string s = text;
+  s.replace(i, from.size(), to);
+  return s;
+}
+
+// Estimation-like state: nonlinearity initialised on data (normalisation learned), θ perturbed
+// to values with full 17-digit mantissas.
+template <class M>
+void initialise(M& m, const Experiment& e) {
+  const Eigen::MatrixXd X = m.regressor_values(e);
+  const Eigen::VectorXd y = e.y().col(0).tail(X.rows());
+  Eigen::VectorXd th(m.num_parameters());
+  m.nonlinearity().initialize(X, y, std::span<double>(th.data(), static_cast<std::size_t>(th.size())));
+  for (Eigen::Index i = 0; i < th.size(); ++i) th(i) *= 1.0 + 1e-3 / 3.0 * static_cast<double>(i % 7);
+  m.set_parameters(th);
+}
+
+const auto spring = [](auto y1) { return nlid::max(y1, 90.0) + nlid::min(y1, 15.0) - 105.0; };
+
+}  // namespace
+
+TEST_CASE("model file: nlarx with a custom regressor and a sigmoid net round-trips bit for bit") {
+  const Experiment e = test_experiment();
+  RegressorSet regs{LaggedRegressors<2, 1, 0>{},
+                    custom_regressor<OutputLag<1>>("max(y1(t-1),90)+min(y1(t-1),15)-105", spring)};
+  Nlarx model(regs, SigmoidNet<4, 5>{}, 0.01);
+  initialise(model, e);
+  model.set_channel_names({"command"}, "angle");
+  EstimationReport r;
+  r.estimated = true;
+  r.focus = "simulation";
+  r.initial_condition = "measured";
+  r.iterations = 17;
+  r.initial_cost = 123.25;
+  r.final_cost = 1.0 / 3.0;
+  r.seconds = 0.5;
+  r.status = "converged: relative cost change below tolerance";
+  r.data_names = {"data1", "data2"};
+  r.fit_percent = {91.5, 88.25};
+  model.set_report(r);
+
+  ModelFileInfo info;
+  info.input_units = {"1"};
+  info.output_units = {"deg"};
+  info.description = "nlarx4-like";
+  const std::string path = temp_path("nlarx.json");
+  save_model(path, model, info);
+
+  Experiment named = e;
+  named.set_input_names({"command"});
+  named.set_output_names({"angle"});
+  const Eigen::MatrixXd y0 = model.simulate(e, InitialCondition::measured);
+
+  SECTION("run-time structure from the file (AnyModel)") {
+    const AnyModel any = load_model(path);
+    CHECK(any.kind() == "nlarx");
+    CHECK(any.ts() == 0.01);
+    CHECK(any.input_names() == std::vector<std::string>{"command"});
+    CHECK(any.output_names() == std::vector<std::string>{"angle"});
+    CHECK(any.info().output_units == std::vector<std::string>{"deg"});
+    CHECK(any.info().description == "nlarx4-like");
+    CHECK(any.initial_condition() == InitialCondition::measured);
+    CHECK(bit_equal(any.parameters(), model.parameters()));
+    CHECK(bit_equal(any.simulate(e, InitialCondition::measured), y0));
+    CHECK(bit_equal(any.simulate(e), y0));  // the file's default policy is the estimation's
+    CHECK(bit_equal(any.predict(e, 1), model.predict(e, 1)));
+    CHECK(bit_equal(any.predict(e, 5), model.predict(e, 5)));
+    const auto* dyn = any.target<DynamicNlarx>();
+    REQUIRE(dyn != nullptr);
+    CHECK(dyn->regressor_names() == model.regressor_names());
+    CHECK(dyn->report().iterations == 17);
+    CHECK(dyn->report().final_cost == 1.0 / 3.0);
+    CHECK(dyn->report().fit_percent == std::vector<double>{91.5, 88.25});
+    CHECK(dyn->report().data_names == std::vector<std::string>{"data1", "data2"});
+    CHECK_THAT(any.describe(), Catch::Contains("max(y1(t-1),90)+min(y1(t-1),15)-105"));
+
+    // Saving the run-time model again gives the same file (apart from nothing: same stamp kept).
+    const std::string again = temp_path("nlarx_again.json");
+    any.save(again);
+    CHECK(read_text(again) == read_text(path));
+  }
+  SECTION("into a C++ prototype holding the lambda") {
+    Nlarx proto(regs, SigmoidNet<4, 5>{}, 0.0);
+    ModelFileInfo got;
+    load_model(path, proto, &got);
+    CHECK(bit_equal(proto.simulate(e, InitialCondition::measured), y0));
+    CHECK(proto.ts() == 0.01);
+    CHECK(proto.output_name() == "angle");
+    CHECK(got.input_units == std::vector<std::string>{"1"});
+  }
+  SECTION("a prototype with different regressors is refused, naming the regressor") {
+    Nlarx other(RegressorSet{LaggedRegressors<2, 1, 1>{},
+                             custom_regressor<OutputLag<1>>("max(y1(t-1),90)+min(y1(t-1),15)-105", spring)},
+                SigmoidNet<4, 5>{});
+    const std::string msg = error_of([&] { load_model(path, other); });
+    CHECK_THAT(msg, Catch::Contains("regressor 2 is 'command(t)' in the file") &&
+                        Catch::Contains("'command(t-1)' in this model") && Catch::Contains("nlarx.json"));
+    Nlarx units(regs, SigmoidNet<4, 6>{});
+    CHECK_THAT(error_of([&] { load_model(path, units); }),
+               Catch::Contains("units = 5") && Catch::Contains("this model has 6"));
+  }
+}
+
+TEST_CASE("model file: every nonlinearity and compile-time types round-trip exactly") {
+  const Experiment e = test_experiment(500, 7);
+  SECTION("nlarx5: [3 3 0] sigmoid net, typed load") {
+    using M = Nlarx<LaggedRegressors<3, 3, 0>, SigmoidNet<6, 5>>;
+    M m(LaggedRegressors<3, 3, 0>{}, SigmoidNet<6, 5>{}, 0.01);
+    initialise(m, e);
+    const std::string p = temp_path("nlarx5.json");
+    save_model(p, m);
+    const M back = load_model<M>(p);
+    CHECK(bit_equal(back.simulate(e, InitialCondition::zero), m.simulate(e, InitialCondition::zero)));
+    CHECK(bit_equal(load_model(p).simulate(e, InitialCondition::zero), m.simulate(e, InitialCondition::zero)));
+    // A compile-time type with other orders cannot take this file.
+    using Other = Nlarx<LaggedRegressors<2, 3, 0>, SigmoidNet<5, 5>>;
+    CHECK_THAT(error_of([&] { (void)load_model<Other>(p); }),
+               Catch::Contains("model order na = 3 differs from its compile-time value 2"));
+  }
+  SECTION("sigmoid net without linear term, wavelet nets, tree partition, linear map") {
+    auto check = [&](auto f, const char* name) {
+      Nlarx m(LaggedRegressors<2, 2, 1>{}, std::move(f), 0.01);
+      initialise(m, e);
+      const std::string p = temp_path(std::string(name) + ".json");
+      save_model(p, m);
+      INFO(name);
+      CHECK(bit_equal(load_model(p).simulate(e, InitialCondition::measured), m.simulate(e, InitialCondition::measured)));
+      using M = decltype(m);
+      CHECK(bit_equal(load_model<M>(p).simulate(e, InitialCondition::measured),
+                      m.simulate(e, InitialCondition::measured)));
+    };
+    check(SigmoidNet<4, 4, false>{}, "sig_nolin");
+    check(WaveletNet<4, 3, true>{}, "wave");
+    check(TreePartition<4, 2>{}, "tree");
+    check(LinearMap<4>{}, "linmap");
+    check(SigmoidNet<Dynamic, Dynamic>(4, 3), "sig_dyn");
+  }
+  SECTION("Hammerstein-Wiener nlhw2: pwlinear - [3 3 0] - pwlinear; nlhw1: saturation output") {
+    using L = TransferFunctionBlock<3, 3, 0>;
+    HammersteinWiener hw(PwLinear<5>{}, L{}, Saturation(15.0, 90.0), 0.01);
+    Eigen::VectorXd th(hw.num_parameters());
+    for (Eigen::Index i = 0; i < th.size(); ++i) th(i) = 0.1 * std::sin(1.0 + i);
+    // Valid breakpoints: x0, log gaps, values; stable F.
+    th.head(10) << -0.3, std::log(0.3), std::log(0.4), std::log(0.2), std::log(0.5), 0.0, 0.2, 0.5, 0.7, 0.75;
+    th.segment(10, 6) << 0.05, 0.03, 0.01, -1.2, 0.5, -0.1;
+    th.tail(2) << 0.02, 0.09;
+    hw.set_parameters(th);
+    const std::string p = temp_path("hw.json");
+    save_model(p, hw, ModelFileInfo{{}, {}, InitialCondition::zero, "nlhw2", {}, {}});
+    const AnyModel any = load_model(p);
+    CHECK(any.kind() == "hammerstein_wiener");
+    CHECK(bit_equal(any.simulate(e), hw.simulate(e, InitialCondition::zero)));
+    const auto typed = load_model<decltype(hw)>(p);
+    CHECK(bit_equal(typed.simulate(e, InitialCondition::zero), hw.simulate(e, InitialCondition::zero)));
+    CHECK(typed.output_nonlinearity().initial_limits() == std::optional<std::pair<double, double>>({15.0, 90.0}));
+
+    HammersteinWiener hw2(UnitGain{}, TransferFunctionBlock<Dynamic, Dynamic, Dynamic>(2, 2, 1), DeadZone(-0.1, 0.2));
+    Eigen::VectorXd t2(hw2.num_parameters());
+    t2 << 0.3, 0.2, -1.1, 0.3, -0.05, 0.07;
+    hw2.set_parameters(t2);
+    save_model(p, hw2);
+    CHECK(bit_equal(load_model(p).simulate(e, InitialCondition::zero), hw2.simulate(e, InitialCondition::zero)));
+
+    HammersteinWiener hw3(Poly1d<3>{}, TransferFunctionBlock<Dynamic, Dynamic, Dynamic>(1, 1, 0), UnitGain{});
+    Eigen::VectorXd t3(hw3.num_parameters());
+    t3 << 0.1, 1.0, -0.2, 0.05, 0.4, -0.6;
+    hw3.set_parameters(t3);
+    save_model(p, hw3);
+    CHECK(bit_equal(load_model(p).simulate(e, InitialCondition::zero), hw3.simulate(e, InitialCondition::zero)));
+  }
+}
+
+TEST_CASE("model file: grey-box throttle by catalogue name, parameter table and bounds") {
+  GreyBox<physics::Throttle> g;
+  const auto names = g.parameter_names();
+  Eigen::VectorXd p = g.parameters();
+  for (Eigen::Index i = 0; i < p.size(); ++i) p(i) = std::nextafter(p(i), p(i) + 1.0);  // full-precision values
+  g.set_parameters(p);
+  g.fix(names[0]);
+  g.set_estimated_initial_states({Eigen::Vector2d(15.0, 0.0), Eigen::Vector2d(16.5, -0.25)});
+  const Experiment e = test_experiment(300, 11);
+  const std::string path = temp_path("greybox.json");
+  ModelFileInfo info;
+  info.output_units = {"deg"};
+  save_model(path, g, info);
+
+  const AnyModel any = load_model(path);
+  CHECK(any.kind() == "greybox");
+  CHECK(any.initial_condition() == InitialCondition::estimate);
+  CHECK(bit_equal(any.simulate(e, InitialCondition::zero), g.simulate(e, InitialCondition::zero)));
+  CHECK(bit_equal(any.parameters(), Eigen::VectorXd(g.parameters())));
+  const auto* dyn = any.target<DynamicGreyBox>();
+  REQUIRE(dyn != nullptr);
+  CHECK(dyn->is_fixed(names[0]));
+  CHECK(dyn->estimated_initial_states().size() == 2);
+  CHECK(dyn->parameter_info()[0].lower == g.parameter_info()[0].lower);
+
+  const auto typed = load_model<GreyBox<physics::Throttle>>(path);
+  CHECK(bit_equal(typed.simulate(e, InitialCondition::zero), g.simulate(e, InitialCondition::zero)));
+  CHECK_THAT(error_of([&] { (void)load_model<GreyBox<physics::MassSpringDamper>>(path); }),
+             Catch::Contains("grey-box physics is \"throttle\""));
+
+  // A file naming physics this program does not know.
+  const std::string bad = write_text("greybox_unknown.json",
+                                     edited(read_text(path), "\"physics\": \"throttle\"", "\"physics\": \"pendulum\""));
+  CHECK_THAT(error_of([&] { (void)load_model(bad); }), Catch::Contains("pendulum"));
+}
+
+TEST_CASE("model file: linear ARX, OE and state-space models") {
+  const Experiment e = test_experiment(300, 5);
+  Experiment small = e;
+  Arx arx(Eigen::Vector2d(-1.5, 0.7), {Eigen::Vector2d(0.3, 0.1 / 3.0)}, {1}, 0.01, 0.125);
+  OutputError oe({Eigen::Vector2d(0.2, 1.0 / 7.0)}, {Eigen::Vector2d(-1.1, 0.3)}, {0}, 0.01);
+  Eigen::MatrixXd A(2, 2), B(2, 1), C(1, 2), D(1, 1);
+  A << 0.9, 0.1, -0.05, 0.8;
+  B << 1.0 / 3.0, 0.5;
+  C << 1.0, 0.25;
+  D << 0.0;
+  StateSpace ss(A, B, C, D, 0.01);
+  ss.set_offset(Eigen::VectorXd::Constant(1, 15.0));
+
+  for (const AnyModel& m : {AnyModel(arx), AnyModel(oe), AnyModel(ss)}) {
+    const std::string p = temp_path("linear_" + m.kind() + ".json");
+    m.save(p);
+    const AnyModel back = load_model(p);
+    INFO(m.kind());
+    CHECK(back.kind() == m.kind());
+    CHECK(bit_equal(back.simulate(small, InitialCondition::zero), m.simulate(small, InitialCondition::zero)));
+    CHECK(bit_equal(back.parameters(), m.parameters()));
+    CHECK(back.parameter_names() == m.parameter_names());
+  }
+  const std::string p = temp_path("arx_typed.json");
+  save_model(p, arx);
+  const Arx back = load_model<Arx>(p);
+  CHECK(back.offset() == 0.125);
+  CHECK(bit_equal(back.b(0), arx.b(0)));
+}
+
+TEST_CASE("model file: doubles are exact, non-finite numbers are spelled out") {
+  // Subnormal, tiny, huge, negative zero and 17-digit values survive bit for bit.
+  const std::vector<double> v{0.1 + 0.2, 1.0 / 3.0, 5e-324, 1e-300, -0.0, 1.7976931348623157e308, -2.0 / 7.0};
+  HammersteinWiener hw(Poly1d<6>{}, TransferFunctionBlock<1, 0, 0>{}, UnitGain{});
+  Eigen::VectorXd th(8);
+  for (int i = 0; i < 7; ++i) th(i) = v[static_cast<std::size_t>(i)];
+  th(7) = 1.0;
+  hw.set_parameters(th);
+  const std::string p = temp_path("exact.json");
+  save_model(p, hw);
+  const Eigen::VectorXd back = load_model(p).parameters();
+  CHECK(bit_equal(back, th));
+  CHECK(std::signbit(back(4)));
+
+  // A tree's unsplit nodes have threshold +inf: written as "inf", read back as inf.
+  TreePartition<Dynamic, Dynamic> tree(2, 2);
+  const Json j = NonlinearitySerial<TreePartition<Dynamic, Dynamic>>::save(tree);
+  CHECK(j.dump().find("\"inf\"") != std::string::npos);
+  const auto t2 = NonlinearitySerial<TreePartition<Dynamic, Dynamic>>::load(j.view());
+  CHECK(std::isinf(t2.split_threshold(0)));
+
+  // A non-finite parameter cannot be written: the error names where.
+  Eigen::VectorXd bad = th;
+  bad(2) = std::numeric_limits<double>::quiet_NaN();
+  hw.set_parameters(bad);
+  CHECK_THAT(error_of([&] { save_model(temp_path("nan.json"), hw); }), Catch::Contains("parameters.values[2]"));
+}
+
+TEST_CASE("model file: damaged files are refused with the key path, file and line") {
+  Nlarx m(RegressorList::lagged(2, 1, 0).add_custom("max(y1(t-1),90)+min(y1(t-1),15)-105"),
+          AnyNonlinearity(SigmoidNet<Dynamic, Dynamic>(4, 3)), 0.01);
+  const std::string good = temp_path("good.json");
+  save_model(good, m);
+  const std::string text = read_text(good);
+  CHECK_NOTHROW((void)load_model(good));
+
+  const auto fails_with = [&](const std::string& name, const std::string& damaged) {
+    const std::string p = write_text(name, damaged);
+    return error_of([&] { (void)load_model(p); });
+  };
+  std::string msg = fails_with("missing_units.json", edited(text, "\"units\": 3,", ""));
+  CHECK_THAT(msg, Catch::Contains("missing key 'units' at structure.nonlinearity") && Catch::Contains("missing_units.json"));
+  msg = fails_with("wrong_type.json", edited(text, "\"units\": 3", "\"units\": \"three\""));
+  CHECK_THAT(msg, Catch::Contains("expected number at structure.nonlinearity.units") && Catch::Contains("row "));
+  msg = fails_with("bad_expr.json", edited(text, "max(y1(t-1),90)", "max(y1(t-1),,90)"));
+  CHECK_THAT(msg, Catch::Contains("column 13") && Catch::Contains("structure.regressors.blocks[2].expression"));
+  msg = fails_with("unknown_nl.json", edited(text, "\"sigmoidnet\"", "\"neuralnet\""));
+  CHECK_THAT(msg, Catch::Contains("unknown nonlinearity \"neuralnet\"") && Catch::Contains("accepted: unitgain"));
+  msg = fails_with("typo.json", edited(text, "\"standardize\"", "\"standardise\""));
+  CHECK_THAT(msg, Catch::Contains("unknown key 'standardise'"));
+  msg = fails_with("count.json", edited(text, "\"values\": [", "\"values\": [1, "));
+  CHECK_THAT(msg, Catch::Contains("the file has 24 parameter values at parameters.values") && Catch::Contains("structure has 23"));
+  msg = fails_with("truncated.json", text.substr(0, text.size() / 2));
+  CHECK_THAT(msg, Catch::Contains("truncated.json") && Catch::Contains("row "));
+  msg = fails_with("not_model.json", "{\"format\": \"something-else\", \"version\": 1}");
+  CHECK_THAT(msg, Catch::Contains("not an nlid model file"));
+  msg = fails_with("no_format.json", "{\"kind\": \"nlarx\"}");
+  CHECK_THAT(msg, Catch::Contains("missing key 'format'"));
+  msg = fails_with("newer.json", edited(text, "\"version\": 1", "\"version\": 2"));
+  CHECK_THAT(msg, Catch::Contains("model file version 2 is newer than this nlid can read") &&
+                      Catch::Contains("update nlid"));
+  msg = fails_with("kind.json", edited(text, "\"kind\": \"nlarx\"", "\"kind\": \"neural_ode\""));
+  CHECK_THAT(msg, Catch::Contains("unknown model kind \"neural_ode\"") && Catch::Contains("greybox"));
+  msg = fails_with("ts.json", edited(text, "\"ts\": 0.01", "\"ts\": -1"));
+  CHECK_THAT(msg, Catch::Contains("sample time at ts must be >= 0"));
+  msg = fails_with("ic.json", edited(text, "\"initial_condition\": \"zero\"", "\"initial_condition\": \"warm\""));
+  CHECK_THAT(msg, Catch::Contains("unknown initial condition \"warm\""));
+  msg = fails_with("scale.json", edited(text, "\"scale\": [", "\"scale\": [-1, "));
+  CHECK_THAT(msg, Catch::Contains("scale"));
+  CHECK_THAT(error_of([] { (void)load_model("/nonexistent/dir/model.json"); }), Catch::Contains("file not found"));
+  // A C++ lambda regressor without an expression can only go into a prototype.
+  Nlarx lambda_model(RegressorSet{LaggedRegressors<1, 1, 0>{},
+                                  custom_regressor<OutputLag<1>>("", [](auto y) { return y * y; })},
+                     LinearMap<3>{});
+  save_model(temp_path("lambda.json"), lambda_model);
+  CHECK_THAT(error_of([&] { (void)load_model(temp_path("lambda.json")); }),
+             Catch::Contains("was a C++ function without an expression") && Catch::Contains("prototype"));
+  auto proto = lambda_model;
+  CHECK_NOTHROW(load_model(temp_path("lambda.json"), proto));
+}
+
+TEST_CASE("model file: writes are atomic and errors name the file") {
+  HammersteinWiener hw(UnitGain{}, TransferFunctionBlock<Dynamic, Dynamic, Dynamic>(1, 1, 0), UnitGain{});
+  const std::string dir = temp_dir() + "/atomic";
+  fs::create_directories(dir);
+  const std::string p = dir + "/m.json";
+  save_model(p, hw);
+  const std::string first = read_text(p);
+  Eigen::VectorXd th(2);
+  th << 0.5, -0.25;
+  hw.set_parameters(th);
+  save_model(p, hw);  // replaces the old file
+  CHECK(read_text(p) != first);
+  int files = 0;
+  for (const auto& entry : fs::directory_iterator(dir)) {
+    (void)entry;
+    ++files;
+  }
+  CHECK(files == 1);  // no temporary left behind
+  const std::string msg = error_of([&] { save_model(dir + "/missing/m.json", hw); });
+  CHECK_THAT(msg, Catch::Contains("directory does not exist") && Catch::Contains("missing/m.json"));
+  CHECK(read_text(p).back() == '\n');
+  const Json j = read_model_file(p);
+  CHECK(j.at("format").as_string() == "nlid-model");
+  CHECK(j.at("version").as_integer() == model_file_version);
+  CHECK(j.at("created").as_string().size() == 20);
+}
