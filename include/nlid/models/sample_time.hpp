@@ -1,0 +1,373 @@
+#pragma once
+/// @file
+/// Changing a model's sample time: exact zero-order-hold conversion of linear dynamics
+/// (d2c / c2d by the matrix exponential and logarithm) and rescaling of input delays nk.
+///
+/// Math (Åström & Wittenmark, "Computer-Controlled Systems", 3rd ed. 1997, sec. 2.3; Franklin,
+/// Powell & Workman, "Digital Control of Dynamic Systems", 1998, sec. 4.3.3). A continuous system
+/// ẋ = A x + B u, y = C x + D u whose input is held constant over each sample interval h (zero-order
+/// hold) is exactly the discrete system
+///
+///     x(k+1) = Φ x(k) + Γ u(k),   [Φ Γ; 0 I] = exp([A B; 0 0] h),     C, D unchanged.
+///
+/// `c2d` evaluates that exponential; `d2c` inverts it with the principal matrix logarithm
+/// [A B; 0 0] = log([Φ Γ; 0 I]) / h, which exists (real) when Φ has no eigenvalue on the closed
+/// negative real axis — a discrete pole at z ≤ 0 has no continuous-time ZOH equivalent and is
+/// reported as an error. `with_sample_time` chains both: the new model is the exact ZOH
+/// discretisation, at the new sample time, of the continuous system the old one came from.
+///
+/// Delays. An input delay of nk samples is a dead time of nk·h seconds; at the new sample time h'
+/// it is nk' = round(nk·h/h') samples (a warning says when that is not a whole number). The study
+/// ends with the caution this conversion needs: **nk = 0** states only that the dead time is less
+/// than one *old* sample. At a shorter sample time it may well be one or more samples, so a model
+/// with nk = 0 converted to a faster rate keeps nk' = 0 *with a warning*: estimate the delay again
+/// on data at the new rate (e.g. an ARX order search over nk) rather than trusting it.
+///
+/// Which models convert how:
+/// - StateSpace, OutputError, the deterministic part B/A of Arx, and the linear block of a
+///   Hammerstein–Wiener model: exactly (static nonlinearities do not depend on the sample time);
+/// - nonlinear ARX: its regressors are samples of a difference equation at the old rate. The
+///   structure is converted (nk rescaled; lags in samples kept) and θ is kept as a starting point,
+///   but the result is marked inexact: re-estimate it on data at the new rate
+///   (data/resample.hpp resamples the data).
+
+#include <cmath>
+#include <complex>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/Eigenvalues>
+#include <unsupported/Eigen/MatrixFunctions>
+
+#include "nlid/core/error.hpp"
+#include "nlid/linear/arx.hpp"
+#include "nlid/linear/output_error.hpp"
+#include "nlid/linear/polynomial.hpp"
+#include "nlid/linear/state_space.hpp"
+#include "nlid/models/any_model.hpp"
+#include "nlid/models/hammerstein_wiener.hpp"
+#include "nlid/models/nlarx.hpp"
+#include "nlid/models/transfer_function_block.hpp"
+#include "nlid/regressors/expression.hpp"
+
+namespace nlid {
+
+/// A continuous-time state-space model ẋ = A x + B u, y = C x + D u.
+struct ContinuousStateSpace {
+  Eigen::MatrixXd a;  ///< A (n × n)
+  Eigen::MatrixXd b;  ///< B (n × nu)
+  Eigen::MatrixXd c;  ///< C (ny × n)
+  Eigen::MatrixXd d;  ///< D (ny × nu)
+};
+
+/// What a sample-time change did.
+struct SampleTimeReport {
+  double old_ts = 0.0;                ///< sample time before (s)
+  double new_ts = 0.0;                ///< sample time after (s)
+  bool exact = true;                  ///< false: the result only approximates the old model
+  std::vector<std::string> warnings;  ///< one sentence each (nk = 0, rounded delays, re-estimate)
+};
+
+namespace detail {
+
+inline void check_new_ts(double ts) {
+  require(ts > 0 && std::isfinite(ts), "new sample time must be positive and finite, got " + std::to_string(ts),
+          at_parameter("ts"));
+}
+
+inline std::string fmt_seconds(double s) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.6g s", s);
+  return buf;
+}
+
+}  // namespace detail
+
+/// nk' = round(nk·old_ts/new_ts) with the warnings of the file comment (appended to `report`).
+[[nodiscard]] inline int rescale_delay(int nk, double old_ts, double new_ts, SampleTimeReport* report = nullptr,
+                                       const std::string& what = "input delay nk") {
+  detail::check_new_ts(new_ts);
+  require(old_ts > 0, "the model has no sample time to convert from", at_parameter("ts"));
+  const double exact = nk * old_ts / new_ts;
+  const int out = static_cast<int>(std::lround(exact));
+  if (report != nullptr) {
+    if (nk == 0) {
+      report->warnings.push_back(
+          what + " = 0: the input acts within one sample of " + detail::fmt_seconds(old_ts) +
+          "; the true dead time lies somewhere in [0, " + detail::fmt_seconds(old_ts) + ")" +
+          (new_ts < old_ts ? " and may be one or more samples at " + detail::fmt_seconds(new_ts) +
+                                 "; nk = 0 was kept - estimate the delay again on data at the new rate"
+                           : "; nk = 0 was kept"));
+    } else if (std::abs(exact - out) > 1e-9 * std::max(1.0, exact)) {
+      report->warnings.push_back(what + " = " + std::to_string(nk) + " (" + detail::fmt_seconds(nk * old_ts) +
+                                 ") is not a whole number of samples of " + detail::fmt_seconds(new_ts) +
+                                 "; rounded to " + std::to_string(out));
+      report->exact = false;
+    }
+  }
+  return out;
+}
+
+/// Continuous-time equivalent (zero-order hold) of a discrete state-space model. Throws
+/// `nlid::Error` if A has an eigenvalue on the closed negative real axis.
+[[nodiscard]] inline ContinuousStateSpace d2c(const StateSpace& sys) {
+  const auto n = static_cast<Eigen::Index>(sys.order());
+  const auto m = static_cast<Eigen::Index>(sys.num_inputs());
+  if (n > 0) {
+    const Eigen::VectorXcd ev = Eigen::EigenSolver<Eigen::MatrixXd>(sys.a(), false).eigenvalues();
+    for (Eigen::Index i = 0; i < ev.size(); ++i) {
+      if (ev(i).real() <= 0 && std::abs(ev(i).imag()) <= 1e-12 * std::max(1.0, std::abs(ev(i)))) {
+        throw Error("the discrete model has a pole at z = " + std::to_string(ev(i).real()) +
+                        ", on the negative real axis or at 0; it has no continuous-time (zero-order-hold) "
+                        "equivalent, so its sample time cannot be converted exactly",
+                    at_parameter("A"));
+      }
+    }
+  }
+  Eigen::MatrixXd big = Eigen::MatrixXd::Zero(n + m, n + m);
+  big.topLeftCorner(n, n) = sys.a();
+  big.topRightCorner(n, m) = sys.b();
+  big.bottomRightCorner(m, m).setIdentity();
+  const Eigen::MatrixXd l = n > 0 ? Eigen::MatrixXd(big.log() / sys.ts()) : Eigen::MatrixXd::Zero(n + m, n + m);
+  require(l.allFinite(), "matrix logarithm failed (ill-conditioned A); the sample time cannot be converted",
+          at_parameter("A"));
+  return ContinuousStateSpace{l.topLeftCorner(n, n), l.topRightCorner(n, m), sys.c(), sys.d()};
+}
+
+/// Zero-order-hold discretisation at sample time `ts` (the matrix exponential of the file comment).
+[[nodiscard]] inline StateSpace c2d(const ContinuousStateSpace& sys, double ts) {
+  detail::check_new_ts(ts);
+  const Eigen::Index n = sys.a.rows(), m = sys.b.cols();
+  require(sys.a.cols() == n && sys.b.rows() == n && sys.c.cols() == n && sys.d.rows() == sys.c.rows() &&
+              sys.d.cols() == m,
+          "c2d: matrix sizes of A, B, C, D do not fit together", at_parameter("A, B, C, D"));
+  Eigen::MatrixXd big = Eigen::MatrixXd::Zero(n + m, n + m);
+  big.topLeftCorner(n, n) = sys.a * ts;
+  big.topRightCorner(n, m) = sys.b * ts;
+  const Eigen::MatrixXd e = big.exp();
+  return StateSpace(e.topLeftCorner(n, n), e.topRightCorner(n, m), sys.c, sys.d, ts);
+}
+
+/// The state-space model at a new sample time (exact under zero-order hold).
+[[nodiscard]] inline StateSpace with_sample_time(const StateSpace& sys, double new_ts,
+                                                 SampleTimeReport* report = nullptr) {
+  detail::check_new_ts(new_ts);
+  StateSpace out = sys.order() == 0 ? StateSpace(sys.a(), sys.b(), sys.c(), sys.d(), new_ts) : c2d(d2c(sys), new_ts);
+  out.set_offset(sys.offset());
+  if (report != nullptr) {
+    report->old_ts = sys.ts();
+    report->new_ts = new_ts;
+  }
+  return out;
+}
+
+namespace detail {
+
+/// Observer-canonical realisation of Σ B_j(q)/F(q) u_j with B_j = β_j0 + β_j1 q⁻¹ + …, F monic
+/// [1 α₁ …] (no delays): x(t+1) = A x + B u, y = C x + D u.
+inline StateSpace realise(const Eigen::VectorXd& f, const std::vector<Eigen::VectorXd>& b, double ts) {
+  Eigen::Index n = f.size() - 1;
+  for (const auto& bj : b) n = std::max(n, bj.size() - 1);
+  const auto m = static_cast<Eigen::Index>(b.size());
+  Eigen::VectorXd alpha = Eigen::VectorXd::Zero(n + 1);
+  alpha.head(f.size()) = f;
+  Eigen::MatrixXd A = Eigen::MatrixXd::Zero(n, n), B(n, m), C = Eigen::MatrixXd::Zero(1, n), D(1, m);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    A(i, 0) = -alpha(i + 1);
+    if (i + 1 < n) A(i, i + 1) = 1.0;
+  }
+  if (n > 0) C(0, 0) = 1.0;
+  for (Eigen::Index j = 0; j < m; ++j) {
+    Eigen::VectorXd beta = Eigen::VectorXd::Zero(n + 1);
+    beta.head(b[static_cast<std::size_t>(j)].size()) = b[static_cast<std::size_t>(j)];
+    D(0, j) = beta(0);
+    for (Eigen::Index i = 0; i < n; ++i) B(i, j) = beta(i + 1) - alpha(i + 1) * beta(0);
+  }
+  return StateSpace(A, B, C, D, ts);
+}
+
+/// det(zI − M) as a monic polynomial in q⁻¹: [1 c₁ … c_n].
+inline Eigen::VectorXd characteristic_polynomial(const Eigen::MatrixXd& M) {
+  if (M.rows() == 0) return Eigen::VectorXd::Ones(1);
+  const Eigen::VectorXcd ev = Eigen::EigenSolver<Eigen::MatrixXd>(M, false).eigenvalues();
+  return poly_from_roots(ev);
+}
+
+/// Back from a single-output realisation to F and B_j (each of length n + 1), using
+/// C adj(zI − A) B_j = det(zI − A + B_j C) − det(zI − A).
+inline std::pair<Eigen::VectorXd, std::vector<Eigen::VectorXd>> polynomials_of(const StateSpace& s) {
+  const Eigen::VectorXd f = characteristic_polynomial(s.a());
+  std::vector<Eigen::VectorXd> b;
+  for (int j = 0; j < s.num_inputs(); ++j) {
+    const Eigen::VectorXd g = characteristic_polynomial(s.a() - s.b().col(j) * s.c());
+    b.push_back(g - f + s.d()(0, j) * f);
+  }
+  return {f, b};
+}
+
+/// B/F (no delay) converted from old_ts to new_ts, exactly under zero-order hold.
+inline std::pair<Eigen::VectorXd, std::vector<Eigen::VectorXd>> convert_rational(
+    const Eigen::VectorXd& f, const std::vector<Eigen::VectorXd>& b, double old_ts, double new_ts) {
+  const StateSpace s = realise(f, b, old_ts);
+  return polynomials_of(with_sample_time(s, new_ts));
+}
+
+}  // namespace detail
+
+/// Output-error model B/F at a new sample time: B/F converted exactly, delays rescaled.
+[[nodiscard]] inline OutputError with_sample_time(const OutputError& m, double new_ts,
+                                                  SampleTimeReport* report = nullptr) {
+  detail::check_new_ts(new_ts);
+  if (report != nullptr) {
+    report->old_ts = m.ts();
+    report->new_ts = new_ts;
+  }
+  std::vector<Eigen::VectorXd> b, f;
+  std::vector<int> nk;
+  for (int i = 0; i < m.num_inputs(); ++i) {
+    Eigen::VectorXd fi(m.f(i).size() + 1);
+    fi << 1.0, m.f(i);
+    auto [fn, bn] = detail::convert_rational(fi, {m.b(i)}, m.ts(), new_ts);
+    b.push_back(bn[0]);
+    f.push_back(fn.tail(fn.size() - 1));
+    nk.push_back(rescale_delay(m.nk(i), m.ts(), new_ts, report,
+                               m.num_inputs() == 1 ? "input delay nk" : "input delay nk of u" + std::to_string(i + 1)));
+  }
+  return OutputError(b, f, nk, new_ts, m.offset());
+}
+
+/// ARX model at a new sample time: its deterministic part B/A converted exactly (a common
+/// denominator for all inputs), delays rescaled, the static offset kept. The noise model 1/A is
+/// not preserved (a warning says so): use the result for simulation.
+[[nodiscard]] inline Arx with_sample_time(const Arx& m, double new_ts, SampleTimeReport* report = nullptr) {
+  detail::check_new_ts(new_ts);
+  if (report != nullptr) {
+    report->old_ts = m.ts();
+    report->new_ts = new_ts;
+    report->warnings.push_back("ARX: the deterministic part B/A is converted exactly; the noise model 1/A is not, so "
+                               "one-step predictions of the converted model are not those of a re-estimated one");
+  }
+  const Eigen::VectorXd a = m.a_polynomial();
+  std::vector<Eigen::VectorXd> b;
+  std::vector<int> nk;
+  for (int i = 0; i < m.num_inputs(); ++i) {
+    b.push_back(m.b(i));
+    nk.push_back(rescale_delay(m.nk(i), m.ts(), new_ts, report,
+                               m.num_inputs() == 1 ? "input delay nk" : "input delay nk of u" + std::to_string(i + 1)));
+  }
+  auto [an, bn] = detail::convert_rational(a, b, m.ts(), new_ts);
+  // Same static offset y0 = c / A(1) at the new rate.
+  const double a1 = a.sum();
+  const double c = m.offset() == 0.0 || a1 == 0.0 ? m.offset() : m.offset() / a1 * an.sum();
+  Arx out(an.tail(an.size() - 1), bn, nk, new_ts, c);
+  const auto names = m.input_names();
+  if (static_cast<int>(names.size()) == out.num_inputs()) out.set_input_names(names);
+  return out;
+}
+
+/// Hammerstein–Wiener model at a new sample time: the linear block B/F converted exactly (its
+/// orders become nb' = n + 1, nf' = n with n = max(nf, nb − 1)), nk rescaled, the static
+/// nonlinearities unchanged.
+template <class In, class Out>
+[[nodiscard]] HammersteinWiener<In, TransferFunctionBlock<Dynamic, Dynamic, Dynamic>, Out> with_sample_time(
+    const HammersteinWiener<In, TransferFunctionBlock<Dynamic, Dynamic, Dynamic>, Out>& m, double new_ts,
+    SampleTimeReport* report = nullptr) {
+  detail::check_new_ts(new_ts);
+  require(m.ts() > 0, "the model has no sample time to convert from (ts = 0)", at_parameter("ts"));
+  if (report != nullptr) {
+    report->old_ts = m.ts();
+    report->new_ts = new_ts;
+  }
+  const auto& l = m.linear_block();
+  const auto th = m.linear_parameters();
+  Eigen::VectorXd b(l.nb()), f(l.nf() + 1);
+  for (int i = 0; i < l.nb(); ++i) b(i) = th[static_cast<std::size_t>(i)];
+  f(0) = 1.0;
+  for (int i = 0; i < l.nf(); ++i) f(i + 1) = th[static_cast<std::size_t>(l.nb() + i)];
+  auto [fn, bn] = detail::convert_rational(f, {b}, m.ts(), new_ts);
+  const int nk = rescale_delay(l.nk(), m.ts(), new_ts, report);
+  const auto nb_new = static_cast<int>(bn[0].size()), nf_new = static_cast<int>(fn.size() - 1);
+  using L = TransferFunctionBlock<Dynamic, Dynamic, Dynamic>;
+  HammersteinWiener<In, L, Out> out(m.input_nonlinearity(), L(nb_new, nf_new, nk), m.output_nonlinearity(), new_ts);
+  Eigen::VectorXd theta(out.num_parameters());
+  const auto tf = m.input_parameters(), tg = m.output_parameters();
+  Eigen::Index k = 0;
+  for (double v : tf) theta(k++) = v;
+  for (Eigen::Index i = 0; i < nb_new; ++i) theta(k++) = bn[0](i);
+  for (Eigen::Index i = 1; i <= nf_new; ++i) theta(k++) = fn(i);
+  for (double v : tg) theta(k++) = v;
+  out.set_parameters(theta);
+  out.set_channel_names(m.input_name(), m.output_name());
+  return out;
+}
+
+/// Nonlinear ARX model (run-time regressors) at a new sample time: input delays rescaled, lags in
+/// samples kept, θ kept as a starting point; marked inexact with a warning to re-estimate.
+template <class F>
+[[nodiscard]] Nlarx<RegressorList, F> with_sample_time(const Nlarx<RegressorList, F>& m, double new_ts,
+                                                      SampleTimeReport* report = nullptr) {
+  detail::check_new_ts(new_ts);
+  require(m.ts() > 0, "the model has no sample time to convert from (ts = 0)", at_parameter("ts"));
+  SampleTimeReport local;
+  SampleTimeReport& r = report != nullptr ? *report : local;
+  r.old_ts = m.ts();
+  r.new_ts = new_ts;
+  r.exact = false;
+  r.warnings.push_back(
+      "nonlinear ARX: the regressors are samples of a difference equation at " + detail::fmt_seconds(m.ts()) +
+      "; the structure was converted (input delays rescaled, lags kept) and the parameters kept as a starting "
+      "point - re-estimate the model on data resampled to " + detail::fmt_seconds(new_ts));
+  RegressorList regs;
+  bool custom = false;
+  for (const auto& b : m.regressors().blocks()) {
+    switch (b.kind) {
+      case RegressorList::Kind::output_lags: regs.add_output_lags(b.na); break;
+      case RegressorList::Kind::input_lags:
+        regs.add_input_lags(b.nb, rescale_delay(b.nk, m.ts(), new_ts, &r,
+                                                "input delay nk of u" + std::to_string(b.channel + 1)),
+                            b.channel);
+        break;
+      case RegressorList::Kind::custom:
+        regs.add_custom(b.expression);
+        custom = true;
+        break;
+    }
+  }
+  if (custom) r.warnings.push_back("custom regressors keep their lags in samples; check them at the new rate");
+  Nlarx<RegressorList, F> out(std::move(regs), m.nonlinearity(), new_ts);
+  out.set_parameters(m.parameters());
+  out.set_channel_names(m.input_names(), m.output_name());
+  return out;
+}
+
+/// Any model at a new sample time (dispatch to the overloads above; grey-box models are
+/// continuous-time and only change the sample time they are simulated at, so they are returned
+/// unchanged). Throws `nlid::Error` for a kind that cannot be converted.
+[[nodiscard]] inline AnyModel with_sample_time(const AnyModel& m, double new_ts, SampleTimeReport* report = nullptr) {
+  detail::check_new_ts(new_ts);
+  AnyModel out;
+  if (const auto* s = m.target<StateSpace>()) out = AnyModel(with_sample_time(*s, new_ts, report));
+  else if (const auto* o = m.target<OutputError>()) out = AnyModel(with_sample_time(*o, new_ts, report));
+  else if (const auto* a = m.target<Arx>()) out = AnyModel(with_sample_time(*a, new_ts, report));
+  else if (const auto* h = m.target<DynamicHammersteinWiener>()) out = AnyModel(with_sample_time(*h, new_ts, report));
+  else if (const auto* n = m.target<DynamicNlarx>()) out = AnyModel(with_sample_time(*n, new_ts, report));
+  else if (m.kind() == "greybox") {
+    if (report != nullptr) {
+      report->old_ts = m.ts();
+      report->new_ts = new_ts;
+      report->warnings.push_back("grey-box model: continuous time, simulated at any sample time; unchanged");
+    }
+    return m;
+  } else {
+    throw Error("cannot change the sample time of a '" + m.kind() + "' model held in this form; "
+                "load it with load_model(path) or re-estimate it on resampled data",
+                at_parameter("model"));
+  }
+  ModelFileInfo info = m.info();
+  out.info() = std::move(info);
+  return out;
+}
+
+}  // namespace nlid
