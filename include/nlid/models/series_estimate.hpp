@@ -254,7 +254,7 @@ inline Eigen::VectorXd filter_rest(const Eigen::VectorXd& b, const Eigen::Vector
 }
 
 /// RMS of a vector (0 for an empty one).
-inline double rms(const Eigen::VectorXd& v) { return v.size() ? std::sqrt(v.squaredNorm() / double(v.size())) : 0.0; }
+inline double series_rms(const Eigen::VectorXd& v) { return v.size() ? std::sqrt(v.squaredNorm() / double(v.size())) : 0.0; }
 
 /// Chebyshev basis T_0 … T_D of z (columns).
 inline Eigen::MatrixXd chebyshev_basis(const Eigen::VectorXd& z, int degree) {
@@ -266,7 +266,7 @@ inline Eigen::MatrixXd chebyshev_basis(const Eigen::VectorXd& z, int degree) {
 }
 
 /// Standardisation z = (x − μ)/σ of the pivot's input, shared by scoring and initialisation.
-struct Standardizer {
+struct SeriesStandardizer {
   double mu = 0.0, sigma = 1.0;
   [[nodiscard]] Eigen::VectorXd operator()(const Eigen::VectorXd& x) const {
     return ((x.array() - mu) / sigma).matrix();
@@ -494,7 +494,7 @@ SeriesInitialization initialize_series(Series<B...>& model, const Dataset& data,
     std::string text;
     double score = std::numeric_limits<double>::infinity();
     Eigen::VectorXd c;
-    detail::Standardizer zs;
+    detail::SeriesStandardizer zs;
   };
   std::vector<Split> splits;
 
@@ -603,14 +603,14 @@ SeriesInitialization initialize_series(Series<B...>& model, const Dataset& data,
     for (std::size_t k = 0; k < piv && k < K; ++k) {
       if (pat[k] != 'L' || sc.b[k].size() == 0) continue;
       const Eigen::VectorXd xn = detail::filter_rest(sc.b[k], sc.f[k], x);
-      const double g = detail::rms(x) > 0 && detail::rms(xn) > 0 ? detail::rms(x) / detail::rms(xn) : 1.0;
+      const double g = detail::series_rms(x) > 0 && detail::series_rms(xn) > 0 ? detail::series_rms(x) / detail::series_rms(xn) : 1.0;
       sc.b[k] *= g;
       x = xn * g;
     }
     for (std::size_t k = piv + 1; k < K; ++k) {
       if (pat[k] != 'L' || sc.b[k].size() == 0) continue;
       const Eigen::VectorXd xn = detail::filter_rest(sc.b[k], sc.f[k], uw);
-      const double g = detail::rms(uw) > 0 && detail::rms(xn) > 0 ? detail::rms(uw) / detail::rms(xn) : 1.0;
+      const double g = detail::series_rms(uw) > 0 && detail::series_rms(xn) > 0 ? detail::series_rms(uw) / detail::series_rms(xn) : 1.0;
       sc.b[k] *= g;
     }
     // Recompute the quick fit with the scaled blocks (scales change c, not the residual).
