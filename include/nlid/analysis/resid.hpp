@@ -97,16 +97,23 @@ struct CorrelationTest {
   double max_limit = 0;        ///< Bonferroni bound on it
   bool passed = true;          ///< both joint tests accept (see file comment)
 
-  /// "white" / "independent", or "correlated at lags 1, 2, 5".
-  [[nodiscard]] std::string verdict() const {
-    if (passed) return "passed";
-    std::string s = "correlated";
-    if (!outside.empty()) {
-      s += " at lag" + std::string(outside.size() > 1 ? "s " : " ");
-      for (std::size_t i = 0; i < outside.size() && i < 12; ++i) s += (i ? ", " : "") + std::to_string(outside[i]);
-      if (outside.size() > 12) s += ", ...";
+  /// The lags outside the band, runs of consecutive lags compressed: "1..12, 15, -25..-3".
+  [[nodiscard]] std::string lags_text() const {
+    std::string s;
+    for (std::size_t i = 0; i < outside.size();) {
+      std::size_t j = i;
+      while (j + 1 < outside.size() && outside[j + 1] == outside[j] + 1) ++j;
+      s += (s.empty() ? "" : ", ") + std::to_string(outside[i]);
+      if (j > i) s += (j == i + 1 ? ", " : "..") + std::to_string(outside[j]);
+      i = j + 1;
     }
     return s;
+  }
+  /// "passed", or "correlated at lags 1..12, 15" (or "correlated" if no single lag leaves its band).
+  [[nodiscard]] std::string verdict() const {
+    if (passed) return "passed";
+    if (outside.empty()) return "correlated (jointly; no single lag outside the band)";
+    return "correlated at lag" + std::string(outside.size() > 1 ? "s " : " ") + lags_text();
   }
 };
 
@@ -134,7 +141,8 @@ struct ResidAnalysis {
     std::string s = head;
     s += white() ? "white" : "not white (" + whiteness.verdict() + ")";
     for (const auto& t : inputs) {
-      s += t.passed ? "; independent of " + t.input : "; correlated with " + t.input + " (" + t.verdict() + ")";
+      s += t.passed ? "; independent of " + t.input
+                    : "; correlated with " + t.input + (t.outside.empty() ? " (jointly)" : " (lags " + t.lags_text() + ")");
     }
     return s;
   }
