@@ -14,6 +14,7 @@
 
 #include <array>
 #include <cassert>
+#include <type_traits>
 #include <vector>
 
 #include "nlid/core/error.hpp"
@@ -60,20 +61,32 @@ class History {
 
   /// Appends `x`: it becomes lag 1 and every older value moves one lag back; the oldest drops out.
   void push(const T& x) {
-    if (length() == 0) return;
-    head_ = head_ + 1 == length() ? 0 : head_ + 1;
-    buf_[static_cast<std::size_t>(head_)] = x;
+    if constexpr (kShift) {
+      // Plain numbers with a compile-time length: shift instead, so every access has a constant
+      // index and the compiler keeps the past in registers (a ring index forces a store and a
+      // reload on the simulation's critical path; measured in benchmarks/simulation_benchmark).
+      for (int i = L - 1; i > 0; --i) buf_[static_cast<std::size_t>(i)] = buf_[static_cast<std::size_t>(i - 1)];
+      if constexpr (L > 0) buf_[0] = x;
+    } else {
+      if (length() == 0) return;
+      head_ = head_ + 1 == length() ? 0 : head_ + 1;
+      buf_[static_cast<std::size_t>(head_)] = x;
+    }
   }
 
   /// The value `lag` samples back, 1 ≤ lag ≤ length().
   [[nodiscard]] const T& operator()(int lag) const {
     assert(lag >= 1 && lag <= length());
+    if constexpr (kShift) return buf_[static_cast<std::size_t>(lag - 1)];
     int i = head_ - (lag - 1);
     if (i < 0) i += length();
     return buf_[static_cast<std::size_t>(i)];
   }
 
  private:
+  // Shift register for plain arithmetic scalars with a static length (see `push`); ring buffer
+  // otherwise (a Dual is too large to shift).
+  static constexpr bool kShift = L != Dynamic && std::is_arithmetic_v<T>;
   // The static case keeps its storage inline (no heap), the dynamic one on the heap.
   using Storage = std::conditional_t<L == Dynamic, std::vector<T>, std::array<T, (L > 0 ? L : 0)>>;
   Storage buf_{};

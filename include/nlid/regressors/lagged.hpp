@@ -73,7 +73,8 @@ class OutputLags {
   /// out[i] = y(t−1−i).
   template <LagWindow W>
   void evaluate(const W& w, std::span<typename W::Scalar> out) const {
-    for (int i = 0; i < na_; ++i) out[static_cast<std::size_t>(i)] = w.y(i + 1);
+    const int na = Na != Dynamic ? Na : na_;  // a constant bound unrolls (fixed orders)
+    for (int i = 0; i < na; ++i) out[static_cast<std::size_t>(i)] = w.y(i + 1);
   }
 
   /// "y1(t-1)", "y1(t-2)", …
@@ -125,7 +126,8 @@ class InputLags {
   /// out[i] = u_c(t−nk−i).
   template <LagWindow W>
   void evaluate(const W& w, std::span<typename W::Scalar> out) const {
-    for (int i = 0; i < nb_; ++i) out[static_cast<std::size_t>(i)] = w.u(Channel, nk_ + i);
+    const int nb = Nb != Dynamic ? Nb : nb_, nk = Nk != Dynamic ? Nk : nk_;  // constants when fixed
+    for (int i = 0; i < nb; ++i) out[static_cast<std::size_t>(i)] = w.u(Channel, nk + i);
   }
 
   /// "u1(t)", "u1(t-1)", …
@@ -177,7 +179,7 @@ class LaggedRegressors {
   /// Output lags first, then input lags.
   template <LagWindow W>
   void evaluate(const W& w, std::span<typename W::Scalar> out) const {
-    const auto na = static_cast<std::size_t>(y_.size());
+    const auto na = static_cast<std::size_t>(Na != Dynamic ? Na : y_.size());
     y_.evaluate(w, out.first(na));
     u_.evaluate(w, out.subspan(na));
   }
