@@ -1,0 +1,515 @@
+#pragma once
+/// @file
+/// Model specifications as short text, chosen at run time: `parse_model_spec` reads them,
+/// `make_model` builds the (unestimated) structure as an `AnyModel`, and `fit_model_spec`
+/// estimates it on data and returns the estimated `AnyModel`, ready to save. This is what the
+/// command-line tools (`nlid-fit`) and scripts use instead of writing C++ per trial.
+///
+/// Grammar (fields separated by ':'; orders as comma-separated key=value pairs):
+///
+///     linear:arx:na=2,nb=1,nk=0                    ARX [na nb nk]           (Ljung 1999, eq. 4.7)
+///     linear:oe:nb=2,nf=2,nk=0                     output error [nb nf nk]  (Ljung 1999, eq. 4.25)
+///     nlarx:na=3,nb=3,nk=0:sigmoidnet:units=5      nonlinear ARX, lagged y/u into a nonlinearity
+///     hw:nb=3,nf=3,nk=0:in=pwlinear:10:out=saturation   Hammerstein–Wiener f, B/F, h
+///     wh:nb=4,nf=3,nk=0:poly1d:9:nb=4,nf=3,nk=0    Wiener–Hammerstein G1, g, G2 (Series)
+///     hammerstein:poly1d:3:nb=2,nf=2,nk=0          Hammerstein f, B/F (Series)
+///     wiener:nb=2,nf=2,nk=1:saturation             Wiener B/F, h (Series)
+///     greybox:throttle                             catalogue physics by name
+///
+/// A nonlinearity is a kind — unitgain, linear, sigmoidnet, wavenet, pwlinear, saturation,
+/// deadzone, poly1d, treepartition — optionally followed by its size as a bare number (units
+/// of a network, breakpoints of pwlinear, degree of poly1d, depth of treepartition) or by
+/// key=value options (units, breakpoints, degree, depth, linear=0|1). In `hw`, `in=` and `out=`
+/// name the two maps (default unitgain). Options for the whole fit may follow anywhere as
+/// key=value fields: `focus=simulation|prediction` (nlarx; default simulation),
+/// `ic=zero|estimate|equilibrium` (initial condition during estimation).
+///
+/// Errors name the field and list what is accepted, e.g. "unknown model family 'wx' in model
+/// spec 'wx:…' (accepted: linear:arx, linear:oe, nlarx, hw, wh, hammerstein, wiener, greybox)".
+///
+/// Series models are saved as model-file kind "series" (structure: the list of blocks);
+/// `register_series_model_kind()` teaches `load_model` to read them (called by the functions
+/// below; idempotent).
+
+#include <cctype>
+#include <chrono>
+#include <functional>
+#include <map>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "nlid/core/error.hpp"
+#include "nlid/core/initial_condition.hpp"
+#include "nlid/data/dataset.hpp"
+#include "nlid/estimation/levenberg_marquardt.hpp"
+#include "nlid/io/model_file.hpp"
+#include "nlid/linear/arx.hpp"
+#include "nlid/linear/output_error.hpp"
+#include "nlid/models/any_model.hpp"
+#include "nlid/models/estimate.hpp"
+#include "nlid/models/greybox_dynamic.hpp"
+#include "nlid/models/greybox_estimate.hpp"
+#include "nlid/models/series.hpp"
+#include "nlid/models/series_estimate.hpp"
+#include "nlid/nonlinearities/any_nonlinearity.hpp"
+#include "nlid/regressors/expression.hpp"
+
+namespace nlid {
+
+/// Transfer-function block with run-time orders.
+using DynamicTransferFunction = TransferFunctionBlock<Dynamic, Dynamic, Dynamic>;
+/// Wiener–Hammerstein model with run-time blocks.
+using DynamicWienerHammerstein = Series<DynamicTransferFunction, AnyNonlinearity, DynamicTransferFunction>;
+/// Wiener model with run-time blocks.
+using DynamicWiener = Series<DynamicTransferFunction, AnyNonlinearity>;
+/// Hammerstein model with run-time blocks.
+using DynamicHammerstein = Series<AnyNonlinearity, DynamicTransferFunction>;
+/// Hammerstein–Wiener chain (N–L–N) as a series, with run-time blocks.
+using DynamicHammersteinWienerSeries = Series<AnyNonlinearity, DynamicTransferFunction, AnyNonlinearity>;
+
+namespace detail {
+
+/// Model-file layout of a run-time series: "structure": {"blocks": [block, …]} where a linear
+/// block is {"type": "transfer_function", "nb", "nf", "nk"} and a static block is the
+/// nonlinearity's own layout.
+template <class M>
+struct RuntimeSeriesSerial {
+  static constexpr const char* kind = "series";
+  static void save(Json& j, const M& m, const ModelFileInfo& info) {
+    write_common(j, m.ts(), {m.input_name()}, {m.output_name()}, info, &m.report());
+    Json blocks = Json::array();
+    [&]<std::size_t... I>(std::index_sequence<I...>) {
+      (
+          [&] {
+            if constexpr (M::template is_linear<I>) {
+              blocks.push_back(LinearBlockSerial<Dynamic, Dynamic, Dynamic>::save(m.template block<I>()));
+            } else {
+              blocks.push_back(NonlinearitySerial<AnyNonlinearity>::save(m.template block<I>()));
+            }
+          }(),
+          ...);
+    }(std::make_index_sequence<M::num_blocks>{});
+    Json s = Json::object();
+    s["pattern"] = M::pattern();
+    s["blocks"] = std::move(blocks);
+    j["structure"] = std::move(s);
+    j["parameters"] = parameters_json(m.parameter_names(), m.parameters());
+    j["report"] = report_to_json(m.report());
+  }
+  static M load(const JsonView& file, ModelFileInfo& info) {
+    expect_kind(file, kind);
+    std::vector<std::string> in, out;
+    const double ts = read_common(file, info, in, out);
+    const JsonView s = file.at("structure");
+    s.check_keys({"pattern", "blocks"});
+    const JsonView b = s.at("blocks");
+    if (s.at("pattern").as_string() != M::pattern())
+      s.at("pattern").fail("series pattern \"" + s.at("pattern").as_string() + "\" at " + s.at("pattern").path_text() +
+                           " is not " + M::pattern());
+    M m = [&]<std::size_t... I>(std::index_sequence<I...>) {
+      return M(load_block<typename M::template Block<I>>(b.at(I))..., ts);
+    }(std::make_index_sequence<M::num_blocks>{});
+    expect_channel_count(file.at("inputs"), in.size(), 1, "inputs");
+    expect_channel_count(file.at("outputs"), out.size(), 1, "outputs");
+    m.set_channel_names(in[0], out[0]);
+    m.set_parameters(read_parameters(file, m.num_parameters()));
+    m.set_report(report_from_json(file.at("report")));
+    info.report.reset();
+    return m;
+  }
+
+ private:
+  template <class B>
+  static B load_block(const JsonView& v) {
+    if constexpr (std::is_same_v<B, DynamicTransferFunction>) {
+      return LinearBlockSerial<Dynamic, Dynamic, Dynamic>::load(v);
+    } else {
+      return NonlinearitySerial<AnyNonlinearity>::load(v);
+    }
+  }
+};
+
+}  // namespace detail
+
+/// Model-file serialiser of the run-time Wiener–Hammerstein series (kind "series").
+template <>
+struct ModelSerial<DynamicWienerHammerstein> : detail::RuntimeSeriesSerial<DynamicWienerHammerstein> {};
+/// Model-file serialiser of the run-time Wiener series (kind "series").
+template <>
+struct ModelSerial<DynamicWiener> : detail::RuntimeSeriesSerial<DynamicWiener> {};
+/// Model-file serialiser of the run-time Hammerstein series (kind "series").
+template <>
+struct ModelSerial<DynamicHammerstein> : detail::RuntimeSeriesSerial<DynamicHammerstein> {};
+/// Model-file serialiser of the run-time N–L–N series (kind "series").
+template <>
+struct ModelSerial<DynamicHammersteinWienerSeries> : detail::RuntimeSeriesSerial<DynamicHammersteinWienerSeries> {};
+
+/// Teaches `load_model(path)` the "series" kind (dispatching on the stored pattern). Idempotent.
+inline void register_series_model_kind() {
+  for (const auto& k : model_kinds())
+    if (k == "series") return;
+  try {
+    register_model_kind("series", [](const JsonView& file, ModelFileInfo& info) -> AnyModel {
+      const std::string p = file.at("structure").at("pattern").as_string();
+      if (p == "LNL") return AnyModel(ModelSerial<DynamicWienerHammerstein>::load(file, info), info);
+      if (p == "LN") return AnyModel(ModelSerial<DynamicWiener>::load(file, info), info);
+      if (p == "NL") return AnyModel(ModelSerial<DynamicHammerstein>::load(file, info), info);
+      if (p == "NLN") return AnyModel(ModelSerial<DynamicHammersteinWienerSeries>::load(file, info), info);
+      file.at("structure").at("pattern").fail("series pattern \"" + p + "\" at " +
+                                              file.at("structure").at("pattern").path_text() +
+                                              " is not supported by this reader (LNL, LN, NL, NLN)");
+    });
+  } catch (const Error&) {
+    // Registered concurrently by another caller: nothing left to do.
+  }
+}
+
+/// A static block of a spec: kind and structure options.
+struct NonlinearitySpec {
+  std::string kind = "unitgain";  ///< unitgain, linear, sigmoidnet, wavenet, pwlinear, saturation, …
+  NonlinearityOptions options;    ///< units, breakpoints, degree, depth, linear term
+};
+
+/// Orders of a linear block or a regressor set: na, nb, nf, nk (absent ones stay −1).
+struct OrderSpec {
+  int na = -1, nb = -1, nf = -1, nk = -1;
+};
+
+/// A parsed model specification (see the file comment for the grammar).
+struct ModelSpec {
+  std::string text;    ///< the spec as given
+  std::string family;  ///< "linear:arx", "linear:oe", "nlarx", "hw", "wh", "hammerstein", "wiener", "greybox"
+  std::vector<OrderSpec> orders;             ///< in order of appearance
+  std::vector<NonlinearitySpec> nonlinearities;  ///< in order of appearance (hw: in, out)
+  std::string physics;                       ///< greybox: catalogue name
+  std::optional<Focus> focus;                ///< nlarx: prediction or simulation (default simulation)
+  std::optional<InitialCondition> initial_condition;  ///< during estimation
+};
+
+/// Options of `fit_model_spec`.
+struct SpecFitOptions {
+  int iterations = -1;  ///< main-stage iterations (−1: the family's default)
+  /// Called after each solver step (iteration, cost, …) — for progress output.
+  std::function<bool(const IterationReport&)> callback;
+  /// Initialisation stage messages (series models).
+  std::function<void(const std::string&)> progress;
+};
+
+namespace detail {
+
+inline std::vector<std::string> split_text(const std::string& s, char sep) {
+  std::vector<std::string> out;
+  std::string cur;
+  for (char c : s) {
+    if (c == sep) {
+      out.push_back(cur);
+      cur.clear();
+    } else if (!std::isspace(static_cast<unsigned char>(c))) {
+      cur += c;
+    }
+  }
+  out.push_back(cur);
+  return out;
+}
+
+inline const char* spec_families() {
+  return "linear:arx, linear:oe, nlarx, hw, wh, hammerstein, wiener, greybox";
+}
+
+inline const char* spec_nonlinearities() {
+  return "unitgain, linear, sigmoidnet, wavenet, pwlinear, saturation, deadzone, poly1d, treepartition";
+}
+
+inline bool is_nonlinearity_kind(const std::string& k) {
+  for (const char* n : {"unitgain", "linear", "sigmoidnet", "wavenet", "pwlinear", "saturation", "deadzone", "poly1d",
+                        "treepartition"})
+    if (k == n) return true;
+  return false;
+}
+
+inline int spec_int(const std::string& v, const std::string& key, const std::string& spec) {
+  std::size_t pos = 0;
+  int x = 0;
+  try {
+    x = std::stoi(v, &pos);
+  } catch (...) {
+    pos = 0;
+  }
+  require(pos == v.size() && !v.empty() && x >= 0,
+          "'" + key + "=" + v + "' in model spec '" + spec + "' is not a non-negative integer", at_parameter(key));
+  return x;
+}
+
+/// Applies a size number to a nonlinearity by its kind.
+inline void apply_size(NonlinearitySpec& n, int v, const std::string& spec) {
+  if (n.kind == "sigmoidnet" || n.kind == "wavenet") n.options.units = v;
+  else if (n.kind == "pwlinear") n.options.breakpoints = v;
+  else if (n.kind == "poly1d") n.options.degree = v;
+  else if (n.kind == "treepartition") n.options.depth = v;
+  else
+    throw Error("nonlinearity '" + n.kind + "' takes no size, got " + std::to_string(v) + " in model spec '" + spec + "'",
+                at_parameter("model"));
+}
+
+}  // namespace detail
+
+/// Parses a model spec. Throws `nlid::Error` naming the bad field and listing what is accepted.
+inline ModelSpec parse_model_spec(const std::string& text) {
+  ModelSpec s;
+  s.text = text;
+  const auto f = detail::split_text(text, ':');
+  require(!f.empty() && !f[0].empty(),
+          "empty model spec (accepted families: " + std::string(detail::spec_families()) + ")", at_parameter("model"));
+  std::size_t i = 1;
+  if (f[0] == "linear") {
+    require(f.size() >= 2 && (f[1] == "arx" || f[1] == "oe"),
+            "model spec '" + text + "': linear models are 'linear:arx:na=..,nb=..,nk=..' or 'linear:oe:nb=..,nf=..,nk=..'",
+            at_parameter("model"));
+    s.family = "linear:" + f[1];
+    i = 2;
+  } else if (f[0] == "nlarx" || f[0] == "hw" || f[0] == "wh" || f[0] == "hammerstein" || f[0] == "wiener" ||
+             f[0] == "greybox") {
+    s.family = f[0];
+  } else {
+    throw Error("unknown model family '" + f[0] + "' in model spec '" + text + "' (accepted: " +
+                    detail::spec_families() + ")",
+                at_parameter("model"));
+  }
+  if (s.family == "greybox") {
+    require(f.size() >= 2 && !f[1].empty(), "model spec '" + text + "': give the physics, e.g. greybox:throttle",
+            at_parameter("model"));
+    s.physics = f[1];
+    i = 2;
+  }
+  NonlinearitySpec* last = nullptr;  // the map a following bare number or option belongs to
+  for (; i < f.size(); ++i) {
+    const std::string& tok = f[i];
+    require(!tok.empty(), "model spec '" + text + "' has an empty field " + std::to_string(i + 1), at_parameter("model"));
+    if (std::isdigit(static_cast<unsigned char>(tok[0]))) {
+      require(last != nullptr, "model spec '" + text + "': the number '" + tok + "' follows no nonlinearity",
+              at_parameter("model"));
+      detail::apply_size(*last, detail::spec_int(tok, last->kind, text), text);
+      continue;
+    }
+    std::string kind = tok;
+    if (tok.rfind("in=", 0) == 0 || tok.rfind("out=", 0) == 0) {
+      require(s.family == "hw", "model spec '" + text + "': 'in=' and 'out=' belong to hw models", at_parameter("model"));
+      kind = tok.substr(tok.find('=') + 1);
+      const bool is_in = tok[0] == 'i';
+      if (s.nonlinearities.empty()) s.nonlinearities.resize(2);
+      require(detail::is_nonlinearity_kind(kind), "unknown nonlinearity '" + kind + "' in model spec '" + text +
+                                                      "' (accepted: " + detail::spec_nonlinearities() + ")",
+              at_parameter("model"));
+      last = &s.nonlinearities[is_in ? 0 : 1];
+      *last = NonlinearitySpec{kind, {}};
+      continue;
+    }
+    if (tok.find('=') == std::string::npos) {
+      require(detail::is_nonlinearity_kind(kind), "unknown nonlinearity '" + kind + "' in model spec '" + text +
+                                                      "' (accepted: " + detail::spec_nonlinearities() + ")",
+              at_parameter("model"));
+      s.nonlinearities.push_back(NonlinearitySpec{kind, {}});
+      last = &s.nonlinearities.back();
+      continue;
+    }
+    // key=value list: orders, nonlinearity options or fit options.
+    OrderSpec o;
+    bool has_order = false;
+    for (const auto& kv : detail::split_text(tok, ',')) {
+      const auto eq = kv.find('=');
+      require(eq != std::string::npos && eq > 0, "model spec '" + text + "': '" + kv + "' is not key=value",
+              at_parameter("model"));
+      const std::string k = kv.substr(0, eq), v = kv.substr(eq + 1);
+      if (k == "na" || k == "nb" || k == "nf" || k == "nk") {
+        const int x = detail::spec_int(v, k, text);
+        (k == "na" ? o.na : k == "nb" ? o.nb : k == "nf" ? o.nf : o.nk) = x;
+        has_order = true;
+      } else if (k == "units" || k == "breakpoints" || k == "degree" || k == "depth" || k == "linear") {
+        require(last != nullptr, "model spec '" + text + "': '" + kv + "' follows no nonlinearity", at_parameter("model"));
+        const int x = detail::spec_int(v, k, text);
+        if (k == "units") last->options.units = x;
+        if (k == "breakpoints") last->options.breakpoints = x;
+        if (k == "degree") last->options.degree = x;
+        if (k == "depth") last->options.depth = x;
+        if (k == "linear") last->options.linear_term = x != 0;
+      } else if (k == "focus") {
+        require(v == "simulation" || v == "prediction",
+                "model spec '" + text + "': focus must be simulation or prediction, got '" + v + "'", at_parameter("focus"));
+        s.focus = v == "simulation" ? Focus::simulation : Focus::prediction;
+      } else if (k == "ic") {
+        if (v == "zero") s.initial_condition = InitialCondition::zero;
+        else if (v == "estimate") s.initial_condition = InitialCondition::estimate;
+        else if (v == "equilibrium") s.initial_condition = InitialCondition::equilibrium;
+        else if (v == "measured") s.initial_condition = InitialCondition::measured;
+        else
+          throw Error("model spec '" + text + "': ic must be zero, estimate, equilibrium or measured, got '" + v + "'",
+                      at_parameter("ic"));
+      } else {
+        throw Error("unknown key '" + k + "' in model spec '" + text +
+                        "' (accepted: na, nb, nf, nk, units, breakpoints, degree, depth, linear, focus, ic)",
+                    at_parameter(k));
+      }
+    }
+    if (has_order) s.orders.push_back(o);
+  }
+  // Shape checks per family.
+  auto need = [&](std::size_t norders, std::size_t nnl, const char* example) {
+    require(s.orders.size() == norders && s.nonlinearities.size() == nnl,
+            "model spec '" + text + "' does not match the form " + example, at_parameter("model"));
+  };
+  auto need_keys = [&](const OrderSpec& o, bool na, bool nf) {
+    require(o.nb >= 1 && o.nk >= 0 && (!na || o.na >= 0) && (!nf || o.nf >= 0),
+            "model spec '" + text + "': orders need " + std::string(na ? "na, " : "") + "nb (>= 1), " +
+                (nf ? "nf, " : "") + "nk",
+            at_parameter("model"));
+  };
+  if (s.family == "linear:arx") { need(1, 0, "linear:arx:na=2,nb=1,nk=0"); need_keys(s.orders[0], true, false); }
+  if (s.family == "linear:oe") { need(1, 0, "linear:oe:nb=2,nf=2,nk=0"); need_keys(s.orders[0], false, true); }
+  if (s.family == "nlarx") { need(1, 1, "nlarx:na=3,nb=3,nk=0:sigmoidnet:units=5"); need_keys(s.orders[0], true, false); }
+  if (s.family == "hw") {
+    if (s.nonlinearities.empty()) s.nonlinearities.resize(2);
+    need(1, 2, "hw:nb=3,nf=3,nk=0:in=pwlinear:10:out=saturation");
+    need_keys(s.orders[0], false, true);
+  }
+  if (s.family == "wh") {
+    need(2, 1, "wh:nb=4,nf=3,nk=0:poly1d:9:nb=4,nf=3,nk=0");
+    need_keys(s.orders[0], false, true);
+    need_keys(s.orders[1], false, true);
+  }
+  if (s.family == "hammerstein") { need(1, 1, "hammerstein:poly1d:3:nb=2,nf=2,nk=0"); need_keys(s.orders[0], false, true); }
+  if (s.family == "wiener") { need(1, 1, "wiener:nb=2,nf=2,nk=1:saturation"); need_keys(s.orders[0], false, true); }
+  if (s.family == "greybox") need(0, 0, "greybox:throttle");
+  return s;
+}
+
+namespace detail {
+
+inline AnyNonlinearity make_spec_nonlinearity(const NonlinearitySpec& n, int inputs) {
+  return make_nonlinearity(n.kind, inputs, n.options);
+}
+
+inline DynamicTransferFunction make_spec_block(const OrderSpec& o) { return DynamicTransferFunction(o.nb, o.nf, o.nk); }
+
+template <class M>
+AnyModel fit_series_spec(M model, const ModelSpec& s, const Dataset& data, const SpecFitOptions& o) {
+  SeriesEstimateOptions so;
+  so.initial_condition = s.initial_condition;
+  so.progress = o.progress;
+  so.solver.callback = o.callback;
+  so.solver.max_iterations = o.iterations >= 0 ? o.iterations : 200;
+  M m = estimate(std::move(model), data, so);
+  ModelFileInfo info;
+  info.description = "nlid-fit --model " + s.text;
+  info.initial_condition = s.initial_condition.value_or(InitialCondition::zero);
+  return AnyModel(std::move(m), info);
+}
+
+}  // namespace detail
+
+/// The unestimated structure of a spec (for inspection: `describe()`, parameter names).
+/// `num_inputs` is the number of input channels (nlarx regressors count them). Throws
+/// `nlid::Error` for sizes a component rejects.
+inline AnyModel make_model(const ModelSpec& s, int num_inputs = 1) {
+  register_series_model_kind();
+  require(num_inputs == 1 || s.family == "nlarx" || s.family == "linear:arx",
+          "a " + s.family + " model has one input, the data have " + std::to_string(num_inputs), at_parameter("input"));
+  if (s.family == "linear:arx") {
+    const auto& o = s.orders[0];
+    return AnyModel(Arx(Eigen::VectorXd::Zero(o.na), std::vector<Eigen::VectorXd>(static_cast<std::size_t>(num_inputs), Eigen::VectorXd::Zero(o.nb)),
+                        std::vector<int>(static_cast<std::size_t>(num_inputs), o.nk), 1.0));
+  }
+  if (s.family == "linear:oe") {
+    const auto& o = s.orders[0];
+    return AnyModel(OutputError({Eigen::VectorXd::Zero(o.nb)}, {Eigen::VectorXd::Zero(o.nf)}, {o.nk}, 1.0));
+  }
+  if (s.family == "nlarx") {
+    const auto& o = s.orders[0];
+    RegressorList r = RegressorList::lagged(o.na, std::vector<int>(static_cast<std::size_t>(num_inputs), o.nb),
+                                            std::vector<int>(static_cast<std::size_t>(num_inputs), o.nk));
+    const int nr = static_cast<int>(r.size());
+    return AnyModel(DynamicNlarx(std::move(r), detail::make_spec_nonlinearity(s.nonlinearities[0], nr)));
+  }
+  if (s.family == "hw")
+    return AnyModel(DynamicHammersteinWiener(detail::make_spec_nonlinearity(s.nonlinearities[0], 1),
+                                             detail::make_spec_block(s.orders[0]),
+                                             detail::make_spec_nonlinearity(s.nonlinearities[1], 1)));
+  if (s.family == "wh")
+    return AnyModel(DynamicWienerHammerstein(detail::make_spec_block(s.orders[0]),
+                                             detail::make_spec_nonlinearity(s.nonlinearities[0], 1),
+                                             detail::make_spec_block(s.orders[1])));
+  if (s.family == "hammerstein")
+    return AnyModel(DynamicHammerstein(detail::make_spec_nonlinearity(s.nonlinearities[0], 1), detail::make_spec_block(s.orders[0])));
+  if (s.family == "wiener")
+    return AnyModel(DynamicWiener(detail::make_spec_block(s.orders[0]), detail::make_spec_nonlinearity(s.nonlinearities[0], 1)));
+  return AnyModel(make_greybox(s.physics));
+}
+
+/// Estimates the model a spec describes on `data` (one or more experiments) and returns it
+/// estimated, with the spec as the file description. Estimators: arx/oe of the linear layer,
+/// `estimate` (models/estimate.hpp) for nlarx and hw, the series estimator for wh, hammerstein
+/// and wiener, the grey-box estimator for greybox. Throws `nlid::Error` on data that do not fit.
+inline AnyModel fit_model_spec(const ModelSpec& s, const Dataset& data, const SpecFitOptions& o = {}) {
+  register_series_model_kind();
+  require(data.size() > 0, "no estimation data", at_parameter("data"));
+  const int nu = data.num_inputs();
+  (void)make_model(s, nu);  // checks the input count and the component sizes first
+  ModelFileInfo info;
+  info.description = "nlid-fit --model " + s.text;
+  if (s.initial_condition) info.initial_condition = s.initial_condition;
+  if (s.family == "linear:arx") {
+    const auto& od = s.orders[0];
+    return AnyModel(arx(data, ArxOrders(od.na, std::vector<int>(static_cast<std::size_t>(nu), od.nb),
+                                        std::vector<int>(static_cast<std::size_t>(nu), od.nk))),
+                    info);
+  }
+  if (s.family == "linear:oe") {
+    const auto& od = s.orders[0];
+    OeOptions oo;
+    if (o.iterations >= 0) oo.lm.max_iterations = o.iterations;
+    oo.lm.callback = o.callback;
+    if (s.initial_condition == InitialCondition::estimate) oo.initial_state = InitialCondition::estimate;
+    return AnyModel(oe(data, OeOrders(od.nb, od.nf, od.nk), oo), info);
+  }
+  if (s.family == "nlarx" || s.family == "hw") {
+    EstimateOptions eo;
+    eo.focus = s.focus.value_or(Focus::simulation);
+    eo.initial_condition = s.initial_condition;
+    eo.solver.callback = o.callback;
+    if (o.iterations >= 0) eo.solver.max_iterations = o.iterations;
+    if (s.family == "nlarx") {
+      const auto& od = s.orders[0];
+      RegressorList r = RegressorList::lagged(od.na, std::vector<int>(static_cast<std::size_t>(nu), od.nb),
+                                              std::vector<int>(static_cast<std::size_t>(nu), od.nk));
+      const int nr = static_cast<int>(r.size());
+      DynamicNlarx m(std::move(r), detail::make_spec_nonlinearity(s.nonlinearities[0], nr));
+      return AnyModel(estimate(std::move(m), data, eo), info);
+    }
+    DynamicHammersteinWiener m(detail::make_spec_nonlinearity(s.nonlinearities[0], 1), detail::make_spec_block(s.orders[0]),
+                               detail::make_spec_nonlinearity(s.nonlinearities[1], 1));
+    return AnyModel(estimate(std::move(m), data, eo), info);
+  }
+  if (s.family == "wh")
+    return detail::fit_series_spec(DynamicWienerHammerstein(detail::make_spec_block(s.orders[0]),
+                                                            detail::make_spec_nonlinearity(s.nonlinearities[0], 1),
+                                                            detail::make_spec_block(s.orders[1])),
+                                   s, data, o);
+  if (s.family == "hammerstein")
+    return detail::fit_series_spec(
+        DynamicHammerstein(detail::make_spec_nonlinearity(s.nonlinearities[0], 1), detail::make_spec_block(s.orders[0])), s,
+        data, o);
+  if (s.family == "wiener")
+    return detail::fit_series_spec(
+        DynamicWiener(detail::make_spec_block(s.orders[0]), detail::make_spec_nonlinearity(s.nonlinearities[0], 1)), s, data,
+        o);
+  DynamicGreyBox g = make_greybox(s.physics);
+  GreyBoxEstimateOptions go;
+  if (s.initial_condition) go.initial_condition = *s.initial_condition;
+  (void)estimate(g, data, go);
+  return AnyModel(std::move(g), info);
+}
+
+}  // namespace nlid
