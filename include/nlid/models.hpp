@@ -1,0 +1,14 @@
+#pragma once
+/// @file
+/// Umbrella header of the model layer: nonlinear ARX (`Nlarx`), Hammerstein–Wiener
+/// (`HammersteinWiener` with `TransferFunctionBlock`), their estimation (`estimate`), and the
+/// grey-box models (`GreyBox`, integrators, physics catalogue).
+
+#include "nlid/models/concepts.hpp"
+#include "nlid/models/estimate.hpp"
+#include "nlid/models/greybox.hpp"
+#include "nlid/models/greybox_estimate.hpp"
+#include "nlid/models/hammerstein_wiener.hpp"
+#include "nlid/models/integrators.hpp"
+#include "nlid/models/nlarx.hpp"
+#include "nlid/models/transfer_function_block.hpp"

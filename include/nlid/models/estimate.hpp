@@ -1,0 +1,642 @@
+#pragma once
+/// @file
+/// Estimation of `Nlarx` and `HammersteinWiener` models from (multi-experiment) data.
+///
+/// Criterion (Ljung 1999, sec. 7.2, eq. 7.11, with a loss ρ from `RobustLoss`):
+///
+///     θ̂ = arg min ½ Σ_e Σ_t ρ(ε_e(t, θ)²),
+///
+///   prediction focus:  ε(t) = y(t) − ŷ(t | t−1; θ)       (one-step errors; regression-like),
+///   simulation focus:  ε(t) = y(t) − ŷ_s(t; θ, x0_e)     (free-run errors; the study's measure).
+///
+/// Residuals of several experiments are stacked; every experiment has its own initial
+/// condition (zero, measured past, or estimated: then its x0 joins θ as extra parameters, as
+/// the toolbox does for `nlhw1`). Jacobians come from forward AD (`AutoDiffProblem`): for
+/// simulation focus the duals run through the whole recursion, which is the exact gradient of
+/// the free-run error (Ljung 1999, eq. 10.43) and no hand-written sensitivity model is needed.
+/// A diverging simulation (non-finite or beyond 10³·max|y|) makes `evaluate` return false, so
+/// the Levenberg–Marquardt step is rejected instead of poisoning the fit.
+///
+/// Initialisation without luck (deterministic, data-driven; Sjöberg et al. 1995, sec. 7):
+/// - Nlarx: the regressor matrix Φ of the measured data (all experiments) and F.initialize(Φ, y),
+///   i.e. a regression; then a prediction-focus refinement; then, for simulation focus, the
+///   free-run refinement. If the refined predictor diverges in free run, the regression start
+///   is tried; if both diverge, an `nlid::Error` names the experiment.
+/// - HammersteinWiener: f ≈ identity on the input range (f.initialize(u, u)); the linear block
+///   by ARX least squares on (f(u), y) with an offset term, stabilised (unstable poles
+///   reflected), refined as an output-error model with offset; h initialised against the linear
+///   block's simulated output (h.initialize(x_sim, y)); then the joint refinement of all θ.
+///   `initialize = false` starts from the model's current parameters instead — e.g. after
+///   `set_linear_block(oe_model)`.
+
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <optional>
+#include <span>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/QR>
+
+#include "nlid/analysis/fit.hpp"
+#include "nlid/core/error.hpp"
+#include "nlid/core/initial_condition.hpp"
+#include "nlid/data/dataset.hpp"
+#include "nlid/estimation/autodiff.hpp"
+#include "nlid/estimation/levenberg_marquardt.hpp"
+#include "nlid/linear/polynomial.hpp"
+#include "nlid/models/detail/initial_state.hpp"
+#include "nlid/models/detail/model_common.hpp"
+#include "nlid/models/hammerstein_wiener.hpp"
+#include "nlid/models/nlarx.hpp"
+
+namespace nlid {
+
+/// Which error the estimator minimises.
+enum class Focus {
+  prediction,  ///< one-step prediction errors (fast; the model may drift in free run)
+  simulation,  ///< free-run simulation errors (what the fit % measures)
+};
+
+/// Options of `estimate`.
+struct EstimateOptions {
+  /// Prediction or simulation focus. Hammerstein–Wiener models (output-error structure) are
+  /// always estimated by simulation error; the field is ignored for them.
+  Focus focus = Focus::prediction;
+  /// Initial condition of each experiment's simulation during simulation-focus estimation.
+  /// Unset: `measured` for Nlarx, `zero` for Hammerstein–Wiener. `estimate` adds each
+  /// experiment's initial state to the parameters.
+  std::optional<InitialCondition> initial_condition;
+  /// Data-driven initialisation (see file comment); false: start from the model's parameters.
+  bool initialize = true;
+  /// Nlarx with simulation focus: iterations of the prediction-focus refinement run first.
+  int prediction_iterations = 20;
+  /// Hammerstein–Wiener: iterations of the output-error refinement of the linear block during
+  /// initialisation.
+  int linear_iterations = 50;
+  /// Solver options of the main stage: `max_iterations`, `loss` (robust), `callback`,
+  /// `lower_bounds`/`upper_bounds`/`fixed` (sized to the model's parameters; entries for
+  /// estimated initial states are added automatically), tolerances.
+  LmOptions solver;
+};
+
+namespace detail {
+
+/// One experiment as the residual functors see it.
+struct EstimationSegment {
+  const Eigen::MatrixXd* u = nullptr;  ///< N×nu inputs (viewing the data set)
+  Eigen::VectorXd y;                   ///< N outputs
+  Eigen::Index start = 0;              ///< first simulated sample (n₀ for a measured past)
+  Eigen::VectorXd x0;                  ///< initial state (or its base when estimated)
+  int free_offset = -1;                ///< index in θ of its first estimated x0 entry (−1: none)
+};
+
+/// Scratch vector of scalar T, one per thread and type; capacity only grows.
+template <class T>
+std::vector<T>& initial_state_scratch() {
+  thread_local std::vector<T> buffer;
+  return buffer;
+}
+
+/// Free-run residuals of any `ModelStructure` over several experiments; `P` = the solver's
+/// static parameter count (the model's, or Dynamic when initial states are estimated).
+template <class M, int P>
+class SimulationResiduals {
+ public:
+  /// Static parameter count.
+  static constexpr int num_params = P;
+
+  /// `free` lists the x0 entries estimated per experiment (empty unless ic == estimate).
+  SimulationResiduals(const M& model, std::vector<EstimationSegment> segments, std::vector<int> free,
+                      InitialCondition ic, double limit)
+      : model_(&model), segs_(std::move(segments)), free_(std::move(free)), ic_(ic), limit_(limit) {
+    for (const auto& s : segs_) m_ += s.y.size() - s.start;
+  }
+
+  /// Model parameters plus estimated initial states.
+  [[nodiscard]] int num_parameters() const {
+    return model_->num_parameters() + static_cast<int>(free_.size() * (ic_ == InitialCondition::estimate ? segs_.size() : 0));
+  }
+  /// Σ over experiments of the simulated samples.
+  [[nodiscard]] Eigen::Index num_residuals() const { return m_; }
+
+  /// r = ŷ_s − y, stacked; false if a simulation diverges.
+  template <class T>
+  bool residuals(std::span<const T> theta, std::span<T> r) const {
+    const auto np = static_cast<std::size_t>(model_->num_parameters());
+    const std::span<const T> th = theta.first(np);
+    std::size_t off = 0;
+    // Per-thread scratch for x0: grown on the first call, reused afterwards, so a fixed-size
+    // estimation allocates nothing per iteration (tests/nomalloc) and threads do not share it.
+    std::vector<T>& x0 = initial_state_scratch<T>();
+    for (const auto& s : segs_) {
+      const Eigen::Index len = s.y.size() - s.start;
+      const std::span<T> ri = r.subspan(off, static_cast<std::size_t>(len));
+      std::span<const T> x0s;
+      if (ic_ == InitialCondition::equilibrium) {
+        if constexpr (requires { model_->template equilibrium_state<T>(0.0, th); }) {
+          const auto xe = model_->template equilibrium_state<T>((*s.u)(0, 0), th);
+          x0.assign(xe.data(), xe.data() + xe.size());
+          x0s = std::span<const T>(x0);
+        }
+      } else if (s.x0.size() > 0) {
+        x0.resize(static_cast<std::size_t>(s.x0.size()));
+        for (Eigen::Index k = 0; k < s.x0.size(); ++k) x0[static_cast<std::size_t>(k)] = T(s.x0(k));
+        if (s.free_offset >= 0) {
+          for (std::size_t k = 0; k < free_.size(); ++k)
+            x0[static_cast<std::size_t>(free_[k])] = theta[np + static_cast<std::size_t>(s.free_offset) + k];
+        }
+        x0s = std::span<const T>(x0);
+      }
+      if (!model_->simulate(s.u->bottomRows(len), th, x0s, ri, limit_)) return false;
+      for (Eigen::Index t = 0; t < len; ++t) ri[static_cast<std::size_t>(t)] -= s.y(s.start + t);
+      off += static_cast<std::size_t>(len);
+    }
+    return true;
+  }
+
+ private:
+  const M* model_;
+  std::vector<EstimationSegment> segs_;
+  std::vector<int> free_;
+  InitialCondition ic_;
+  double limit_;
+  Eigen::Index m_ = 0;
+};
+
+/// One-step prediction residuals of an Nlarx model over several experiments.
+template <class M>
+class PredictionResiduals {
+ public:
+  /// The model's static parameter count.
+  static constexpr int num_params = M::num_params;
+
+  /// Views the model; owns the segments.
+  PredictionResiduals(const M& model, std::vector<EstimationSegment> segments)
+      : model_(&model), segs_(std::move(segments)) {
+    for (const auto& s : segs_) m_ += s.y.size() - model_->history_length();
+  }
+  /// The model's parameters.
+  [[nodiscard]] int num_parameters() const { return model_->num_parameters(); }
+  /// Σ (N − n₀).
+  [[nodiscard]] Eigen::Index num_residuals() const { return m_; }
+
+  /// r = ŷ(t|t−1) − y(t), stacked; false if a prediction is not finite.
+  template <class T>
+  bool residuals(std::span<const T> theta, std::span<T> r) const {
+    const Eigen::Index n0 = model_->history_length();
+    std::size_t off = 0;
+    for (const auto& s : segs_) {
+      const Eigen::Index len = s.y.size() - n0;
+      const std::span<T> ri = r.subspan(off, static_cast<std::size_t>(len));
+      if (!model_->predict(*s.u, s.y, theta, ri)) return false;
+      for (Eigen::Index t = 0; t < len; ++t) ri[static_cast<std::size_t>(t)] -= s.y(n0 + t);
+      off += static_cast<std::size_t>(len);
+    }
+    return true;
+  }
+
+ private:
+  const M* model_;
+  std::vector<EstimationSegment> segs_;
+  Eigen::Index m_ = 0;
+};
+
+/// Output-error residuals of a linear block with an output offset c: x(t) + c − y(t), the
+/// block started in steady state for w(0). θ = [θ_L, c].
+template <class L>
+class LinearStageResiduals {
+ public:
+  /// Run-time parameter count.
+  static constexpr int num_params = Dynamic;
+
+  /// `w`, `y`: per experiment.
+  LinearStageResiduals(const L& block, std::vector<Eigen::VectorXd> w, std::vector<Eigen::VectorXd> y, double limit)
+      : lin_(&block), w_(std::move(w)), y_(std::move(y)), limit_(limit) {
+    for (const auto& v : y_) m_ += v.size();
+  }
+  /// θ_L and the offset.
+  [[nodiscard]] int num_parameters() const { return lin_->num_parameters() + 1; }
+  /// All samples.
+  [[nodiscard]] Eigen::Index num_residuals() const { return m_; }
+
+  /// r = B/F w + c − y; false on divergence.
+  template <class T>
+  bool residuals(std::span<const T> theta, std::span<T> r) const {
+    const std::span<const T> th = theta.first(static_cast<std::size_t>(lin_->num_parameters()));
+    const T& c = theta[static_cast<std::size_t>(lin_->num_parameters())];
+    std::vector<T> s(static_cast<std::size_t>(lin_->num_states_runtime()));
+    std::size_t off = 0;
+    for (std::size_t e = 0; e < w_.size(); ++e) {
+      const T w0(w_[e](0));
+      if (!lin_->equilibrium_state(w0, th, std::span<T>(s))) std::fill(s.begin(), s.end(), T(0));
+      for (Eigen::Index t = 0; t < w_[e].size(); ++t) {
+        const T x = lin_->step(std::span<T>(s), T(w_[e](t)), th) + c;
+        if (!is_finite_scalar(x) || std::abs(static_cast<double>(value_of(x))) > limit_) return false;
+        r[off++] = x - y_[e](t);
+      }
+    }
+    return true;
+  }
+
+ private:
+  const L* lin_;
+  std::vector<Eigen::VectorXd> w_, y_;
+  double limit_;
+  Eigen::Index m_ = 0;
+};
+
+/// Runs LM on an `AutoDiffProblem` of `functor` with static count P, θ as VectorXd.
+template <int P, class Functor>
+LmSummary solve_functor(Functor functor, Eigen::VectorXd& theta, const LmOptions& options) {
+  AutoDiffProblem<Functor> problem(std::move(functor));
+  Eigen::Matrix<double, P, 1> th = theta;
+  const LmSummary s = solve_least_squares(problem, th, options);
+  theta = th;
+  return s;
+}
+
+/// Solver options extended by `extra` free parameters (initial states): no bounds, not fixed.
+/// Throws `nlid::Error` if bounds/fixed are not sized to the model's `np` parameters.
+inline LmOptions extend_options(LmOptions o, int np, int extra, const std::vector<std::string>& names) {
+  auto check = [np](Eigen::Index n, const char* what) {
+    require(n == 0 || n == np,
+            std::string(what) + " has " + std::to_string(n) + " entries; the model has " + std::to_string(np) +
+                " parameters",
+            at_parameter(what));
+  };
+  check(o.lower_bounds.size(), "lower_bounds");
+  check(o.upper_bounds.size(), "upper_bounds");
+  check(static_cast<Eigen::Index>(o.fixed.size()), "fixed");
+  const double inf = std::numeric_limits<double>::infinity();
+  if (o.lower_bounds.size() > 0) {
+    o.lower_bounds.conservativeResize(np + extra);
+    o.lower_bounds.tail(extra).setConstant(-inf);
+  }
+  if (o.upper_bounds.size() > 0) {
+    o.upper_bounds.conservativeResize(np + extra);
+    o.upper_bounds.tail(extra).setConstant(inf);
+  }
+  if (!o.fixed.empty()) o.fixed.resize(static_cast<std::size_t>(np + extra), false);
+  if (o.parameter_names.empty()) o.parameter_names = names;
+  return o;
+}
+
+/// Seconds since `t0`.
+inline double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+/// Fit (%) of a finite simulation, −∞ for a diverged one.
+inline double fit_or_minus_inf(const Eigen::VectorXd& y, const Eigen::VectorXd& yhat, bool ok) {
+  if (!ok) return -std::numeric_limits<double>::infinity();
+  return fit_percent(y, yhat);
+}
+
+/// Entries of x0 that estimation frees: Nlarx the Ly past outputs, HW every block state.
+template <class M>
+std::vector<int> model_free_states(const M& model) {
+  std::vector<int> free;
+  if constexpr (requires { model.output_lag(); }) {
+    for (int k = 0; k < model.output_lag(); ++k) free.push_back(k);
+  } else {
+    for (int k = 0; k < model.state_dimension(); ++k) free.push_back(k);
+  }
+  return free;
+}
+
+/// Main simulation-focus stage shared by both model kinds: builds the functor, extends θ by the
+/// estimated initial states, solves, and writes the states back into the segments.
+template <class M>
+LmSummary simulation_stage(const M& model, std::vector<EstimationSegment>& segs, InitialCondition ic,
+                           Eigen::VectorXd& theta, const LmOptions& solver, double limit) {
+  const int np = model.num_parameters();
+  std::vector<int> free;
+  std::vector<std::string> names = model.parameter_names();
+  Eigen::VectorXd full = theta;
+  if (ic == InitialCondition::estimate) {
+    free = model_free_states(model);
+    full.conservativeResize(np + static_cast<Eigen::Index>(free.size() * segs.size()));
+    int off = 0;
+    for (std::size_t e = 0; e < segs.size(); ++e) {
+      segs[e].free_offset = off;
+      for (std::size_t k = 0; k < free.size(); ++k) {
+        full(np + off + static_cast<Eigen::Index>(k)) = segs[e].x0(free[k]);
+        names.push_back("x0[" + std::to_string(e) + "][" + std::to_string(free[k]) + "]");
+      }
+      off += static_cast<int>(free.size());
+    }
+  }
+  const LmOptions o = extend_options(solver, np, static_cast<int>(full.size()) - np, names);
+  LmSummary summary;
+  if (ic == InitialCondition::estimate || M::num_params == Dynamic) {
+    summary = solve_functor<Dynamic>(SimulationResiduals<M, Dynamic>(model, segs, free, ic, limit), full, o);
+  } else {
+    summary = solve_functor<M::num_params>(SimulationResiduals<M, M::num_params>(model, segs, free, ic, limit), full, o);
+  }
+  theta = full.head(np);
+  if (ic == InitialCondition::estimate) {
+    for (auto& s : segs)
+      for (std::size_t k = 0; k < free.size(); ++k) s.x0(free[k]) = full(np + s.free_offset + static_cast<Eigen::Index>(k));
+  }
+  return summary;
+}
+
+/// Simulates one segment with θ (double) and its x0; false if it diverges.
+template <class M>
+bool simulate_segment(const M& model, const EstimationSegment& s, const Eigen::VectorXd& theta, InitialCondition ic,
+                      Eigen::VectorXd& yhat, double limit = std::numeric_limits<double>::infinity()) {
+  const Eigen::Index len = s.y.size() - s.start;
+  yhat.resize(s.y.size());
+  yhat.head(s.start) = s.y.head(s.start);
+  Eigen::VectorXd x0 = s.x0;
+  if (ic == InitialCondition::equilibrium) {
+    if constexpr (requires { model.template equilibrium_state<double>(0.0, as_const_span(theta)); }) {
+      x0 = model.template equilibrium_state<double>((*s.u)(0, 0), as_const_span(theta));
+    }
+  }
+  return model.simulate(s.u->bottomRows(len), as_const_span(theta), as_const_span(x0),
+                        std::span<double>(yhat.data() + s.start, static_cast<std::size_t>(len)), limit);
+}
+
+/// ARX least squares with offset for a transfer-function block: y(t) = −Σ fᵢ y(t−i) +
+/// Σ bⱼ w(t−nk−j+1) + c over all experiments; F stabilised by reflecting unstable poles.
+template <class L>
+void arx_initialize(const L& lin, const std::vector<Eigen::VectorXd>& w, const std::vector<Eigen::VectorXd>& y,
+                    std::span<double> theta_l) {
+  const int nb = lin.nb(), nf = lin.nf(), nk = lin.nk();
+  const int n0 = std::max(nf, nk + nb - 1);
+  Eigen::Index rows = 0;
+  for (const auto& v : y) rows += std::max<Eigen::Index>(0, v.size() - n0);
+  require(rows > nb + nf + 1, "too few samples to initialise the linear block", at_parameter("data"));
+  Eigen::MatrixXd a(rows, nb + nf + 1);
+  Eigen::VectorXd b(rows);
+  Eigen::Index i = 0;
+  for (std::size_t e = 0; e < y.size(); ++e) {
+    for (Eigen::Index t = n0; t < y[e].size(); ++t, ++i) {
+      for (int j = 0; j < nb; ++j) a(i, j) = w[e](t - nk - j);
+      for (int k = 1; k <= nf; ++k) a(i, nb + k - 1) = -y[e](t - k);
+      a(i, nb + nf) = 1.0;
+      b(i) = y[e](t);
+    }
+  }
+  const Eigen::VectorXd sol = a.colPivHouseholderQr().solve(b);
+  Eigen::VectorXd f(nf + 1);
+  f(0) = 1.0;
+  f.tail(nf) = sol.segment(nb, nf);
+  if (nf > 0 && !is_stable_polynomial(f)) f = reflect_unstable(f);
+  for (int j = 0; j < nb; ++j) theta_l[static_cast<std::size_t>(j)] = sol(j);
+  for (int k = 0; k < nf; ++k) theta_l[static_cast<std::size_t>(nb + k)] = f(k + 1);
+}
+
+/// Checks the data set, adopts its sample time and channel names.
+template <class M>
+void adopt_data(M& model, const Dataset& data, int history, const char* kind) {
+  require(data.size() > 0, "the estimation data set has no experiments", at_parameter("data"));
+  if (model.ts() == 0.0) model.set_ts(data.ts());
+  for (std::size_t i = 0; i < data.size(); ++i)
+    check_experiment(data[i], static_cast<long>(i), model.num_inputs(), history, model.ts(), kind);
+}
+
+}  // namespace detail
+
+/// Estimates a nonlinear ARX model on `data` (one or more experiments; residuals stacked).
+/// `model` supplies the structure (and the starting θ when `options.initialize` is false).
+/// Returns the model with estimated θ, sample time, channel names and `report()`.
+/// Throws `nlid::Error` naming the experiment for data that do not fit the model, or when a
+/// simulation-focus estimation cannot start because every start diverges.
+template <Regressor R, Nonlinearity F>
+Nlarx<R, F> estimate(Nlarx<R, F> model, const Dataset& data, const EstimateOptions& options = {}) {
+  using M = Nlarx<R, F>;
+  const auto t0 = std::chrono::steady_clock::now();
+  detail::adopt_data(model, data, model.history_length(), "nonlinear ARX");
+  model.set_channel_names(data[0].input_names(), data[0].output_names().empty() ? "y1" : data[0].output_names()[0]);
+  const InitialCondition ic = options.initial_condition.value_or(InitialCondition::measured);
+  if (options.focus == Focus::simulation) {
+    require(ic != InitialCondition::equilibrium,
+            "equilibrium initial conditions are not supported during Nlarx estimation; use zero, measured or estimate",
+            at_parameter("initial_condition"));
+  }
+  const int n0 = model.history_length();
+  std::vector<detail::EstimationSegment> segs(data.size());
+  Eigen::VectorXd y_all(data.total_samples());
+  {
+    Eigen::Index k = 0;
+    for (std::size_t i = 0; i < data.size(); ++i) {
+      segs[i].u = &data[i].u();
+      segs[i].y = data[i].y().col(0);
+      y_all.segment(k, segs[i].y.size()) = segs[i].y;
+      k += segs[i].y.size();
+    }
+  }
+  const double limit = detail::divergence_limit(y_all);
+
+  Eigen::VectorXd theta = model.parameters();
+  if (options.initialize) {
+    Eigen::Index rows = 0;
+    for (const auto& s : segs) rows += s.y.size() - n0;
+    Eigen::MatrixXd x(rows, model.regressors().size());
+    Eigen::VectorXd yr(rows);
+    Eigen::Index k = 0;
+    for (std::size_t i = 0; i < segs.size(); ++i) {
+      const Eigen::Index len = segs[i].y.size() - n0;
+      x.middleRows(k, len) = regressor_matrix(model.regressors(), *segs[i].u, segs[i].y, detail::experiment_location(static_cast<long>(i)));
+      yr.segment(k, len) = segs[i].y.tail(len);
+      k += len;
+    }
+    model.nonlinearity().initialize(x, yr, detail::as_span(theta));
+  }
+  const Eigen::VectorXd theta_regression = theta;
+
+  EstimationReport report;
+  LmSummary summary;
+  int iterations = 0;
+  // Stage 1: one-step prediction errors (the whole estimation for prediction focus).
+  if (options.focus == Focus::prediction || options.initialize) {
+    LmOptions o = detail::extend_options(options.solver, model.num_parameters(), 0, model.parameter_names());
+    if (options.focus == Focus::simulation) o.max_iterations = std::min(o.max_iterations, options.prediction_iterations);
+    summary = detail::solve_functor<M::num_params>(detail::PredictionResiduals<M>(model, segs), theta, o);
+    iterations += summary.iterations;
+  }
+  if (options.focus == Focus::simulation) {
+    // Per-experiment start; fall back to the regression start if the refined predictor diverges.
+    auto starts_ok = [&](const Eigen::VectorXd& th, long* bad) {
+      for (std::size_t i = 0; i < segs.size(); ++i) {
+        auto& s = segs[i];
+        s.start = ic == InitialCondition::measured ? n0 : 0;
+        if (ic == InitialCondition::measured) {
+          s.x0 = model.measured_state(*s.u, s.y, n0);
+        } else if (ic == InitialCondition::estimate) {
+          s.x0 = model.held_state(s.y(0), s.u->row(0));
+        } else {
+          s.x0.resize(0);
+        }
+        Eigen::VectorXd yh;
+        if (!detail::simulate_segment(model, s, th, ic, yh, limit)) {
+          *bad = static_cast<long>(i);
+          return false;
+        }
+      }
+      return true;
+    };
+    long bad = -1;
+    if (!starts_ok(theta, &bad)) {
+      theta = theta_regression;
+      if (!starts_ok(theta, &bad)) {
+        throw Error("simulation-focus estimation cannot start: the initial model's simulation of " +
+                        detail::experiment_label(data[static_cast<std::size_t>(bad)], bad) +
+                        " diverges (try prediction focus, other orders or fewer units)",
+                    detail::experiment_location(bad));
+      }
+    }
+    summary = detail::simulation_stage(model, segs, ic, theta, options.solver, limit);
+    iterations += summary.iterations;
+  }
+  model.set_parameters(theta);
+
+  report.estimated = true;
+  report.focus = options.focus == Focus::simulation ? "simulation" : "prediction";
+  const InitialCondition fit_ic = options.focus == Focus::simulation ? ic : InitialCondition::measured;
+  report.initial_condition = to_string(fit_ic);
+  report.iterations = iterations;
+  report.initial_cost = summary.initial_cost;
+  report.final_cost = summary.final_cost;
+  report.status = summary.message();
+  for (std::size_t i = 0; i < segs.size(); ++i) {
+    auto& s = segs[i];
+    if (options.focus == Focus::prediction) {
+      s.start = n0;
+      s.x0 = model.measured_state(*s.u, s.y, n0);
+    }
+    Eigen::VectorXd yh;
+    const bool ok = detail::simulate_segment(model, s, theta, fit_ic, yh);
+    report.data_names.push_back(data[i].name());
+    report.fit_percent.push_back(detail::fit_or_minus_inf(s.y, yh, ok));
+    if (fit_ic == InitialCondition::estimate) report.initial_states.push_back(s.x0);
+  }
+  report.seconds = detail::seconds_since(t0);
+  model.set_report(std::move(report));
+  return model;
+}
+
+/// Estimates a Hammerstein–Wiener model on `data` by simulation error (see file comment for
+/// the initialisation). Returns the model with θ, sample time, channel names and `report()`.
+/// Throws `nlid::Error` naming the experiment for data that do not fit the model, and for
+/// `InitialCondition::measured` (not defined for a block state).
+template <ScalarNonlinearity In, LinearBlock L, ScalarNonlinearity Out>
+HammersteinWiener<In, L, Out> estimate(HammersteinWiener<In, L, Out> model, const Dataset& data,
+                                       const EstimateOptions& options = {}) {
+  const auto t0 = std::chrono::steady_clock::now();
+  detail::adopt_data(model, data, 0, "Hammerstein-Wiener");
+  model.set_channel_names(data[0].input_names().empty() ? "u1" : data[0].input_names()[0],
+                          data[0].output_names().empty() ? "y1" : data[0].output_names()[0]);
+  const InitialCondition ic = options.initial_condition.value_or(InitialCondition::zero);
+  require(ic != InitialCondition::measured,
+          "InitialCondition::measured is not defined for a Hammerstein-Wiener model; use zero, equilibrium or estimate",
+          at_parameter("initial_condition"));
+  std::vector<detail::EstimationSegment> segs(data.size());
+  Eigen::VectorXd y_all(data.total_samples()), u_all(data.total_samples());
+  {
+    Eigen::Index k = 0;
+    for (std::size_t i = 0; i < data.size(); ++i) {
+      segs[i].u = &data[i].u();
+      segs[i].y = data[i].y().col(0);
+      y_all.segment(k, segs[i].y.size()) = segs[i].y;
+      u_all.segment(k, segs[i].y.size()) = data[i].u().col(0);
+      k += segs[i].y.size();
+    }
+  }
+  const double limit = detail::divergence_limit(y_all);
+  Eigen::VectorXd theta = model.parameters();
+  const auto pf = static_cast<std::size_t>(model.input_nonlinearity().num_parameters());
+  const auto pl = static_cast<std::size_t>(model.linear_block().num_parameters());
+  const auto ph = static_cast<std::size_t>(model.output_nonlinearity().num_parameters());
+  const std::span<double> th_f(theta.data(), pf), th_l(theta.data() + pf, pl), th_h(theta.data() + pf + pl, ph);
+  int iterations = 0;
+
+  if (options.initialize) {
+    // f ≈ identity on the input range: the linear block then sees (a scaled copy of) u.
+    model.input_nonlinearity().initialize(Eigen::MatrixXd(u_all), u_all, th_f);
+    std::vector<Eigen::VectorXd> w(segs.size()), ys(segs.size());
+    for (std::size_t i = 0; i < segs.size(); ++i) {
+      w[i].resize(segs[i].y.size());
+      for (Eigen::Index t = 0; t < w[i].size(); ++t) {
+        const double ut = (*segs[i].u)(t, 0);
+        w[i](t) = model.input_nonlinearity()(std::span<const double>(&ut, 1), std::span<const double>(th_f));
+      }
+      ys[i] = segs[i].y;
+    }
+    const auto& lin = model.linear_block();
+    if constexpr (requires { lin.nb(); lin.nf(); lin.nk(); }) detail::arx_initialize(lin, w, ys, th_l);
+    // Output-error refinement of the linear block (with an offset the output map will absorb).
+    Eigen::VectorXd lt(static_cast<Eigen::Index>(pl) + 1);
+    for (std::size_t j = 0; j < pl; ++j) lt(static_cast<Eigen::Index>(j)) = th_l[j];
+    // Offset start: the mean output minus the block's mean steady-state response.
+    double gain = 0.0;
+    if constexpr (requires { lin.dc_gain(std::span<const double>(th_l)); }) gain = lin.dc_gain(std::span<const double>(th_l));
+    double w_sum = 0.0;
+    for (const auto& v : w) w_sum += v.sum();
+    lt(static_cast<Eigen::Index>(pl)) = y_all.mean() - gain * w_sum / static_cast<double>(y_all.size());
+    detail::LinearStageResiduals<L> lf(lin, w, ys, limit);
+    Eigen::VectorXd r(lf.num_residuals());
+    if (options.linear_iterations > 0 && lf.residuals(detail::as_const_span(lt), detail::as_span(r))) {
+      LmOptions o;
+      o.max_iterations = options.linear_iterations;
+      iterations += detail::solve_functor<Dynamic>(std::move(lf), lt, o).iterations;
+      for (std::size_t j = 0; j < pl; ++j) th_l[j] = lt(static_cast<Eigen::Index>(j));
+    }
+    // h against the linear block's simulated output, started as the estimation will start.
+    Eigen::VectorXd x_all(y_all.size());
+    Eigen::Index k = 0;
+    for (std::size_t i = 0; i < segs.size(); ++i) {
+      std::vector<double> s(static_cast<std::size_t>(lin.num_states_runtime()), 0.0);
+      if (ic != InitialCondition::zero) lin.equilibrium_state(w[i](0), std::span<const double>(th_l), std::span<double>(s));
+      for (Eigen::Index t = 0; t < w[i].size(); ++t) x_all(k++) = lin.step(std::span<double>(s), w[i](t), std::span<const double>(th_l));
+    }
+    model.output_nonlinearity().initialize(Eigen::MatrixXd(x_all), y_all, th_h);
+  }
+
+  for (auto& s : segs) {
+    s.start = 0;
+    if (ic == InitialCondition::estimate) {
+      s.x0 = model.template equilibrium_state<double>((*s.u)(0, 0), detail::as_const_span(theta));
+    } else {
+      s.x0.resize(0);
+    }
+  }
+  for (std::size_t i = 0; i < segs.size(); ++i) {
+    Eigen::VectorXd yh;
+    if (!detail::simulate_segment(model, segs[i], theta, ic, yh, limit)) {
+      throw Error("Hammerstein-Wiener estimation cannot start: the initial model's simulation of " +
+                      detail::experiment_label(data[i], static_cast<long>(i)) + " diverges",
+                  detail::experiment_location(static_cast<long>(i)));
+    }
+  }
+  const LmSummary summary = detail::simulation_stage(model, segs, ic, theta, options.solver, limit);
+  iterations += summary.iterations;
+  model.set_parameters(theta);
+
+  EstimationReport report;
+  report.estimated = true;
+  report.focus = "simulation";
+  report.initial_condition = to_string(ic);
+  report.iterations = iterations;
+  report.initial_cost = summary.initial_cost;
+  report.final_cost = summary.final_cost;
+  report.status = summary.message();
+  for (std::size_t i = 0; i < segs.size(); ++i) {
+    Eigen::VectorXd yh;
+    const bool ok = detail::simulate_segment(model, segs[i], theta, ic, yh);
+    report.data_names.push_back(data[i].name());
+    report.fit_percent.push_back(detail::fit_or_minus_inf(segs[i].y, yh, ok));
+    if (ic == InitialCondition::estimate) report.initial_states.push_back(segs[i].x0);
+  }
+  report.seconds = detail::seconds_since(t0);
+  model.set_report(std::move(report));
+  return model;
+}
+
+}  // namespace nlid
