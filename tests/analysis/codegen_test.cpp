@@ -20,7 +20,10 @@
 #include "nlid/data/resample.hpp"
 #include "nlid/models/physics/throttle.hpp"
 #include "nlid/models/transfer_function_block.hpp"
+#include "nlid/nonlinearities/dead_zone.hpp"
 #include "nlid/nonlinearities/piecewise_linear.hpp"
+#include "nlid/nonlinearities/polynomial.hpp"
+#include "nlid/nonlinearities/wavelet_network.hpp"
 #include "nlid/nonlinearities/saturation.hpp"
 #include "nlid/nonlinearities/sigmoid_network.hpp"
 #include "nlid/regressors.hpp"
@@ -196,8 +199,49 @@ TEST_CASE("generated C of a Hammerstein-Wiener with pwlinear input and saturated
   nlid::CodegenOptions o;
   o.name = "nlhw";
   const nlid::GeneratedCode g = nlid::generate_c(m, o);
-  CHECK(g.paths == 3 * 3);  // pwlinear: 3 segments, saturation: 3 regions
+  // pwlinear: 4 paths (3 segments; the C++ tests x < x_end before "|| last segment", so the last
+  // segment is reached by both outcomes of that test), saturation: 3 regions.
+  CHECK(g.paths == 4 * 3);
   const Eigen::VectorXd yc = run_generated(g, e3.u(), "hw");
+  REQUIRE(yc.size() == ref.size());
+  CHECK(max_relative_error(yc, ref) <= 1e-12);
+}
+
+TEST_CASE("generated C of a wavelet-network nlarx and a dead-zone/polynomial HW matches nlid", "[codegen]") {
+  const nlid::Experiment e1 = throttle(1), e3 = throttle(3);
+  using Wn = nlid::Nlarx<nlid::LaggedRegressors<2, 2, 1>, nlid::WaveletNet<4, 3>>;
+  Wn w(nlid::LaggedRegressors<2, 2, 1>{}, nlid::WaveletNet<4, 3>{}, e1.ts());
+  const Eigen::MatrixXd X = w.regressor_values(e1);
+  Eigen::VectorXd theta(w.num_parameters());
+  w.nonlinearity().initialize(X, e1.y().col(0).tail(X.rows()), std::span<double>(theta.data(), theta.size()));
+  w.set_parameters(theta);
+  const Eigen::VectorXd ref_w = w.predict(e3, 1).col(0);  // one-step: bounded whatever the free run does
+  nlid::CodegenOptions o;
+  o.name = "wavenet";
+  const nlid::GeneratedCode gw = nlid::generate_c(w, o);
+  CHECK(gw.paths == 1);  // radial units: no branches
+  // The generated step is the free run; compare it with nlid's free run where that is finite.
+  Eigen::VectorXd sim(e3.size());
+  const bool finite = w.simulate<double>(e3.u(), nlid::detail::as_const_span(w.parameters()), {}, nlid::detail::as_span(sim));
+  REQUIRE(finite);
+  const Eigen::VectorXd yw = run_generated(gw, e3.u(), "wavenet");
+  REQUIRE(yw.size() == sim.size());
+  CHECK(max_relative_error(yw, sim) <= 1e-12);
+  (void)ref_w;
+
+  using Block = nlid::TransferFunctionBlock<2, 2, 1>;
+  using Hw = nlid::HammersteinWiener<nlid::DeadZone, Block, nlid::Poly1d<3>>;
+  Hw m(nlid::DeadZone{}, Block{}, nlid::Poly1d<3>{}, e3.ts());
+  Eigen::VectorXd th(10);
+  th << 0.1, 0.3,                // dead zone [0.1, 0.3]
+      0.5, 0.2, -1.3, 0.42,      // B, F (stable)
+      15.0, 30.0, 2.0, -0.5;     // h(x) = 15 + 30x + 2x^2 - 0.5x^3
+  m.set_parameters(th);
+  const Eigen::VectorXd ref = m.simulate(e3, nlid::InitialCondition::zero).col(0);
+  o.name = "dzpoly";
+  const nlid::GeneratedCode g = nlid::generate_c(m, o);
+  CHECK(g.paths == 3);
+  const Eigen::VectorXd yc = run_generated(g, e3.u(), "dzpoly");
   REQUIRE(yc.size() == ref.size());
   CHECK(max_relative_error(yc, ref) <= 1e-12);
 }
