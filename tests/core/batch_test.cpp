@@ -122,8 +122,8 @@ TEST_CASE("Batch comparisons give masks that cannot be used as a bool", "[core][
   CHECK(r[0] == 0.0);
   CHECK(r[3] == 1.5);
   // A branch on a batched comparison has no single answer: it must not compile.
-  static_assert(!std::is_convertible_v<nlid::BatchMask<4>, bool>);
-  static_assert(!std::is_constructible_v<bool, nlid::BatchMask<4>>);
+  static_assert(!std::is_convertible_v<nlid::BatchMask<double, 4>, bool>);
+  static_assert(!std::is_constructible_v<bool, nlid::BatchMask<double, 4>>);
   static_assert(nlid::BatchScalar<B4> && !nlid::BatchScalar<double>);
 }
 

@@ -30,16 +30,15 @@ inline T cast_to(double v) {
 /// Logistic function 1/(1+e^(−s)), evaluated so that neither branch overflows: for s < 0 the
 /// algebraically equal e^s/(1+e^s) is used. With the naive form a Dual at s ≪ 0 would get an
 /// infinite exp and a NaN derivative (∞·0).
-/// A lane-parallel `Batch` (core/batch.hpp) cannot branch; it evaluates the same two forms per
-/// lane from one exp(−|s|), which never overflows.
+/// A lane-parallel `Batch` (core/batch.hpp) cannot branch, and needs not: its lanes are plain
+/// numbers, for which 1/(1 + e^(−s)) is exact in IEEE arithmetic also when e^(−s) overflows
+/// (1/∞ = 0); only a Dual's derivative needs the second form.
 template <class T>
 inline T logistic(const T& s) {
   using std::exp;
   const T one = cast_to<T>(1.0);
   if constexpr (is_batch_v<T>) {
-    using std::abs;
-    const T e = exp(-abs(s));
-    return select(s >= T(0), one, e) / (one + e);
+    return one / (one + exp(-s));
   } else {
     if (value_of(s) >= 0) {
       const T e = exp(-s);
@@ -118,14 +117,17 @@ inline void check_init_data(const Eigen::MatrixXd& X, const Eigen::VectorXd& y, 
 /// of x³ next to a column of ones does not decide the rank threshold), then a complete
 /// orthogonal decomposition gives the minimum-norm solution when columns are collinear —
 /// deterministic and bounded where a plain normal-equation solve would blow up.
-inline Eigen::VectorXd least_squares(const Eigen::MatrixXd& A, const Eigen::VectorXd& b) {
+/// (A template only so that the decomposition is instantiated where it is used: as a plain
+/// inline function it cost every includer of a nonlinearity ~6 s of compile time.)
+template <class Dense = Eigen::MatrixXd>
+Eigen::VectorXd least_squares(const Eigen::MatrixXd& A, const Eigen::VectorXd& b) {
   Eigen::VectorXd scale(A.cols());
   for (Eigen::Index j = 0; j < A.cols(); ++j) {
     const double n = A.col(j).norm();
     scale(j) = n > 0 ? 1.0 / n : 1.0;
   }
   const Eigen::MatrixXd As = A * scale.asDiagonal();
-  Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> cod(As);
+  Eigen::CompleteOrthogonalDecomposition<Dense> cod(As);
   cod.setThreshold(1e-10);
   Eigen::VectorXd w = cod.solve(b);
   return (w.array() * scale.array()).matrix();
