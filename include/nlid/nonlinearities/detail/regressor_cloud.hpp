@@ -36,7 +36,11 @@ inline Eigen::MatrixXd take_rows(const Eigen::MatrixXd& X, const std::vector<Eig
 /// R_m low-discrepancy sequence (Roberts 2018: fractional parts of k·αⱼ, αⱼ = φ_m^−j with φ_m
 /// the generalised golden ratio), until `count` directions that differ pairwise by more than
 /// ≈ 11° exist. Sign is irrelevant for sigmoids (σ(−s) = 1 − σ(s)), so ±v count as one.
-inline std::vector<Eigen::VectorXd> projection_directions(const Eigen::MatrixXd& Z, int count) {
+/// (A template only so that the eigen-solver is instantiated where initialisation is used:
+/// as a plain inline function it cost every includer ~5 s of compile time, measured by
+/// scripts/minimal_size.)
+template <class Dense = Eigen::MatrixXd>
+std::vector<Eigen::VectorXd> projection_directions(const Eigen::MatrixXd& Z, int count) {
   const Eigen::Index m = Z.cols();
   std::vector<Eigen::VectorXd> dirs;
   auto add = [&](Eigen::VectorXd v) {
@@ -53,7 +57,7 @@ inline std::vector<Eigen::VectorXd> projection_directions(const Eigen::MatrixXd&
     return dirs;
   }
   const Eigen::MatrixXd C = Z.transpose() * Z / static_cast<double>(std::max<Eigen::Index>(Z.rows(), 1));
-  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(C);
+  Eigen::SelfAdjointEigenSolver<Dense> eig(C);
   const double top = eig.eigenvalues().maxCoeff();
   for (Eigen::Index j = m - 1; j >= 0; --j) {
     if (eig.eigenvalues()(j) > 1e-9 * top) add(eig.eigenvectors().col(j));
