@@ -49,9 +49,12 @@ struct SsestOptions {
   LmOptions lm;        ///< options of the refinement
 };
 
+// ---- Implementation details below ------------------------------------------------------------
 namespace detail {
 
-// Simulation-error problem of a fully parametrised state-space model (see file comment).
+// Simulation-error problem of a fully parametrised state-space model (see file comment). Holds a
+// reference to the data: it lives only inside `ssest`. θ layout: vec A, vec B, vec C (column-
+// major), then vec D, y₀ and x₀ per experiment if estimated.
 class StateSpacePemProblem {
  public:
   static constexpr int num_params = Dynamic;
