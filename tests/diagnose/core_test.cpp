@@ -213,7 +213,7 @@ TEST_CASE("augmented model: exact Jacobian equals central finite differences", "
   const double ts = 0.01;
   const DataScales s = msd_scales(ts);
   AugmentedModel<physics::MassSpringDamper> m(msd, diag_test::table(msd, {{"c", 8.0}, {"k", 100.0}, {"b", 100.0}}), ts);
-  m.add_effect(diag_test::effect(EffectKind::cubic_stiffness, {30.0}, s));
+  m.add_effect(diag_test::effect(EffectKind::cubic_stiffness, {30.0, 0.05}, s));
   m.add_effect(diag_test::effect(EffectKind::quadratic_drag, {0.05}, s));
   m.add_effect(diag_test::effect(EffectKind::dead_time, {0.023}, s));
   m.add_effect(diag_test::effect(EffectKind::actuator_lag, {0.02}, s));
@@ -247,12 +247,12 @@ TEST_CASE("refit: recovers a known effect parameter from noisy data", "[diagnose
   const DataScales s = msd_scales(ts);
   const auto tab = diag_test::table(msd, {{"c", 8.0}, {"k", 100.0}, {"b", 100.0}});
   AugmentedModel<physics::MassSpringDamper> truth(msd, tab, ts / 4);
-  truth.add_effect(diag_test::effect(EffectKind::cubic_stiffness, {40.0}, s));
+  truth.add_effect(diag_test::effect(EffectKind::cubic_stiffness, {40.0, 0.0}, s));
   const Eigen::MatrixXd u = diag_test::random_steps(1500, -1.0, 1.0, 40, 120, 9u);
   Dataset d;
   d.add(diag_test::synthesize(truth, u, ts, Eigen::Vector2d(0.0, 0.0), 0.005, 1u, "est", 4));
   AugmentedModel<physics::MassSpringDamper> m(msd, tab, ts);
-  m.add_effect(diag_test::effect(EffectKind::cubic_stiffness, {0.0}, s));
+  m.add_effect(diag_test::effect(EffectKind::cubic_stiffness, {0.0, 0.2}, s));
   const RefitResult r = refit(m, d, m.parameters(), {});
   REQUIRE(r.ok);
   CHECK(r.theta(4) == Approx(40.0).epsilon(0.05));

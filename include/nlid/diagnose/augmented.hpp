@@ -23,7 +23,7 @@
 /// continuous states [x; w] with the input held (zero-order hold, as `simulate_physics` in
 /// greybox_simulate.hpp). n follows the sub-step rule of integrators.hpp,
 /// n = ⌈T_s ρ / s⌉, with ρ the baseline's spectral-radius bound plus the stiffness each effect
-/// adds: c_v, 2c_q·3V (drag at three times the typical speed V), √(3|k₃|L²) (cubic, L the
+/// adds: c_v, 2c_q·3V (drag at three times the typical speed V), √(3|k₃|)·L (cubic, L the
 /// travel), √K_s (stop), √(|P|/w) (preload slope), √(F_c/δ) (Dahl presliding stiffness) and
 /// 1/T_a (lag). The Dahl friction state and the play state are updated exactly between
 /// sub-steps / samples (effects.hpp), so they add no stiffness of their own.
@@ -315,6 +315,7 @@ namespace detail {
 inline std::size_t expected_effect_params(EffectKind k) {
   switch (k) {
     case EffectKind::hard_stop:
+    case EffectKind::cubic_stiffness:
     case EffectKind::preload: return 2;
     default: return 1;
   }
@@ -346,7 +347,8 @@ void AugmentedModel<P>::add_effect(Effect effect) {
                 " is not finite or outside its bounds",
             at_parameter(effect.name() + "." + q.name));
   }
-  const bool needs_width = effect.kind == EffectKind::coulomb_friction || effect.kind == EffectKind::preload;
+  const bool needs_width = effect.kind == EffectKind::coulomb_friction || effect.kind == EffectKind::preload ||
+                           effect.kind == EffectKind::cubic_stiffness;
   require(!needs_width || effect.width > 0.0,
           "effect " + effect.label() + ": shape width must be positive", at_parameter(effect.name()));
   effects_.push_back(std::move(effect));
@@ -409,7 +411,7 @@ int AugmentedModel<P>::substeps(const double* theta, const double* x0, const dou
       case EffectKind::coulomb_friction: rho += std::sqrt(std::abs(q[0]) / e.width); break;
       case EffectKind::viscous_friction: rho += std::abs(q[0]); break;
       case EffectKind::quadratic_drag: rho += 6.0 * std::abs(q[0]) * e.speed; break;
-      case EffectKind::cubic_stiffness: rho += std::sqrt(3.0 * std::abs(q[0]) * e.width * e.width); break;
+      case EffectKind::cubic_stiffness: rho += std::sqrt(3.0 * std::abs(q[0])) * e.width; break;
       case EffectKind::hard_stop: rho += std::sqrt(std::abs(q[1])); break;
       case EffectKind::preload: rho += std::sqrt(std::abs(q[0]) / e.width); break;
       case EffectKind::actuator_lag: rho += 1.0 / std::max(std::abs(q[0]), 1e-12); break;
@@ -503,7 +505,7 @@ Eigen::Index AugmentedModel<P>::simulate(const Eigen::MatrixXd& u, const T* thet
           case EffectKind::viscous_friction: a -= c[0] * v; break;
           case EffectKind::quadratic_drag: a -= c[0] * v * abs(v); break;
           case EffectKind::cubic_stiffness: {
-            const T d = q - T(e.centre);
+            const T d = q - c[1];
             a -= c[0] * d * d * d;
             break;
           }

@@ -56,6 +56,7 @@
 #include "nlid/models/greybox.hpp"
 #include "nlid/models/greybox_dynamic.hpp"
 #include "nlid/models/greybox_estimate.hpp"
+#include "nlid/models/physics/catalogue.hpp"
 
 namespace nlid {
 
@@ -154,6 +155,21 @@ Diagnosis<P> diagnose(GreyBox<P> baseline, const Dataset& est, const Dataset& va
 inline Diagnosis<AnyPhysics> diagnose(std::string_view name, const Dataset& est, const Dataset& val,
                                       const DiagnoseOptions& options = {}) {
   return diagnose(GreyBox<AnyPhysics>(make_physics(name)), est, val, options);
+}
+
+/// Calls `f(GreyBox<P>{})` with the compile-time type P of the catalogue baseline `name`
+/// (throttle, mass_spring_damper, rigid_body, first_order, two_tank: fixed-size simulation and
+/// one-pass sensitivities, several times faster than the runtime path), or `f(make_greybox(name))`
+/// for a physics registered at run time. Every call of `f` must return the same type. Throws
+/// `nlid::Error` listing the known names if `name` is unknown.
+template <class F>
+decltype(auto) with_baseline(std::string_view name, F&& f) {
+  if (name == "throttle") return f(GreyBox<physics::Throttle>());
+  if (name == "mass_spring_damper") return f(GreyBox<physics::MassSpringDamper>());
+  if (name == "rigid_body") return f(GreyBox<physics::RigidBody>());
+  if (name == "first_order") return f(GreyBox<physics::FirstOrder>());
+  if (name == "two_tank") return f(GreyBox<physics::TwoTank>());
+  return f(make_greybox(name));
 }
 
 /// Plain-language explanation of a diagnosis (defined in explain.hpp, included below).

@@ -22,7 +22,7 @@
 /// | coulomb_friction  | mechanical | a = −F_c s, Dahl:  ds/dq = (1 − s·sgn q̇)/δ                   | F_c  [{y}/s²]             |
 /// | viscous_friction  | mechanical | a = −c_v v                                                    | c_v  [1/s]                |
 /// | quadratic_drag    | mechanical | a = −c_q v|v|                                                 | c_q  [1/{y}]              |
-/// | cubic_stiffness   | mechanical | a = −k₃ (q − q_c)³                                           | k₃   [1/({y}²s²)]         |
+/// | cubic_stiffness   | mechanical | a = −k₃ (q − q_c)³                                           | k₃ [1/({y}²s²)], q_c [{y}] |
 /// | hard_stop         | mechanical | a = −K_s max(q − q_s, 0)   (lower: +K_s max(q_s − q, 0))      | q_s [{y}], K_s [1/s²]     |
 /// | preload           | mechanical | a = −P tanh((q − q_p)/w)   (a force step of height 2P at q_p) | P [{y}/s²], q_p [{y}]     |
 /// | backlash          | mechanical | y_e = play_β(y): z ← min(max(z, y − β/2), y + β/2)            | β    [{y}]                |
@@ -196,11 +196,10 @@ struct Effect {
   std::string variant;
   /// Estimated parameters, with names (unique within the effect), units, values and bounds.
   std::vector<ParameterInfo> params;
-  /// Shape constant, not estimated: presliding displacement δ (coulomb_friction) or transition
-  /// width w (preload), in output units; 0 for other effects.
+  /// Shape constant, not estimated: presliding displacement δ (coulomb_friction), transition
+  /// width w (preload) or the travel L that bounds the cubic's stiffness in the sub-step rule
+  /// (cubic_stiffness), in output units; 0 for other effects.
   double width = 0.0;
-  /// Reference position q_c of cubic_stiffness (centre of the travel); 0 for other effects.
-  double centre = 0.0;
   /// Typical speed (output units/s) used to bound the stiffness of quadratic drag.
   double speed = 0.0;
 
@@ -326,11 +325,18 @@ inline std::vector<EffectCandidate> make_effect_candidates(EffectKind k, const D
       one(e, {vec({0.0}), vec({0.3 * s.accel / (V * V)})});  // zero and a visible drag
       break;
     case EffectKind::cubic_stiffness: {
-      e.centre = s.q_mid;
+      // The centre q_c is estimated: a hardening spring is cubic about its own free position,
+      // which need not be the middle of the recorded travel. Starts: at the rest position (where
+      // a return spring is unloaded) if the baseline has one inside the travel, else mid-travel.
+      e.width = L;
       const double h = 0.5 * L;
-      e.params = {effect_param("k3", "1/({y}^2*s^2)", "cubic stiffness / inertia", 0, -inf, inf)};
+      const bool rest_inside = std::isfinite(s.rest_position) && s.rest_position > s.q_lo - 0.1 * L &&
+                               s.rest_position < s.q_hi + 0.1 * L;
+      const double qc = rest_inside ? s.rest_position : 0.5 * (s.q_lo + s.q_hi);
+      e.params = {effect_param("k3", "1/({y}^2*s^2)", "cubic stiffness / inertia", 0, -inf, inf),
+                  effect_param("centre", "{y}", "position about which the spring is cubic", qc, -inf, inf)};
       const double k3 = 3.0 * F / (h * h * h);
-      one(e, {vec({0.0}), vec({k3}), vec({-k3})});
+      one(e, {vec({0.0, qc}), vec({k3, qc}), vec({k3, 0.5 * (s.q_lo + s.q_hi)}), vec({-0.3 * k3, qc})});
       break;
     }
     case EffectKind::hard_stop: {

@@ -201,7 +201,19 @@ std::string explain(const Diagnosis<P>& d) {
          detail::pct(d.mismatch.flagged_time_share) + " of the validation time and " +
          detail::pct(d.mismatch.flagged_energy_share) + " of its residual energy.";
   }
+  int refits = 0;
+  for (const SearchRound& r : d.rounds) refits += r.note.empty() ? 0 : 1;
+  if (refits > 0) {
+    s += " Part of it was a poorly converged baseline fit: a candidate effect led the optimiser out of a local "
+         "minimum, but the baseline re-fitted from there did as well without it, so the re-fitted baseline was kept"
+         " (no effect credited for that gain).";
+  }
   if (d.effects.empty()) {
+    if (refits > 0 && d.floor_after.consistent) {
+      s += " After that re-fit the residual is consistent with the noise floor (validation fit " +
+           detail::fits_text(d.final_val.fit) + "): nothing is missing, and no effect was added.";
+      return s;
+    }
     s += " None of the catalogue effects explains a significant part of it";
     if (!d.rounds.empty() && !d.rounds.back().candidates.empty()) {
       const CandidateResult& c = d.rounds.back().candidates.front();

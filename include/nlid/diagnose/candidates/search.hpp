@@ -22,6 +22,12 @@
 ///  4. Decision. The refined candidate with the best score among the significant ones joins M,
 ///     with all its re-estimated parameters. If none is significant, the search stops: a model
 ///     with nothing missing gets nothing added.
+///  5. Ablation check. A refit of M + effect also moves M's own parameters, and the extra
+///     dimension can lead the optimiser out of a local minimum of M: then the gain belongs to
+///     a better-fitted M, not to the effect. So M alone is re-fitted from the winner's values of
+///     its parameters (the control), and the winner must pass the same tests against the control.
+///     If it does not, the control replaces M (an improved fit of the same structure, reported
+///     in the round's `note`) and the search goes on without the effect.
 ///
 /// Candidates of a round run in parallel on `threads` std::threads (each refit is independent;
 /// results are placed by index, so they do not depend on scheduling).
@@ -68,6 +74,8 @@ struct SearchOptions {
   InitialCondition initial_condition = InitialCondition::estimate;
   /// Thresholds of the tests.
   SignificanceOptions significance;
+  /// Ablation check of the winner (see the file comment); off only for experiments.
+  bool ablation_check = true;
   /// Progress lines (e.g. to stderr); may be empty. Called from the calling thread only.
   std::function<void(const std::string&)> progress;
 };
@@ -97,6 +105,10 @@ struct SearchRound {
   Eigen::VectorXd fit_val_before;         ///< its validation fit % per experiment
   std::vector<CandidateResult> candidates;  ///< sorted by score, best first
   int accepted = -1;                      ///< index into `candidates`, −1 if none
+  /// Set when the best candidate failed the ablation check (see the file comment): the current
+  /// structure, re-fitted from the candidate's values, did as well, so the candidate only led
+  /// the optimiser out of a local minimum. The model then continues re-fitted, without it.
+  std::string note;
 };
 
 /// Result of the search.
@@ -107,6 +119,7 @@ struct SearchResult {
   std::vector<SearchRound> rounds;         ///< every round, in order
   std::vector<std::string> not_applicable; ///< "name: reason" for effects that cannot apply
   std::string stop_reason;                 ///< why the search ended
+  int refits_without_effect = 0;           ///< rounds whose winner failed the ablation check
 };
 
 /// Data scales of a model's simulated trajectory on `data` from initial states `x0`
@@ -267,7 +280,7 @@ SearchResult<P> search_effects(const AugmentedModel<P>& start, std::vector<Eigen
   auto say = [&](const std::string& s) {
     if (options.progress) options.progress(s);
   };
-  SearchResult<P> out{start, std::move(x0_est), {}, {}, {}};
+  SearchResult<P> out{start, std::move(x0_est), {}, {}, {}, 0};
   const std::vector<EffectKind> kinds = options.kinds.empty() ? all_effect_kinds() : options.kinds;
   for (EffectKind k : kinds) {
     const std::string why = effect_not_applicable_reason(k, start.roles().mechanical);
@@ -438,6 +451,46 @@ SearchResult<P> search_effects(const AugmentedModel<P>& start, std::vector<Eigen
       out.stop_reason = "no candidate improved the validation fit significantly";
       out.rounds.push_back(std::move(rr));
       break;
+    }
+    if (options.ablation_check) {
+      const CandidateResult& w = rr.candidates[static_cast<std::size_t>(rr.accepted)];
+      AugmentedModel<P> wm = cur.with_effect(w.effect);
+      wm.set_parameters(w.theta);
+      // The control starts from the winner's values of M's parameters (clamped into M's bounds).
+      Eigen::VectorXd th_ctrl = w.theta.head(cur.num_parameters());
+      const std::vector<ParameterInfo> info = cur.parameter_info();
+      for (Eigen::Index i = 0; i < th_ctrl.size(); ++i)
+        th_ctrl(i) = std::clamp(th_ctrl(i), info[static_cast<std::size_t>(i)].lower, info[static_cast<std::size_t>(i)].upper);
+      const RefitResult ctrl = refit(cur, est, th_ctrl, zero_x0 ? std::vector<Eigen::VectorXd>{} : w.x0_est, refine);
+      if (ctrl.ok) {
+        AugmentedModel<P> cm = cur;
+        cm.set_parameters(ctrl.theta);
+        const Evaluation cv = evaluate_model(cm, val, {}, ic);
+        const Evaluation wv = evaluate_model(wm, val, {}, ic);
+        if (cv.ok && wv.ok && cv.total_sse() < rr.sse_val_before) {
+          double d2 = 0.0;
+          for (std::size_t e = 0; e < val.size(); ++e) d2 += (wv.yhat[e] - cv.yhat[e]).squaredNorm();
+          const CandidateStatistics vs =
+              candidate_statistics(cv.total_sse(), wv.total_sse(), std::sqrt(d2), n_val, noise.sigma, noise.inflation,
+                                   w.added_params, tried, options.significance);
+          if (!vs.significant) {
+            rr.note = w.effect.label() + " failed the ablation check: the model without it, re-fitted from its values, "
+                      "reaches validation fit " + detail::format_fits(cv.fit) + " % (with it " +
+                      detail::format_fits(w.fit_val) + " %); kept the re-fitted model instead";
+            say("round " + std::to_string(round) + ": " + rr.note);
+            rr.accepted = -1;
+            out.x0_est = ctrl.x0;
+            out.rounds.push_back(std::move(rr));
+            out.model = std::move(cm);
+            ++out.refits_without_effect;
+            if (out.refits_without_effect > options.max_effects + 2) {
+              out.stop_reason = "stopped after repeated re-fits without a new effect";
+              break;
+            }
+            continue;
+          }
+        }
+      }
     }
     const CandidateResult& win = rr.candidates[static_cast<std::size_t>(rr.accepted)];
     say("round " + std::to_string(round) + ": added " + win.effect.label());
