@@ -1,0 +1,188 @@
+// nlid-diagnose end to end: the binary is run on small generated CSV files; exit codes, stdout,
+// stderr and the written JSON/HTML are checked, including every user error the tool promises to
+// report clearly (exit code 2 and the nlid::Error text).
+#include <catch2/catch.hpp>
+
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <sstream>
+#include <string>
+
+#include "nlid/io/json.hpp"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+struct Run {
+  int code = -1;
+  std::string out, err;
+};
+
+fs::path work_dir() {
+  static const fs::path dir = [] {
+    fs::path d = fs::temp_directory_path() / ("nlid_diagnose_test_" + std::to_string(::getpid()));
+    fs::create_directories(d);
+    return d;
+  }();
+  return dir;
+}
+
+std::string slurp(const fs::path& p) {
+  std::ifstream f(p);
+  std::stringstream s;
+  s << f.rdbuf();
+  return s.str();
+}
+
+Run run(const std::string& args) {
+  const fs::path err = work_dir() / "stderr.txt";
+  const std::string cmd = std::string("\"") + NLID_DIAGNOSE_EXE + "\" " + args + " 2>\"" + err.string() + "\"";
+  Run r;
+  FILE* p = ::popen(cmd.c_str(), "r");
+  REQUIRE(p != nullptr);
+  char buf[4096];
+  std::size_t n;
+  while ((n = std::fread(buf, 1, sizeof buf, p)) > 0) r.out.append(buf, n);
+  const int status = ::pclose(p);
+  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  r.err = slurp(err);
+  return r;
+}
+
+// A first-order lag tau*y' = -(y - offset) + gain*u(t - delay) sampled at ts with zero-order-hold
+// input, random steps, Gaussian noise; written as CSV (with or without a time column).
+fs::path write_record(const std::string& name, int n, unsigned seed, double delay_samples, bool time_column = true,
+                      const std::string& ycol = "y") {
+  const double ts = 0.01, tau = 0.2, gain = 2.0, offset = 0.5;
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> level(-1.0, 1.0);
+  std::uniform_int_distribution<int> hold(30, 120);
+  std::normal_distribution<double> noise(0.0, 0.01);
+  std::vector<double> u(static_cast<std::size_t>(n));
+  for (int k = 0; k < n;) {
+    const double v = level(rng);
+    for (int h = hold(rng); h > 0 && k < n; --h) u[static_cast<std::size_t>(k++)] = v;
+  }
+  const double a = std::exp(-ts / tau);
+  double y = offset;
+  const fs::path p = work_dir() / (name + ".csv");
+  std::ofstream f(p);
+  f << (time_column ? "t," : "") << "u," << ycol << "\n";
+  f.precision(10);
+  const int d = static_cast<int>(delay_samples);
+  for (int k = 0; k < n; ++k) {
+    if (time_column) f << k * ts << ",";
+    f << u[static_cast<std::size_t>(k)] << "," << y + noise(rng) << "\n";
+    const double ud = u[static_cast<std::size_t>(std::max(0, k - d))];
+    y = a * y + (1 - a) * (offset + gain * ud);
+  }
+  return p;
+}
+
+std::string q(const fs::path& p) { return "\"" + p.string() + "\""; }
+
+}  // namespace
+
+TEST_CASE("nlid-diagnose: help and usage errors", "[tools][diagnose]") {
+  Run r = run("--help");
+  CHECK(r.code == 0);
+  CHECK_THAT(r.out, Catch::Contains("--baseline NAME"));
+  r = run("");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("no arguments") && Catch::Contains("usage:"));
+  r = run("--baseline throttle --est a.csv --val b.csv --frobnicate 3");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("unknown option '--frobnicate'"));
+  r = run("--baseline throttle --val b.csv");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("at least one --est file is required"));
+  r = run("--baseline throttle --est a.csv --val b.csv --decimate zero");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("--decimate needs an integer >= 1, got 'zero'"));
+  r = run("--baseline throttle --est a.csv --val b.csv --x0 measured");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("--x0 must be 'estimate' or 'zero'"));
+}
+
+TEST_CASE("nlid-diagnose: unknown baseline lists the catalogue", "[tools][diagnose]") {
+  const Run r = run("--baseline valve --est a.csv --val b.csv");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("unknown physics 'valve'") && Catch::Contains("first_order") &&
+                        Catch::Contains("mass_spring_damper") && Catch::Contains("rigid_body") &&
+                        Catch::Contains("throttle") && Catch::Contains("two_tank"));
+  const Run e = run("--baseline first_order --est a.csv --val b.csv --effects coulomb_friction,stiction");
+  CHECK(e.code == 2);
+  CHECK_THAT(e.err, Catch::Contains("unknown effect 'stiction'"));
+}
+
+TEST_CASE("nlid-diagnose: bad files, missing columns, data too short", "[tools][diagnose]") {
+  const fs::path good = write_record("good", 400, 1u, 0);
+  Run r = run("--baseline first_order --est " + q(work_dir() / "missing.csv") + " --val " + q(good));
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("missing.csv"));
+  r = run("--baseline first_order --est " + q(good) + " --val " + q(good) + " --output angle");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("angle") && Catch::Contains("available columns"));
+  const fs::path bad = work_dir() / "bad.csv";
+  {
+    std::ofstream f(bad);
+    f << "t,u,y\n0,0,1\n0.01,0,abc\n0.02,0,1\n";
+  }
+  r = run("--baseline first_order --est " + q(bad) + " --val " + q(good));
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("bad.csv") && Catch::Contains("row 3"));
+  const fs::path shorty = write_record("short", 30, 2u, 0);
+  r = run("--baseline first_order --est " + q(shorty) + " --val " + q(good));
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("too short") && Catch::Contains("30 samples"));
+  r = run("--baseline first_order --est " + q(good) + " --val " + q(good) + " --decimate 10");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("too short") && Catch::Contains("after decimation by 10"));
+  const fs::path notime = write_record("notime", 400, 3u, 0, false);
+  r = run("--baseline first_order --est " + q(notime) + " --val " + q(good));
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("'t'"));
+}
+
+TEST_CASE("nlid-diagnose: names a concealed dead time and writes JSON and HTML", "[tools][diagnose]") {
+  const fs::path est = write_record("est", 1500, 11u, 4);
+  const fs::path val = write_record("val", 1500, 12u, 4, false);  // sample time from --ts
+  const fs::path json = work_dir() / "out.json", html = work_dir() / "out.html";
+  const Run r = run("--baseline first_order --est " + q(est) + " --val " + q(val) + " --ts 0.01 --starts 2 --threads 2" +
+                    " --json " + q(json) + " --html " + q(html));
+  INFO(r.err);
+  REQUIRE(r.code == 0);
+  CHECK_THAT(r.out, Catch::Contains("added dead_time"));
+  CHECK_THAT(r.err, Catch::Contains("estimating the baseline") && Catch::Contains("round 1"));
+  const nlid::Json j = nlid::Json::parse(slurp(json), json.string());
+  for (const char* k : {"baseline", "mismatch", "candidates", "effects", "final", "explanation"}) CHECK(j.contains(k));
+  CHECK(j["baseline"].contains("fit_est"));
+  CHECK(j["baseline"].contains("fit_val"));
+  CHECK(j["mismatch"].contains("intervals"));
+  CHECK(j["mismatch"].contains("regions"));
+  REQUIRE(j["effects"].size() >= 1);
+  CHECK(j["effects"][0]["name"].as_string() == "dead_time");
+  const double tau = j["effects"][0]["params"]["tau"].as_number();
+  CHECK(tau == Approx(0.04).margin(0.006));
+  CHECK(j["final"]["fit_val"][0].as_number() > j["baseline"]["fit_val"][0].as_number());
+  const std::string h = slurp(html);
+  CHECK_THAT(h, Catch::Contains("<svg class=\"nlid-chart\"") && Catch::Contains("dead_time"));
+}
+
+TEST_CASE("nlid-diagnose: records of 10^5 samples", "[tools][diagnose][large]") {
+  const fs::path est = write_record("big_est", 100000, 21u, 0, true, "level");
+  const fs::path val = write_record("big_val", 100000, 22u, 0, true, "level");
+  const Run r = run("--baseline first_order --est " + q(est) + " --val " + q(val) +
+                    " --output level --starts 1 --threads 2 --effects output_offset,dead_time --quiet");
+  INFO(r.err);
+  REQUIRE(r.code == 0);
+  CHECK_THAT(r.out, Catch::Contains("effects added: none"));
+  CHECK(r.err.empty());
+}
