@@ -1,0 +1,117 @@
+// Model files of the upper layers: augmented grey-box models (diagnose) and series block chains
+// (Wiener–Hammerstein etc.) round-trip bit for bit through load_model(path).
+#include <catch2/catch.hpp>
+
+#include <bit>
+#include <cmath>
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "nlid/io/augmented_serial.hpp"
+#include "nlid/io/series_serial.hpp"
+#include "nlid/models/physics/catalogue.hpp"
+
+namespace fs = std::filesystem;
+using namespace nlid;
+
+namespace {
+
+std::string temp_path(const std::string& name) {
+  const fs::path d = fs::temp_directory_path() / "nlid_model_file_extra_test";
+  fs::create_directories(d);
+  return (d / name).string();
+}
+
+Experiment steps(int n, double ts) {
+  Eigen::MatrixXd u(n, 1), y(n, 1);
+  for (int k = 0; k < n; ++k) {
+    u(k, 0) = (k / 50) % 2 ? 0.8 : 0.1 + 0.2 * std::sin(0.05 * k);
+    y(k, 0) = 20.0 + 10.0 * u(k, 0);
+  }
+  return Experiment(u, y, ts, "steps");
+}
+
+bool bit_equal(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
+  if (a.rows() != b.rows() || a.cols() != b.cols()) return false;
+  for (Eigen::Index i = 0; i < a.size(); ++i)
+    if (std::bit_cast<std::uint64_t>(a.data()[i]) != std::bit_cast<std::uint64_t>(b.data()[i])) return false;
+  return true;
+}
+
+}  // namespace
+
+TEST_CASE("model file: augmented grey-box (baseline + effects) loads at run time bit for bit") {
+  physics::MassSpringDamper msd;
+  GreyBox<physics::MassSpringDamper> g(msd);
+  AugmentedModel<AnyPhysics> m(make_physics("mass_spring_damper"), g.parameter_info(), 0.01);
+  DataScales s;
+  s.ts = 0.01;
+  s.q_lo = 0.0;
+  s.q_hi = 2.0;
+  s.q_mid = 1.0;
+  s.speed = 3.0;
+  s.accel = 30.0;
+  s.stiffness = 100.0;
+  s.u_lo = 0.0;
+  s.u_hi = 1.0;
+  s.u_abs = 1.0;
+  const auto coulomb = make_effect_candidates(effect_kind("coulomb_friction"), s);
+  REQUIRE(!coulomb.empty());
+  m.add_effect(coulomb[0].effect);
+  const auto dz = make_effect_candidates(effect_kind("input_deadzone"), s);
+  REQUIRE(!dz.empty());
+  m.add_effect(dz[0].effect);
+  Eigen::VectorXd th = m.parameters();
+  for (Eigen::Index i = 0; i < th.size(); ++i) {
+    const double next = std::nextafter(th(i), th(i) + 1.0);
+    const ParameterInfo q = m.parameter_info()[static_cast<std::size_t>(i)];
+    if (next <= q.upper) th(i) = next;
+  }
+  m.set_parameters(th);
+  const std::string p = temp_path("augmented.json");
+  save_model(p, m);
+  const AnyModel back = load_model(p);
+  CHECK(back.kind() == "augmented_greybox");
+  const Experiment e = steps(300, 0.01);
+  CHECK(bit_equal(back.simulate(e, InitialCondition::zero), m.simulate(e, InitialCondition::zero)));
+  CHECK(bit_equal(back.parameters(), m.parameters()));
+  const auto* typed = back.target<AugmentedModel<AnyPhysics>>();
+  REQUIRE(typed != nullptr);
+  REQUIRE(typed->effects().size() == 2);
+  CHECK(typed->effects()[0].name() == "coulomb_friction");
+  CHECK(typed->effects()[0].width == m.effects()[0].width);
+  CHECK(back.parameter_names()[static_cast<std::size_t>(back.parameters().size() - 1)] ==
+        m.parameter_info().back().name);
+}
+
+TEST_CASE("model file: series chains (Wiener-Hammerstein) load at run time and typed, bit for bit") {
+  using L = TransferFunctionBlock<Dynamic, Dynamic, Dynamic>;
+  DynamicWienerHammerstein wh(L(2, 2, 0), AnyNonlinearity(PwLinear<Dynamic>(4)), L(2, 2, 1), 0.01);
+  Eigen::VectorXd th(wh.num_parameters());
+  th << 0.3, 0.2, -1.1, 0.35,                                            // L1
+      -0.5, std::log(0.4), std::log(0.5), std::log(0.6), -0.4, 0.0, 0.3, 0.45,  // pwlinear
+      0.5, 0.25, -0.9, 0.2;                                              // L2
+  wh.set_parameters(th);
+  wh.set_channel_names("u", "y");
+  const std::string p = temp_path("wh.json");
+  save_model(p, wh);
+  const Experiment e = steps(400, 0.01);
+  const AnyModel back = load_model(p);
+  CHECK(back.kind() == "series");
+  CHECK(back.input_names() == std::vector<std::string>{"u"});
+  CHECK(bit_equal(back.simulate(e, InitialCondition::zero), wh.simulate(e, InitialCondition::zero)));
+  using Typed = Series<TransferFunctionBlock<2, 2, 0>, PwLinear<4>, TransferFunctionBlock<2, 2, 1>>;
+  const Typed t = load_model<Typed>(p);
+  CHECK(bit_equal(t.simulate(e, InitialCondition::zero), wh.simulate(e, InitialCondition::zero)));
+  using Wrong = Series<TransferFunctionBlock<2, 2, 0>, PwLinear<4>>;
+  try {
+    (void)load_model<Wrong>(p);
+    FAIL("a chain of another pattern was accepted");
+  } catch (const Error& err) {
+    CHECK_THAT(err.what(), Catch::Contains("the file's chain is LNL") && Catch::Contains("this model's is LN"));
+  }
+}

@@ -1,0 +1,213 @@
+// Proof that fixed-size model evaluation allocates nothing: Nlarx and Hammerstein-Wiener
+// free-run simulation and one-step prediction on double and on Dual (the Jacobian pass), and a
+// whole simulation-focus residual + Jacobian evaluation (one estimator iteration's model work).
+//
+// Two traps are armed together: Eigen's EIGEN_RUNTIME_NO_MALLOC assertion (NDEBUG undone so it
+// fires) and a counting replacement of the global operator new, which also sees std::vector,
+// std::string and std::function allocations that Eigen's trap cannot.
+#undef NDEBUG
+#include <catch2/catch.hpp>
+
+#include <atomic>
+#include <cstdlib>
+#include <new>
+
+#include "nlid/models/estimate.hpp"
+#include "nlid/models/hammerstein_wiener.hpp"
+#include "nlid/models/nlarx.hpp"
+#include "nlid/nonlinearities/piecewise_linear.hpp"
+#include "nlid/nonlinearities/sigmoid_network.hpp"
+#include "nlid/regressors.hpp"
+
+#ifndef EIGEN_RUNTIME_NO_MALLOC
+#error "tests/nomalloc must be compiled with EIGEN_RUNTIME_NO_MALLOC"
+#endif
+
+// ---- counting global operator new (the only replacement in this executable) -------------------
+namespace {
+std::atomic<long> g_new_calls{0};
+}  // namespace
+void* operator new(std::size_t n) {
+  g_new_calls.fetch_add(1, std::memory_order_relaxed);
+  if (void* p = std::malloc(n == 0 ? 1 : n)) return p;
+  throw std::bad_alloc();
+}
+void* operator new[](std::size_t n) { return operator new(n); }
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete[](void* p) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
+
+namespace {
+// RAII: Eigen's heap forbidden and operator new counted inside the scope.
+class NoHeap {
+ public:
+  NoHeap() : start_(g_new_calls.load()) { Eigen::internal::set_is_malloc_allowed(false); }
+  ~NoHeap() { Eigen::internal::set_is_malloc_allowed(true); }
+  NoHeap(const NoHeap&) = delete;
+  NoHeap& operator=(const NoHeap&) = delete;
+  [[nodiscard]] long new_calls() const { return g_new_calls.load() - start_; }
+
+ private:
+  long start_;
+};
+
+Eigen::MatrixXd test_input(int n) {
+  Eigen::MatrixXd u(n, 1);
+  for (int t = 0; t < n; ++t) u(t, 0) = 0.5 + 0.4 * std::sin(0.05 * t) + (t / 30 % 2 ? 0.3 : 0.0);
+  return u;
+}
+
+using Net = nlid::SigmoidNet<6, 5>;
+using Nlarx5 = nlid::Nlarx<nlid::LaggedRegressors<3, 3, 0>, Net>;  // the study's nlarx5 structure
+
+Nlarx5 make_nlarx5() {
+  Net net;
+  net.set_normalization(Eigen::VectorXd::Constant(6, 0.5), Eigen::VectorXd::Constant(6, 1.0));
+  Nlarx5 m(nlid::LaggedRegressors<3, 3, 0>{}, net);
+  Eigen::VectorXd th = Eigen::VectorXd::Constant(Nlarx5::num_params, 0.01);
+  th.head(3) << 0.6, 0.1, 0.05;  // stable linear part
+  m.set_parameters(th);
+  return m;
+}
+}  // namespace
+
+TEST_CASE("counting trap sees std allocations", "[nomalloc][models]") {
+  NoHeap guard;
+  std::vector<int>* v = new std::vector<int>(10);
+  delete v;
+  CHECK(guard.new_calls() == 2);
+}
+
+TEST_CASE("Nlarx [3 3 0] + sigmoidnet: simulate and predict allocate nothing", "[nomalloc][models]") {
+  const Nlarx5 m = make_nlarx5();
+  const Eigen::MatrixXd u = test_input(500);
+  Eigen::VectorXd y(500), yp(497), x0 = Eigen::VectorXd::Constant(m.state_dimension(), 0.2);
+  const Eigen::VectorXd& th = m.parameters();
+  using D = nlid::Dual<double, Nlarx5::num_params>;
+  Eigen::Matrix<D, Nlarx5::num_params, 1> thd;
+  for (int i = 0; i < Nlarx5::num_params; ++i) thd(i) = D::variable(th(i), i);
+  Eigen::Matrix<D, Eigen::Dynamic, 1> yd(500);
+  const std::span<const D> thds(thd.data(), Nlarx5::num_params);
+  bool ok = true;
+  {
+    NoHeap guard;
+    ok = ok && m.simulate<double>(u, nlid::detail::as_const_span(th), {}, nlid::detail::as_span(y));
+    ok = ok && m.simulate<double>(u, nlid::detail::as_const_span(th), nlid::detail::as_const_span(x0), nlid::detail::as_span(y));
+    ok = ok && m.predict<double>(u, y, nlid::detail::as_const_span(th), nlid::detail::as_span(yp));
+    ok = ok && m.simulate<D>(u, thds, {}, std::span<D>(yd.data(), 500));
+    CHECK(guard.new_calls() == 0);
+  }
+  CHECK(ok);
+  CHECK(yd(499).a == y(499));
+}
+
+TEST_CASE("Nlarx with the hard-spring custom regressor allocates nothing", "[nomalloc][models]") {
+  auto spring = nlid::custom_regressor<nlid::OutputLag<1>>(
+      "", [](auto y1) { return nlid::max(y1, 90.0) + nlid::min(y1, 15.0) - 105.0; });
+  nlid::RegressorSet regs{nlid::LaggedRegressors<2, 1, 0>{}, spring};
+  nlid::Nlarx m(regs, nlid::LinearMap<4>{});
+  Eigen::VectorXd th(5);
+  th << 1.2, -0.3, 2.0, -0.5, 1.5;
+  m.set_parameters(th);
+  const Eigen::MatrixXd u = test_input(400);
+  Eigen::VectorXd y(400);
+  NoHeap guard;
+  CHECK(m.simulate<double>(u, nlid::detail::as_const_span(th), {}, nlid::detail::as_span(y)));
+  CHECK(guard.new_calls() == 0);
+}
+
+TEST_CASE("Hammerstein-Wiener pwlinear/[3 3 0]/pwlinear allocates nothing", "[nomalloc][models]") {
+  using Hw = nlid::HammersteinWiener<nlid::PwLinear<4>, nlid::TransferFunctionBlock<3, 3, 0>, nlid::PwLinear<4>>;
+  Hw m;
+  Eigen::VectorXd th(Hw::num_params);
+  th << 0.0, -0.5, -0.5, -0.5, 0.0, 0.5, 1.0, 1.6,         // input breakpoints and values
+      0.2, 0.1, 0.05, -0.9, 0.2, -0.02,                    // linear block
+      0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 2.0, 3.0;              // output breakpoints and values
+  m.set_parameters(th);
+  const Eigen::MatrixXd u = test_input(500);
+  Eigen::VectorXd y(500);
+  using D = nlid::Dual<double, Hw::num_params>;
+  Eigen::Matrix<D, Hw::num_params, 1> thd;
+  for (int i = 0; i < Hw::num_params; ++i) thd(i) = D::variable(th(i), i);
+  Eigen::Matrix<D, Eigen::Dynamic, 1> yd(500);
+  bool ok = true;
+  {
+    NoHeap guard;
+    ok = ok && m.simulate<double>(u, nlid::detail::as_const_span(th), {}, nlid::detail::as_span(y));
+    ok = ok && m.simulate<D>(u, std::span<const D>(thd.data(), Hw::num_params), {}, std::span<D>(yd.data(), 500));
+    CHECK(guard.new_calls() == 0);
+  }
+  CHECK(ok);
+}
+
+TEST_CASE("a simulation-focus residual + Jacobian evaluation allocates nothing", "[nomalloc][models]") {
+  const Nlarx5 m = make_nlarx5();
+  const Eigen::MatrixXd u = test_input(300);
+  Eigen::VectorXd y(300);
+  REQUIRE(m.simulate<double>(u, nlid::detail::as_const_span(m.parameters()), {}, nlid::detail::as_span(y)));
+  std::vector<nlid::detail::EstimationSegment> segs(1);
+  segs[0].u = &u;
+  segs[0].y = y;
+  using F = nlid::detail::SimulationResiduals<Nlarx5, Nlarx5::num_params>;
+  nlid::AutoDiffProblem<F> problem(F(m, segs, {}, nlid::InitialCondition::zero, 1e6));
+  const Nlarx5::Parameters theta = m.parameters();
+  Eigen::VectorXd r(300);
+  Eigen::Matrix<double, Eigen::Dynamic, Nlarx5::num_params> J(300, Nlarx5::num_params);
+  bool ok = false;
+  {
+    NoHeap guard;
+    ok = problem.evaluate(theta, r, &J);
+    CHECK(guard.new_calls() == 0);
+  }
+  REQUIRE(ok);
+  CHECK(r.cwiseAbs().maxCoeff() < 1e-12);  // the data are the model's own simulation
+}
+
+// A whole simulation-focus Levenberg-Marquardt solve of the study's nlarx5 structure, started
+// from the measured past as `estimate` does: after the set-up (workspace, per-thread scratch)
+// every iteration — residuals, Jacobian through the recursion, step — runs without heap.
+TEST_CASE("fixed-size simulation-focus estimation allocates nothing per iteration", "[nomalloc][models]") {
+  const Nlarx5 truth = make_nlarx5();
+  const Eigen::MatrixXd u = test_input(250);
+  Eigen::VectorXd y(250);
+  REQUIRE(truth.simulate<double>(u, nlid::detail::as_const_span(truth.parameters()), {}, nlid::detail::as_span(y)));
+  std::vector<nlid::detail::EstimationSegment> segs(1);
+  segs[0].u = &u;
+  segs[0].y = y;
+  segs[0].start = truth.history_length();
+  segs[0].x0 = truth.measured_state(u, y, truth.history_length());
+  using F = nlid::detail::SimulationResiduals<Nlarx5, Nlarx5::num_params>;
+  using P = nlid::AutoDiffProblem<F>;
+  P problem(F(truth, segs, {}, nlid::InitialCondition::measured, 1e6));
+  int iterations = 0;
+  long news_in_iterations = 0;
+  long last = -1;
+  nlid::LmOptions o;
+  o.max_iterations = 8;
+  o.callback = [&](const nlid::IterationReport&) {
+    const long now = g_new_calls.load();
+    if (last >= 0) news_in_iterations += now - last;
+    last = now;
+    ++iterations;
+    return true;
+  };
+  nlid::LevenbergMarquardt<P> lm(o);
+  lm.setup(problem);
+  Nlarx5::Parameters theta = truth.parameters();
+  theta.head(3) += Eigen::Vector3d(0.02, -0.01, 0.01);  // start off the truth: real steps are taken
+  {
+    Eigen::VectorXd r(problem.num_residuals());
+    nlid::JacobianMatrix<Nlarx5::num_params> J(problem.num_residuals(), Nlarx5::num_params);
+    REQUIRE(problem.evaluate(theta, r, &J));  // grows the per-thread scratch once
+  }
+  nlid::LmSummary s;
+  {
+    NoHeap guard;
+    s = lm.solve(problem, theta);
+  }
+  INFO(s.message());
+  CHECK(iterations >= 3);
+  CHECK(news_in_iterations == 0);
+  CHECK(s.final_cost < 1e-3 * s.initial_cost);
+}
