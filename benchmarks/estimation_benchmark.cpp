@@ -1,0 +1,522 @@
+// Estimation speed (issue 5, item 3): nlid vs Ceres Solver on identical data, starting point and
+// residuals — the throttle study's data1 + data2 at 100 Hz (two experiments of 2000 samples).
+//
+//   Nlarx5_Full_Nlid     nlid::estimate(nlarx5, simulation focus, 90 iterations): everything a
+//                        user waits for (initialisation, prediction stage, simulation stage).
+//   Nlarx5_Sim_{Nlid,Ceres}     the simulation-focus stage alone (47 parameters, 3994 free-run
+//                        residuals, measured initial past) from the same start, ≤ 90 iterations.
+//   Nlhw2_{Nlid,Ceres}   pwlinear(10) → B/F [3 3 0] → pwlinear(10), 46 parameters, zero initial
+//                        state, ≤ 200 iterations from nlid's data-driven start.
+//   Throttle_{Nlid,Ceres} the study's grey-box equation, 4 parameters, RK4, ≤ 100 iterations.
+//
+// Both sides: Levenberg–Marquardt with forward-mode AD Jacobians (nlid: Dual through the model's
+// own simulate; Ceres: AutoDiffCostFunction + Jet through a templated functor of the same
+// residuals, DENSE_QR, one thread). Before timing, the residual vectors of both are compared at
+// the start (they must agree to 1e-9). Counters: final cost ½Σr², iterations. The ratio table
+// checks "nlid ≥ 2× faster"; the cost check is printed beside it.
+// Results, machine and command: docs/performance.md.
+#include <benchmark/benchmark.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <span>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "nlid/estimation/autodiff.hpp"
+#include "nlid/estimation/levenberg_marquardt.hpp"
+#include "nlid/models/estimate.hpp"
+#include "nlid/models/greybox_problem.hpp"
+#include "nlid/models/integrators.hpp"
+#include "perf_models.hpp"
+
+#ifdef NLID_HAVE_CERES
+#include <ceres/ceres.h>
+#endif
+
+namespace {
+
+using nlid::InitialCondition;
+
+const nlid::Dataset& data12() {
+  static const nlid::Dataset d{perf::throttle_data(1), perf::throttle_data(2)};
+  return d;
+}
+
+std::map<std::string, double>& final_costs() {
+  static std::map<std::string, double> c;
+  return c;
+}
+
+void fail(const std::string& what) {
+  std::fprintf(stderr, "estimation_benchmark: %s\n", what.c_str());
+  std::exit(1);
+}
+
+// ---- the same residuals, written once as a templated functor for Ceres ---------------------------
+
+// nlhw2 from rest: w = f(u), x = B/F w (TDF-II), ŷ = h(x), r = ŷ − y. Breakpoint tables are
+// built once per evaluation (xₖ = x_{k−1} + exp γₖ, the same parametrisation as nlid's PwLinear).
+struct Nlhw2Residuals {
+  const nlid::Dataset* data;
+  template <class T>
+  struct Table {
+    T x[10], y[10];
+    T operator()(const T& v) const {
+      int k = 0;
+      while (k < 8 && !(v < x[k + 1])) ++k;
+      return y[k] + (y[k + 1] - y[k]) / (x[k + 1] - x[k]) * (v - x[k]);
+    }
+  };
+  template <class T>
+  static Table<T> table(const T* p) {
+    using std::exp;
+    Table<T> t;
+    t.x[0] = p[0];
+    for (int k = 1; k < 10; ++k) t.x[k] = t.x[k - 1] + exp(p[k]);
+    for (int k = 0; k < 10; ++k) t.y[k] = p[10 + k];
+    return t;
+  }
+  template <class T>
+  bool operator()(const T* th, T* res) const {
+    const Table<T> f = table(th), h = table(th + 26);
+    long off = 0;
+    for (const auto& e : *data) {
+      T s0(0.0), s1(0.0), s2(0.0);
+      for (Eigen::Index t = 0; t < e.size(); ++t) {
+        const T w = f(T(e.u()(t, 0)));
+        const T x = s0 + th[20] * w;
+        s0 = s1 + th[21] * w - th[23] * x;
+        s1 = s2 + th[22] * w - th[24] * x;
+        s2 = -th[25] * x;
+        res[off++] = h(x) - e.y()(t, 0);
+      }
+    }
+    return true;
+  }
+};
+
+// Grey-box throttle from rest at zero, RK4 with nlid's sub-step rule, residuals weighted by w.
+struct ThrottleResiduals {
+  const nlid::Dataset* data;
+  double weight;
+  template <class T>
+  static T acc(const T& pos, const T& vel, double uk, const T* p) {
+    using std::fmax;  // Ceres' Jet offers fmax/fmin (equal to max/min for numbers)
+    using std::fmin;
+    const T stop = fmax(pos, T(90.0)) - 90.0 + fmin(pos, T(15.0)) - 15.0;
+    return p[3] * uk - p[0] * vel - p[1] * pos - p[2] * stop;
+  }
+  template <class T>
+  bool operator()(const T* p, T* res) const {
+    const double pv[4] = {value(p[0]), value(p[1]), value(p[2]), value(p[3])};
+    const double ts = data->ts();
+    const int sub = nlid::substeps_for(ts, perf::StudyThrottle{}.spectral_radius(pv), nlid::IntegratorOptions{});
+    const double h = ts / sub;
+    long off = 0;
+    for (const auto& e : *data) {
+      T p0(0.0), v0(0.0);
+      for (Eigen::Index t = 0; t < e.size(); ++t) {
+        res[off++] = weight * (p0 - e.y()(t, 0));
+        if (t + 1 == e.size()) break;
+        const double uk = e.u()(t, 0);
+        for (int i = 0; i < sub; ++i) {
+          const T k1p = v0, k1v = acc(p0, v0, uk, p);
+          const T k2p = v0 + 0.5 * h * k1v, k2v = acc(T(p0 + 0.5 * h * k1p), T(v0 + 0.5 * h * k1v), uk, p);
+          const T k3p = v0 + 0.5 * h * k2v, k3v = acc(T(p0 + 0.5 * h * k2p), T(v0 + 0.5 * h * k2v), uk, p);
+          const T k4p = v0 + h * k3v, k4v = acc(T(p0 + h * k3p), T(v0 + h * k3v), uk, p);
+          p0 += h / 6.0 * (k1p + 2.0 * (k2p + k3p) + k4p);
+          v0 += h / 6.0 * (k1v + 2.0 * (k2v + k3v) + k4v);
+        }
+      }
+    }
+    return true;
+  }
+  static double value(double x) { return x; }
+#ifdef NLID_HAVE_CERES
+  template <int N>
+  static double value(const ceres::Jet<double, N>& x) {
+    return x.a;
+  }
+#endif
+};
+
+// ---- problems: start point and the nlid residual functor ---------------------------------------------
+
+struct Nlarx5Setup {
+  perf::Nlarx5 model;
+  Eigen::VectorXd theta0;
+  std::vector<nlid::detail::EstimationSegment> segs;
+  double limit = 0;
+};
+
+const Nlarx5Setup& nlarx5_setup() {
+  static const Nlarx5Setup s = [] {
+    Nlarx5Setup st;
+    // nlid's own start for the simulation stage: data-driven initialisation + 20 prediction
+    // iterations (what estimate() does before the simulation stage).
+    nlid::EstimateOptions o;
+    o.focus = nlid::Focus::prediction;
+    o.solver.max_iterations = 20;
+    st.model = nlid::estimate(perf::Nlarx5{}, data12(), o);
+    st.theta0 = st.model.parameters();
+    Eigen::VectorXd yall(data12().total_samples());
+    Eigen::Index k = 0;
+    for (const auto& e : data12()) {
+      nlid::detail::EstimationSegment seg;
+      seg.u = &e.u();
+      seg.y = e.y().col(0);
+      seg.start = st.model.history_length();
+      seg.x0 = st.model.measured_state(e.u(), seg.y, seg.start);
+      st.segs.push_back(seg);
+      yall.segment(k, e.size()) = seg.y;
+      k += e.size();
+    }
+    st.limit = nlid::detail::divergence_limit(yall);
+    return st;
+  }();
+  return s;
+}
+
+using Nlarx5Functor = nlid::detail::SimulationResiduals<perf::Nlarx5, perf::kNlarx5Params>;
+
+struct Nlhw2Setup {
+  perf::Nlhw2 model;
+  Eigen::VectorXd theta0;
+  std::vector<nlid::detail::EstimationSegment> segs;
+  double limit = 0;
+};
+
+const Nlhw2Setup& nlhw2_setup() {
+  static const Nlhw2Setup s = [] {
+    Nlhw2Setup st;
+    nlid::EstimateOptions o;
+    o.solver.max_iterations = 0;  // nlid's data-driven initialisation only
+    st.model = nlid::estimate(perf::Nlhw2{}, data12(), o);
+    st.theta0 = st.model.parameters();
+    Eigen::VectorXd yall(data12().total_samples());
+    Eigen::Index k = 0;
+    for (const auto& e : data12()) {
+      nlid::detail::EstimationSegment seg;
+      seg.u = &e.u();
+      seg.y = e.y().col(0);
+      st.segs.push_back(seg);
+      yall.segment(k, e.size()) = seg.y;
+      k += e.size();
+    }
+    st.limit = nlid::detail::divergence_limit(yall);
+    return st;
+  }();
+  return s;
+}
+
+using Nlhw2Functor = nlid::detail::SimulationResiduals<perf::Nlhw2, perf::kNlhw2Params>;
+
+// A rough physical guess (not the optimum): damping, spring, stop stiffness, gain.
+Eigen::VectorXd throttle_theta0() { return (Eigen::Vector4d() << 15.0, 80.0, 5e3, 6000.0).finished(); }
+
+nlid::GreyBoxProblem<perf::StudyThrottle> throttle_problem() {
+  return nlid::GreyBoxProblem<perf::StudyThrottle>(perf::StudyThrottle{}, nlid::IntegratorOptions{}, data12(),
+                                                   InitialCondition::zero);
+}
+
+// ---- residual agreement (the comparison is void unless both sides minimise the same thing) -------------
+
+template <class Functor, class CeresFunctor>
+void check_same(const char* name, const Functor& f, const CeresFunctor& c, const Eigen::VectorXd& th) {
+  const auto m = static_cast<std::size_t>(f.num_residuals());
+  std::vector<double> a(m), b(m);
+  if (!f.template residuals<double>(std::span<const double>(th.data(), static_cast<std::size_t>(th.size())), std::span<double>(a)))
+    fail(name);
+  c(th.data(), b.data());
+  double worst = 0, scale = 0;
+  for (std::size_t i = 0; i < m; ++i) {
+    worst = std::max(worst, std::abs(a[i] - b[i]));
+    scale = std::max(scale, std::abs(a[i]));
+  }
+  if (!(worst <= 1e-9 * (1 + scale))) fail(std::string(name) + ": nlid and Ceres residuals differ by " + std::to_string(worst));
+}
+
+void report(benchmark::State& state, const std::string& key, double cost, int iterations) {
+  state.counters["final_cost"] = cost;
+  state.counters["iterations"] = iterations;
+  final_costs()[key] = cost;
+}
+
+nlid::LmOptions lm_options(int iterations) {
+  nlid::LmOptions o;
+  o.max_iterations = iterations;
+  return o;
+}
+
+// ---- nlid ------------------------------------------------------------------------------------------------
+
+void Nlarx5_Full_Nlid(benchmark::State& state) {
+  nlid::EstimateOptions o;
+  o.focus = nlid::Focus::simulation;
+  o.solver.max_iterations = 90;
+  double cost = 0;
+  int it = 0;
+  for (auto _ : state) {
+    const perf::Nlarx5 m = nlid::estimate(perf::Nlarx5{}, data12(), o);
+    cost = m.report().final_cost;
+    it = m.report().iterations;
+  }
+  report(state, "Nlarx5_Full_Nlid", cost, it);
+}
+
+void Nlarx5_Sim_Nlid(benchmark::State& state) {
+  const auto& s = nlarx5_setup();
+  nlid::AutoDiffProblem<Nlarx5Functor> problem(Nlarx5Functor(s.model, s.segs, {}, InitialCondition::measured, s.limit));
+  nlid::LmSummary sum;
+  for (auto _ : state) {
+    Eigen::Matrix<double, perf::kNlarx5Params, 1> th = s.theta0;
+    sum = nlid::solve_least_squares(problem, th, lm_options(90));
+  }
+  report(state, "Nlarx5_Sim_Nlid", sum.final_cost, sum.iterations);
+}
+
+void Nlhw2_Nlid(benchmark::State& state) {
+  const auto& s = nlhw2_setup();
+  nlid::AutoDiffProblem<Nlhw2Functor> problem(Nlhw2Functor(s.model, s.segs, {}, InitialCondition::zero, s.limit));
+  nlid::LmSummary sum;
+  for (auto _ : state) {
+    Eigen::Matrix<double, perf::kNlhw2Params, 1> th = s.theta0;
+    sum = nlid::solve_least_squares(problem, th, lm_options(200));
+  }
+  report(state, "Nlhw2_Nlid", sum.final_cost, sum.iterations);
+}
+
+void Throttle_Nlid(benchmark::State& state) {
+  const auto problem = throttle_problem();
+  nlid::LmSummary sum;
+  for (auto _ : state) {
+    Eigen::VectorXd th = throttle_theta0();
+    sum = nlid::solve_least_squares(problem, th, lm_options(100));
+  }
+  report(state, "Throttle_Nlid", sum.final_cost, sum.iterations);
+}
+
+// ---- prototype of the design fix: structured simulation Jacobian ---------------------------------------
+//
+// Forward AD through the recursion (nlid's Dual, Ceres' Jet) costs O(P) per arithmetic operation
+// of the model: every operation carries all 47 derivatives. The simulation Jacobian has more
+// structure (Ljung 1999, eq. 10.43):
+//
+//     S(t) = ∂ŷ(t)/∂θ = ∂F/∂θ(φ(t)) + Σ_{i=1..na} ∂F/∂ŷ(t−i) · S(t−i),
+//
+// i.e. one local gradient of F per sample (O(P) in total, not per operation) and na·P
+// multiply-adds. This problem evaluates exactly the residuals of SimulationResiduals with that
+// recursion and the sigmoid network's local gradient written out. It stands for the proposed
+// library change (a `gradient` member on nonlinearities, or a per-sample reverse pass, used by
+// Nlarx's simulation-focus problem) and is checked against nlid's AD Jacobian before timing.
+class Nlarx5Sensitivity {
+ public:
+  static constexpr int num_params = perf::kNlarx5Params;
+  Nlarx5Sensitivity(const perf::Nlarx5& m, const nlid::Dataset& d) : data_(&d) {
+    for (int j = 0; j < 6; ++j) {
+      r_[j] = m.nonlinearity().center()(j);
+      is_[j] = 1.0 / m.nonlinearity().scale()(j);
+    }
+    for (const auto& e : d) m_ += e.size() - 3;
+  }
+  int num_parameters() const { return num_params; }
+  Eigen::Index num_residuals() const { return m_; }
+  bool evaluate(const Eigen::Matrix<double, num_params, 1>& th, Eigen::VectorXd& res,
+                Eigen::Matrix<double, Eigen::Dynamic, num_params>* J) const {
+    using Row = Eigen::Matrix<double, 1, num_params>;
+    Eigen::Index off = 0;
+    for (const auto& e : *data_) {
+      const Eigen::MatrixXd& u = e.u();
+      const Eigen::MatrixXd& y = e.y();
+      double y1 = y(2, 0), y2 = y(1, 0), y3 = y(0, 0), u1 = u(2, 0), u2 = u(1, 0);
+      Eigen::Index s1 = -1, s2 = -1, s3 = -1;  // rows of J holding S(t−1), S(t−2), S(t−3); −1: zero
+      for (Eigen::Index t = 3; t < u.rows(); ++t, ++off) {
+        const double x[6] = {y1, y2, y3, u(t, 0), u1, u2};
+        double z[6];
+        for (int j = 0; j < 6; ++j) z[j] = (x[j] - r_[j]) * is_[j];
+        double g = th(6), dz[6];
+        for (int j = 0; j < 6; ++j) {
+          g += th(j) * z[j];
+          dz[j] = th(j);
+        }
+        double sig[5], w[5];
+        for (int k = 0; k < 5; ++k) {
+          double sk = th(42 + k);
+          for (int j = 0; j < 6; ++j) sk += th(12 + 6 * k + j) * z[j];
+          sig[k] = sk >= 0 ? 1.0 / (1.0 + std::exp(-sk)) : std::exp(sk) / (1.0 + std::exp(sk));
+          g += th(7 + k) * sig[k];
+          w[k] = th(7 + k) * sig[k] * (1.0 - sig[k]);  // ∂g/∂s_k
+          for (int j = 0; j < 6; ++j) dz[j] += w[k] * th(12 + 6 * k + j);
+        }
+        if (!std::isfinite(g)) return false;
+        res(off) = g - y(t, 0);
+        if (J) {
+          Row row;
+          for (int j = 0; j < 6; ++j) row(j) = z[j];
+          row(6) = 1.0;
+          for (int k = 0; k < 5; ++k) {
+            row(7 + k) = sig[k];
+            for (int j = 0; j < 6; ++j) row(12 + 6 * k + j) = w[k] * z[j];
+            row(42 + k) = w[k];
+          }
+          // Past outputs are regressors 0..2: ∂g/∂ŷ(t−i) = ∂g/∂z_{i−1} / s_{i−1}.
+          if (s1 >= 0) row += (dz[0] * is_[0]) * J->row(s1);
+          if (s2 >= 0) row += (dz[1] * is_[1]) * J->row(s2);
+          if (s3 >= 0) row += (dz[2] * is_[2]) * J->row(s3);
+          J->row(off) = row;
+          s3 = s2;
+          s2 = s1;
+          s1 = off;
+        }
+        y3 = y2;
+        y2 = y1;
+        y1 = g;
+        u2 = u1;
+        u1 = u(t, 0);
+      }
+    }
+    return true;
+  }
+
+ private:
+  const nlid::Dataset* data_;
+  double r_[6], is_[6];
+  Eigen::Index m_ = 0;
+};
+
+void Nlarx5_Sim_NlidSensitivity(benchmark::State& state) {
+  const auto& s = nlarx5_setup();
+  const Nlarx5Sensitivity problem(s.model, data12());
+  {  // same residuals and Jacobian as nlid's AD problem at the start
+    nlid::AutoDiffProblem<Nlarx5Functor> ad(Nlarx5Functor(s.model, s.segs, {}, InitialCondition::measured, s.limit));
+    const Eigen::Index m = problem.num_residuals();
+    Eigen::VectorXd r1(m), r2(m);
+    Eigen::Matrix<double, Eigen::Dynamic, perf::kNlarx5Params> J1(m, perf::kNlarx5Params), J2(m, perf::kNlarx5Params);
+    const Eigen::Matrix<double, perf::kNlarx5Params, 1> th = s.theta0;
+    if (!ad.evaluate(th, r1, &J1) || !problem.evaluate(th, r2, &J2)) fail("sensitivity: evaluation");
+    const double dj = (J1 - J2).cwiseAbs().maxCoeff() / (1.0 + J1.cwiseAbs().maxCoeff());
+    const double dr = (r1 - r2).cwiseAbs().maxCoeff() / (1.0 + r1.cwiseAbs().maxCoeff());
+    if (!(dj <= 1e-9 && dr <= 1e-12)) fail("sensitivity Jacobian differs from AD: " + std::to_string(dj));
+  }
+  nlid::LmSummary sum;
+  for (auto _ : state) {
+    Eigen::Matrix<double, perf::kNlarx5Params, 1> th = s.theta0;
+    sum = nlid::solve_least_squares(problem, th, lm_options(90));
+  }
+  report(state, "Nlarx5_Sim_NlidSensitivity", sum.final_cost, sum.iterations);
+}
+
+// ---- Ceres -------------------------------------------------------------------------------------------------
+
+#ifdef NLID_HAVE_CERES
+template <int P, class F>
+void run_ceres(benchmark::State& state, const std::string& key, F* functor, long residuals, const Eigen::VectorXd& start,
+               int iterations) {
+  ceres::Solver::Options options;
+  options.minimizer_type = ceres::TRUST_REGION;
+  options.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
+  options.linear_solver_type = ceres::DENSE_QR;
+  options.max_num_iterations = iterations;
+  options.num_threads = 1;
+  options.logging_type = ceres::SILENT;
+  // The tolerances nlid uses by default (LmOptions), so neither side stops early by fiat.
+  options.function_tolerance = 1e-10;
+  options.gradient_tolerance = 1e-10;
+  options.parameter_tolerance = 1e-8;
+  ceres::Solver::Summary summary;
+  for (auto _ : state) {
+    std::vector<double> th(start.data(), start.data() + start.size());
+    ceres::Problem::Options po;
+    po.cost_function_ownership = ceres::TAKE_OWNERSHIP;
+    ceres::Problem problem(po);
+    auto* cost = new ceres::AutoDiffCostFunction<F, ceres::DYNAMIC, P>(functor, static_cast<int>(residuals),
+                                                                      ceres::DO_NOT_TAKE_OWNERSHIP);
+    problem.AddResidualBlock(cost, nullptr, th.data());
+    ceres::Solve(options, &problem, &summary);
+  }
+  report(state, key, summary.final_cost, static_cast<int>(summary.iterations.size()) - 1);
+}
+
+void Nlarx5_Sim_Ceres(benchmark::State& state) {
+  const auto& s = nlarx5_setup();
+  static perf::Nlarx5Residuals f(s.model, data12());
+  const Nlarx5Functor nf(s.model, s.segs, {}, InitialCondition::measured, s.limit);
+  check_same("nlarx5", nf, f, s.theta0);
+  run_ceres<perf::kNlarx5Params>(state, "Nlarx5_Sim_Ceres", &f, nf.num_residuals(), s.theta0, 90);
+}
+
+void Nlhw2_Ceres(benchmark::State& state) {
+  const auto& s = nlhw2_setup();
+  static Nlhw2Residuals f{&data12()};
+  const Nlhw2Functor nf(s.model, s.segs, {}, InitialCondition::zero, s.limit);
+  check_same("nlhw2", nf, f, s.theta0);
+  run_ceres<perf::kNlhw2Params>(state, "Nlhw2_Ceres", &f, nf.num_residuals(), s.theta0, 200);
+}
+
+void Throttle_Ceres(benchmark::State& state) {
+  const auto problem = throttle_problem();
+  const Eigen::VectorXd th0 = throttle_theta0();
+  Eigen::VectorXd r(problem.num_residuals());
+  if (!problem.evaluate(th0, r, nullptr)) fail("throttle: nlid residuals at the start");
+  // nlid weights residuals by 1/std(y); read the weight off its residual vector.
+  static ThrottleResiduals f{&data12(), 1.0};
+  std::vector<double> raw(static_cast<std::size_t>(r.size()));
+  f.weight = 1.0;
+  f(th0.data(), raw.data());
+  Eigen::Index best = 0;
+  for (Eigen::Index i = 0; i < r.size(); ++i)
+    if (std::abs(raw[static_cast<std::size_t>(i)]) > std::abs(raw[static_cast<std::size_t>(best)])) best = i;
+  f.weight = r(best) / raw[static_cast<std::size_t>(best)];
+  f(th0.data(), raw.data());
+  const double worst = (r - Eigen::Map<const Eigen::VectorXd>(raw.data(), r.size())).cwiseAbs().maxCoeff();
+  if (!(worst <= 1e-9 * (1 + r.cwiseAbs().maxCoeff()))) fail("throttle: nlid and Ceres residuals differ by " + std::to_string(worst));
+  run_ceres<4>(state, "Throttle_Ceres", &f, r.size(), th0, 100);
+}
+#endif
+
+}  // namespace
+
+BENCHMARK(Nlarx5_Full_Nlid)->Unit(benchmark::kMillisecond)->Iterations(3);
+BENCHMARK(Nlarx5_Sim_Nlid)->Unit(benchmark::kMillisecond)->Iterations(3);
+BENCHMARK(Nlarx5_Sim_NlidSensitivity)->Unit(benchmark::kMillisecond)->Iterations(3);
+#ifdef NLID_HAVE_CERES
+BENCHMARK(Nlarx5_Sim_Ceres)->Unit(benchmark::kMillisecond)->Iterations(3);
+#endif
+BENCHMARK(Nlhw2_Nlid)->Unit(benchmark::kMillisecond)->Iterations(3);
+#ifdef NLID_HAVE_CERES
+BENCHMARK(Nlhw2_Ceres)->Unit(benchmark::kMillisecond)->Iterations(3);
+#endif
+BENCHMARK(Throttle_Nlid)->Unit(benchmark::kMillisecond)->Iterations(3);
+#ifdef NLID_HAVE_CERES
+BENCHMARK(Throttle_Ceres)->Unit(benchmark::kMillisecond)->Iterations(3);
+#endif
+
+int main(int argc, char** argv) {
+  const int rc = perf::run_with_ratios(argc, argv,
+                                       {
+                                           {"nlarx5 simulation stage: nlid speed / Ceres speed", "Nlarx5_Sim_Nlid/iterations:3",
+                                            "Nlarx5_Sim_Ceres/iterations:3", 2.0},
+                                           {"nlarx5 stage, structured Jacobian (prototype) / Ceres",
+                                            "Nlarx5_Sim_NlidSensitivity/iterations:3", "Nlarx5_Sim_Ceres/iterations:3", 0.0},
+                                           {"nlhw2: nlid speed / Ceres speed", "Nlhw2_Nlid/iterations:3", "Nlhw2_Ceres/iterations:3", 2.0},
+                                           {"throttle grey-box: nlid speed / Ceres speed", "Throttle_Nlid/iterations:3",
+                                            "Throttle_Ceres/iterations:3", 2.0},
+                                       });
+  const auto& c = final_costs();
+  auto line = [&](const char* what, const char* a, const char* b) {
+    if (!c.count(a) || !c.count(b)) return;
+    const double x = c.at(a), y = c.at(b);
+    std::printf("%-58s nlid %.6g  Ceres %.6g  %s\n", what, x, y, x <= y * (1 + 1e-6) ? "MET (nlid <= Ceres)" : "MISSED");
+  };
+  std::printf("\nfinal cost 1/2 sum r^2 (nlid must reach an equal or lower cost)\n");
+  line("nlarx5 simulation stage", "Nlarx5_Sim_Nlid", "Nlarx5_Sim_Ceres");
+  line("nlarx5 stage, structured Jacobian (prototype)", "Nlarx5_Sim_NlidSensitivity", "Nlarx5_Sim_Ceres");
+  line("nlhw2", "Nlhw2_Nlid", "Nlhw2_Ceres");
+  line("throttle grey-box", "Throttle_Nlid", "Throttle_Ceres");
+  if (c.count("Nlarx5_Full_Nlid")) std::printf("%-58s %s\n", "nlarx5 full estimate() <= 1 s", "(see Nlarx5_Full_Nlid time)");
+  return rc;
+}
