@@ -105,6 +105,43 @@ TEST_CASE("sigmoid-net NARX: the estimated model fits fresh noise-free data > 99
   CHECK(est.regressor_names() == std::vector<std::string>{"y(t-1)", "y(t-2)", "u(t)"});  // the data's channel names
 }
 
+TEST_CASE("multi-start NARX: starts compared by estimation cost, the cheapest continued", "[models][estimate]") {
+  using Model = nlid::Nlarx<nlid::LaggedRegressors<2, 1, 0>, nlid::SigmoidNet<3, 2>>;
+  // A plant with a sign-like (steep) nonlinearity in the velocity: friction-like.
+  const Eigen::MatrixXd u = steps(800, -1.0, 1.0, 21);
+  Eigen::VectorXd y = Eigen::VectorXd::Zero(800);
+  for (Eigen::Index t = 2; t < 800; ++t) {
+    const double v = y(t - 1) - y(t - 2);
+    y(t) = 1.5 * y(t - 1) - 0.6 * y(t - 2) + 0.2 * u(t, 0) - 0.02 * std::tanh(50.0 * v);
+  }
+  const nlid::Dataset train{nlid::Experiment(u, y, 0.1, "train")};
+  nlid::EstimateOptions o;
+  o.focus = nlid::Focus::simulation;
+  o.solver.max_iterations = 40;
+  const Model one = nlid::estimate(Model{}, train, o);
+  CHECK(one.report().start_costs.empty());
+  CHECK(one.report().chosen_start == -1);
+  o.starts = 3;
+  o.start_iterations = 10;
+  const Model multi = nlid::estimate(Model{}, train, o);
+  const auto& costs = multi.report().start_costs;
+  REQUIRE(costs.size() == 3);
+  const int k = multi.report().chosen_start;
+  REQUIRE(k >= 0);
+  for (double c : costs) CHECK(costs[static_cast<std::size_t>(k)] <= c);
+  CHECK(multi.report().final_cost <= costs[static_cast<std::size_t>(k)]);  // the continuation only improves
+  CHECK(multi.describe().find("3 data-driven starts") != std::string::npos);
+  // Start 0 of a SigmoidNet is its default initialisation.
+  nlid::SigmoidNet<3, 2> a, b;
+  const Eigen::MatrixXd X = Eigen::MatrixXd::Random(200, 3);
+  const Eigen::VectorXd yy = X.rowwise().sum().array().tanh();
+  Eigen::VectorXd ta(a.num_parameters()), tb(b.num_parameters());
+  a.initialize(X, yy, nlid::detail::as_span(ta));
+  b.initialize(X, yy, nlid::detail::as_span(tb), 0);
+  CHECK(ta == tb);
+  CHECK_THROWS_AS(b.initialize(X, yy, nlid::detail::as_span(tb), -1), nlid::Error);
+}
+
 TEST_CASE("multi-experiment simulation focus with estimated initial states", "[models][estimate]") {
   using Model = nlid::Nlarx<nlid::LaggedRegressors<2, 1, 0>, nlid::LinearMap<3>>;
   Model truth;

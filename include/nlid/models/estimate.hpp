@@ -77,6 +77,16 @@ struct EstimateOptions {
   /// Hammerstein–Wiener: iterations of the output-error refinement of the linear block during
   /// initialisation.
   int linear_iterations = 50;
+  /// Nlarx: number of data-driven starts compared by estimation cost (used when `initialize` is
+  /// true and the nonlinearity offers alternative starts, i.e. has
+  /// `initialize(X, y, theta, int start)`; SigmoidNet does). Every start runs the prediction
+  /// stage and `start_iterations` iterations of the main criterion; the start with the lowest
+  /// cost then gets the rest of `solver.max_iterations`, so the main stage of the returned model
+  /// never exceeds `solver.max_iterations` in total. 1: the single default start.
+  int starts = 1;
+  /// Nlarx with `starts` > 1: iterations of the main criterion each start runs before they are
+  /// compared (counted against `solver.max_iterations` for the winner).
+  int start_iterations = 30;
   /// Solver options of the main stage: `max_iterations`, `loss` (robust), `callback`,
   /// `lower_bounds`/`upper_bounds`/`fixed` (sized to the model's parameters; entries for
   /// estimated initial states are added automatically), tolerances.
@@ -435,11 +445,13 @@ Nlarx<R, F> estimate(Nlarx<R, F> model, const Dataset& data, const EstimateOptio
   const double limit = detail::divergence_limit(y_all);
 
   Eigen::VectorXd theta = model.parameters();
+  Eigen::MatrixXd x;
+  Eigen::VectorXd yr;
   if (options.initialize) {
     Eigen::Index rows = 0;
     for (const auto& s : segs) rows += s.y.size() - n0;
-    Eigen::MatrixXd x(rows, model.regressors().size());
-    Eigen::VectorXd yr(rows);
+    x.resize(rows, model.regressors().size());
+    yr.resize(rows);
     Eigen::Index k = 0;
     for (std::size_t i = 0; i < segs.size(); ++i) {
       const Eigen::Index len = segs[i].y.size() - n0;
@@ -449,21 +461,24 @@ Nlarx<R, F> estimate(Nlarx<R, F> model, const Dataset& data, const EstimateOptio
     }
     model.nonlinearity().initialize(x, yr, detail::as_span(theta));
   }
-  const Eigen::VectorXd theta_regression = theta;
 
   EstimationReport report;
   LmSummary summary;
   int iterations = 0;
-  // Stage 1: one-step prediction errors (the whole estimation for prediction focus).
-  if (options.focus == Focus::prediction || options.initialize) {
-    LmOptions o = detail::extend_options(options.solver, model.num_parameters(), 0, model.parameter_names());
-    if (options.focus == Focus::simulation) o.max_iterations = std::min(o.max_iterations, options.prediction_iterations);
-    summary = detail::solve_functor<M::num_params>(detail::PredictionResiduals<M>(model, segs), theta, o);
-    iterations += summary.iterations;
-  }
-  if (options.focus == Focus::simulation) {
+  // One start: the prediction stage from `th` (the whole estimation for prediction focus), then
+  // for simulation focus the free-run stage with `main_iterations`; `fallback` is the start to
+  // use if the refined predictor diverges in free run. Updates th, segs, summary, iterations.
+  auto run_start = [&](Eigen::VectorXd& th, const Eigen::VectorXd& fallback, int main_iterations) {
+    if (options.focus == Focus::prediction || options.initialize) {
+      LmOptions o = detail::extend_options(options.solver, model.num_parameters(), 0, model.parameter_names());
+      if (options.focus == Focus::simulation) o.max_iterations = std::min(o.max_iterations, options.prediction_iterations);
+      else o.max_iterations = main_iterations;
+      summary = detail::solve_functor<M::num_params>(detail::PredictionResiduals<M>(model, segs), th, o);
+      iterations += summary.iterations;
+    }
+    if (options.focus != Focus::simulation) return;
     // Per-experiment start; fall back to the regression start if the refined predictor diverges.
-    auto starts_ok = [&](const Eigen::VectorXd& th, long* bad) {
+    auto starts_ok = [&](const Eigen::VectorXd& t, long* bad) {
       for (std::size_t i = 0; i < segs.size(); ++i) {
         auto& s = segs[i];
         s.start = ic == InitialCondition::measured ? n0 : 0;
@@ -475,7 +490,7 @@ Nlarx<R, F> estimate(Nlarx<R, F> model, const Dataset& data, const EstimateOptio
           s.x0.resize(0);
         }
         Eigen::VectorXd yh;
-        if (!detail::simulate_segment(model, s, th, ic, yh, limit)) {
+        if (!detail::simulate_segment(model, s, t, ic, yh, limit)) {
           *bad = static_cast<long>(i);
           return false;
         }
@@ -483,17 +498,95 @@ Nlarx<R, F> estimate(Nlarx<R, F> model, const Dataset& data, const EstimateOptio
       return true;
     };
     long bad = -1;
-    if (!starts_ok(theta, &bad)) {
-      theta = theta_regression;
-      if (!starts_ok(theta, &bad)) {
+    if (!starts_ok(th, &bad)) {
+      th = fallback;
+      if (!starts_ok(th, &bad)) {
         throw Error("simulation-focus estimation cannot start: the initial model's simulation of " +
                         detail::experiment_label(data[static_cast<std::size_t>(bad)], bad) +
                         " diverges (try prediction focus, other orders or fewer units)",
                     detail::experiment_location(bad));
       }
     }
-    summary = detail::simulation_stage(model, segs, ic, theta, options.solver, limit);
+    LmOptions o = options.solver;
+    o.max_iterations = main_iterations;
+    summary = detail::simulation_stage(model, segs, ic, th, o, limit);
     iterations += summary.iterations;
+  };
+
+  bool multi = false;
+  if constexpr (requires(F& f, const Eigen::MatrixXd& X, const Eigen::VectorXd& Y, std::span<double> t) { f.initialize(X, Y, t, 1); }) {
+    multi = options.initialize && options.starts > 1;
+  }
+  if (!multi) {
+    const Eigen::VectorXd theta_regression = theta;
+    run_start(theta, theta_regression, options.solver.max_iterations);
+  } else {
+    if constexpr (requires(F& f, const Eigen::MatrixXd& X, const Eigen::VectorXd& Y, std::span<double> t) { f.initialize(X, Y, t, 1); }) {
+      // Several data-driven starts, each refined by `start_iterations` of the main criterion;
+      // the lowest cost wins and continues (Sjöberg et al. 1995, sec. 7: the criterion, not luck,
+      // decides between local minima). Deterministic: start k is the nonlinearity's variant k.
+      const int pilot = std::min(std::max(options.start_iterations, 0), options.solver.max_iterations);
+      double best_cost = std::numeric_limits<double>::infinity();
+      Eigen::VectorXd best_theta;
+      std::vector<detail::EstimationSegment> best_segs;
+      int best_iterations = 0;
+      LmSummary best_summary;
+      std::optional<Error> first_error;
+      std::vector<double> start_costs;
+      int chosen = -1;
+      for (int k = 0; k < options.starts; ++k) {
+        start_costs.push_back(std::numeric_limits<double>::infinity());
+        Eigen::VectorXd th = theta;
+        if (k > 0) model.nonlinearity().initialize(x, yr, detail::as_span(th), k);
+        const Eigen::VectorXd th0 = th;
+        iterations = 0;
+        try {
+          run_start(th, th0, pilot);
+        } catch (const Error& e) {  // this start cannot run; others may
+          if (!first_error) first_error = e;
+          continue;
+        }
+        if (std::isfinite(summary.final_cost)) start_costs.back() = summary.final_cost;
+        if (std::isfinite(summary.final_cost) && summary.final_cost < best_cost) {
+          chosen = k;
+          best_cost = summary.final_cost;
+          best_theta = th;
+          best_segs = segs;
+          best_iterations = iterations;
+          best_summary = summary;
+        }
+      }
+      if (!std::isfinite(best_cost)) {
+        if (first_error) throw *first_error;
+        throw Error("no start of the estimation gave a finite cost", at_parameter("starts"));
+      }
+      theta = best_theta;
+      segs = std::move(best_segs);
+      iterations = best_iterations;
+      summary = best_summary;
+      const int rest = options.solver.max_iterations - pilot;
+      if (rest > 0) {
+        LmOptions o = detail::extend_options(options.solver, model.num_parameters(), 0, model.parameter_names());
+        o.max_iterations = rest;
+        if (options.focus == Focus::simulation) {
+          LmOptions so = options.solver;
+          so.max_iterations = rest;
+          const LmSummary cont = detail::simulation_stage(model, segs, ic, theta, so, limit);
+          const double c0 = summary.initial_cost;
+          summary = cont;
+          summary.initial_cost = c0;
+          iterations += cont.iterations;
+        } else {
+          const LmSummary cont = detail::solve_functor<M::num_params>(detail::PredictionResiduals<M>(model, segs), theta, o);
+          const double c0 = summary.initial_cost;
+          summary = cont;
+          summary.initial_cost = c0;
+          iterations += cont.iterations;
+        }
+      }
+      report.start_costs = std::move(start_costs);
+      report.chosen_start = chosen;
+    }
   }
   model.set_parameters(theta);
 

@@ -32,6 +32,9 @@
 ///    and the linear term already in the model, repeatedly add the candidate that explains most
 ///    of the remaining residual, n times;
 /// 4. with the unit parameters b, c fixed, L, d and a by linear least squares on all samples.
+/// Alternative starts (`initialize(X, y, θ, k)`, compared by `EstimateOptions::starts`) extend
+/// the slope ladder by k rungs of ×2.5 (15.6, 39, 98, …), so the dictionary also offers units
+/// with a narrow transition, e.g. the sign of a velocity for Coulomb friction.
 /// The result is already a good fit (the dictionary covers the directions and places where the
 /// data bend), and a local optimiser (Levenberg–Marquardt) refines all of θ from there.
 ///
@@ -135,7 +138,19 @@ class SigmoidNet {
 
   /// Data-driven start (see file comment). X is N × m, y has N entries, θ has p entries.
   void initialize(const Eigen::MatrixXd& X, const Eigen::VectorXd& y, std::span<double> theta) {
+    initialize(X, y, theta, 0);
+  }
+
+  /// Alternative data-driven start number `start` ≥ 0 (0: the default start above). Start k
+  /// extends the dictionary's ladder of slopes β ∈ {1, 2.5, 6.25} by k further rungs of ×2.5
+  /// (15.6, 39, 98, …): steeper candidate units whose transition is narrow compared with the
+  /// spread of their projection — the near-discontinuous effects a smooth start misses, e.g. the
+  /// sign change of Coulomb friction at zero velocity, which is a tiny part of a velocity
+  /// projection's range. Which start is best is a matter of the estimation cost
+  /// (`EstimateOptions::starts` compares them). Throws naming "start" if start < 0.
+  void initialize(const Eigen::MatrixXd& X, const Eigen::VectorXd& y, std::span<double> theta, int start) {
     detail::check_init_data(X, y, theta.size(), m_, num_parameters(), 2, "SigmoidNet");
+    if (start < 0) throw Error("SigmoidNet: start must be >= 0, got " + std::to_string(start), at_parameter("start"));
     const Eigen::MatrixXd Z = norm_.fit(X);
     const auto rows = detail::subsample_rows(Z.rows(), 2000);
     const Eigen::MatrixXd Zs = detail::take_rows(Z, rows);
@@ -144,7 +159,8 @@ class SigmoidNet {
 
     // Candidate dictionary.
     const auto dirs = detail::projection_directions(Zs, std::min(48, std::max(16, 4 * m_)));
-    const std::array<double, 3> slopes{1.0, 2.5, 6.0};
+    std::vector<double> slopes{1.0, 2.5, 6.0};
+    for (int k = 0; k < start; ++k) slopes.push_back(6.25 * std::pow(2.5, k + 1));
     const int per_dir = static_cast<int>(slopes.size());
     const int levels = std::max(7, 2 * units_ / (per_dir * static_cast<int>(dirs.size())) + 2);
     std::vector<Eigen::VectorXd> cand_b;

@@ -32,6 +32,10 @@ struct EstimationReport {
   std::vector<std::string> data_names;     ///< estimation experiments
   std::vector<double> fit_percent;         ///< simulation fit (%) on each estimation experiment
   std::vector<Eigen::VectorXd> initial_states;  ///< estimated x0 per experiment (if estimated)
+  /// Multi-start estimation (`EstimateOptions::starts` > 1): cost of each start after its pilot
+  /// iterations (+∞ if it could not run), and the index of the start that was continued.
+  std::vector<double> start_costs;
+  int chosen_start = -1;   ///< −1: a single start
 };
 
 /// Readable name of an initial-condition policy.
@@ -132,6 +136,11 @@ inline std::string describe_report(const EstimationReport& r) {
                   std::to_string(r.iterations) + " iterations, " + format_value(r.seconds, 3) + " s, cost " +
                   format_value(r.initial_cost) + " -> " + format_value(r.final_cost) + "\n";
   if (!r.status.empty()) s += "    solver: " + r.status + "\n";
+  if (!r.start_costs.empty()) {
+    s += "    " + std::to_string(r.start_costs.size()) + " data-driven starts, cost after the pilot iterations:";
+    for (double c : r.start_costs) s += " " + format_value(c);
+    s += "; continued start " + std::to_string(r.chosen_start) + "\n";
+  }
   for (std::size_t i = 0; i < r.fit_percent.size(); ++i) {
     const std::string name = i < r.data_names.size() && !r.data_names[i].empty() ? r.data_names[i]
                                                                                   : "experiment " + std::to_string(i);
