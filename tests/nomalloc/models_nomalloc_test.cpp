@@ -15,6 +15,7 @@
 #include "nlid/models/estimate.hpp"
 #include "nlid/models/hammerstein_wiener.hpp"
 #include "nlid/models/nlarx.hpp"
+#include "nlid/nonlinearities/linear.hpp"
 #include "nlid/nonlinearities/piecewise_linear.hpp"
 #include "nlid/nonlinearities/sigmoid_network.hpp"
 #include "nlid/regressors.hpp"

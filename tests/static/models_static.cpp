@@ -26,6 +26,15 @@ template <class R, class F>
 concept FormsNlarx = requires { typename nlid::Nlarx<R, F>; };
 template <class In, class L, class Out>
 concept FormsHw = requires { typename nlid::HammersteinWiener<In, L, Out>; };
+// Negative checks must be dependent: a non-dependent invalid expression inside a requires
+// expression at namespace scope is a hard error, not `false`.
+template <class Lag, class Fn>
+concept MakesCustomRegressor = requires(Fn fn) { nlid::custom_regressor<Lag>("", fn); };
+template <class... R>
+concept FormsRegressorSet = requires { typename nlid::RegressorSet<R...>; };
+template <int Nb, int Nf, int Nk>
+concept FormsTransferFunction = requires { typename nlid::TransferFunctionBlock<Nb, Nf, Nk>; };
+inline auto identity = [](auto y) { return y; };
 
 using Lag210 = nlid::LaggedRegressors<2, 1, 0>;
 inline auto spring = nlid::custom_regressor<nlid::OutputLag<1>>(
@@ -41,9 +50,10 @@ static_assert(nlid::RegressorSet<nlid::OutputLags<3>, nlid::InputLags<2, 4, 1>>:
 static_assert(!nlid::Regressor<int> && !nlid::Regressor<nlid::LinearMap<3>>);
 inline auto double_only = [](double y) { return y; };
 static_assert(!nlid::RegressorFunction<decltype(double_only), 1>);
-static_assert(!requires { nlid::custom_regressor<nlid::OutputLag<1>>("", double_only); });
-static_assert(!requires { nlid::custom_regressor<int>("", [](auto y) { return y; }); });  // not a lag
-static_assert(!requires { typename nlid::RegressorSet<Lag210, int>; });
+static_assert(MakesCustomRegressor<nlid::OutputLag<1>, decltype(identity)>);
+static_assert(!MakesCustomRegressor<nlid::OutputLag<1>, decltype(double_only)>);
+static_assert(!MakesCustomRegressor<int, decltype(identity)>);  // not a lag
+static_assert(FormsRegressorSet<Lag210, Spring> && !FormsRegressorSet<Lag210, int>);
 
 // ---- Nlarx -----------------------------------------------------------------------------------
 static_assert(FormsNlarx<Lag210, nlid::LinearMap<3>>);
@@ -65,7 +75,7 @@ static_assert(FormsHw<nlid::PwLinear<5>, Tf330, nlid::PwLinear<5>>);
 static_assert(nlid::HammersteinWiener<nlid::PwLinear<5>, Tf330, nlid::PwLinear<5>>::num_params == 26);
 static_assert(!FormsHw<nlid::SigmoidNet<2, 3>, Tf330, nlid::Saturation>);  // input map of 2 inputs
 static_assert(!FormsHw<nlid::UnitGain, nlid::LinearMap<1>, nlid::Saturation>);  // not a LinearBlock
-static_assert(!requires { typename nlid::TransferFunctionBlock<0, 2, 1>; });     // nb >= 1
+static_assert(FormsTransferFunction<1, 2, 1> && !FormsTransferFunction<0, 2, 1>);  // nb >= 1
 static_assert(nlid::Model<nlid::HammersteinWiener<nlid::UnitGain, Tf330, nlid::Saturation>>);
 
 }  // namespace static_checks
