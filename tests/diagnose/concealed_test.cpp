@@ -73,24 +73,7 @@ Outcome diagnose_case(const P& phys, const std::vector<ParameterInfo>& tab, cons
   return o;
 }
 
-// Data scales of the truths (positions about +-1, forces per inertia about 100): where effects'
-// shape constants (friction presliding, preload width) are taken from.
-DataScales truth_scales(double ts) {
-  DataScales s;
-  s.ts = ts;
-  s.y_lo = s.q_lo = -1.0;
-  s.y_hi = s.q_hi = 1.0;
-  s.y_min = -1.0;
-  s.y_max = 1.0;
-  s.u_lo = -1.0;
-  s.u_hi = 1.0;
-  s.u_abs = 1.0;
-  s.q_mid = 0.0;
-  s.speed = 5.0;
-  s.accel = 100.0;
-  s.stiffness = 100.0;
-  return s;
-}
+DataScales truth_scales(double ts) { return diag_test::unit_scales(ts); }
 
 std::vector<Case> cases() {
   const double ts = 0.01;

@@ -36,22 +36,7 @@ std::string message_of(const std::function<void()>& f) {
   return "(no error)";
 }
 
-DataScales msd_scales(double ts) {
-  DataScales s;
-  s.ts = ts;
-  s.y_lo = s.q_lo = -1.0;
-  s.y_hi = s.q_hi = 1.0;
-  s.y_min = -1.1;
-  s.y_max = 1.1;
-  s.u_lo = -1.0;
-  s.u_hi = 1.0;
-  s.u_abs = 1.0;
-  s.q_mid = 0.0;
-  s.speed = 5.0;
-  s.accel = 100.0;
-  s.stiffness = 100.0;
-  return s;
-}
+DataScales msd_scales(double ts) { return diag_test::unit_scales(ts, 1.1); }
 
 }  // namespace
 

@@ -14,6 +14,26 @@
 
 namespace diag_test {
 
+/// Data scales of the synthetic truths (positions about ±1, inputs in [−1, 1], forces per inertia
+/// about 100), where effects take their shape constants (friction presliding, preload width) from;
+/// `y_extent` is the recorded output range ±y_extent.
+inline nlid::DataScales unit_scales(double ts, double y_extent = 1.0) {
+  nlid::DataScales s;
+  s.ts = ts;
+  s.y_lo = s.q_lo = -1.0;
+  s.y_hi = s.q_hi = 1.0;
+  s.y_min = -y_extent;
+  s.y_max = y_extent;
+  s.u_lo = -1.0;
+  s.u_hi = 1.0;
+  s.u_abs = 1.0;
+  s.q_mid = 0.0;
+  s.speed = 5.0;
+  s.accel = 100.0;
+  s.stiffness = 100.0;
+  return s;
+}
+
 // Piecewise-constant input: levels uniform in [lo, hi], each held a uniform number of samples in
 // [hold_min, hold_max] — a multi-level step test as used on real rigs.
 inline Eigen::MatrixXd random_steps(int n, double lo, double hi, int hold_min, int hold_max, unsigned seed) {
