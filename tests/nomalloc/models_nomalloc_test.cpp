@@ -202,7 +202,10 @@ TEST_CASE("fixed-size simulation-focus estimation allocates nothing per iteratio
   {
     Eigen::VectorXd r(problem.num_residuals());
     nlid::JacobianMatrix<Nlarx5::num_params> J(problem.num_residuals(), Nlarx5::num_params);
-    REQUIRE(problem.evaluate(theta, r, &J));  // grows the per-thread scratch once
+    // Grows the per-thread x0 scratch once per scalar type (Dual for the Jacobian pass, double
+    // for the residual-only evaluations of trial steps): one-time setup, not per iteration.
+    REQUIRE(problem.evaluate(theta, r, &J));
+    REQUIRE(problem.evaluate(theta, r, nullptr));
   }
   nlid::LmSummary s;
   {

@@ -80,6 +80,14 @@ inline void require(bool condition, const std::string& message, const Location& 
   if (!condition) throw Error(message, where);
 }
 
+/// As above for a literal message: the std::string is built only when the check fails, so a
+/// check inside a fixed-size simulation or estimation call allocates nothing (tests/nomalloc).
+/// A composed message (`"..." + std::to_string(n)`) is built before the call; in such paths
+/// test first and build the message in the throwing branch.
+inline void require(bool condition, const char* message, const Location& where = {}) {
+  if (!condition) throw Error(message, where);
+}
+
 /// Shorthand for a parameter-named location.
 inline Location at_parameter(std::string name) {
   Location l;

@@ -36,10 +36,12 @@ class History {
               at_parameter("length"));
       buf_.assign(static_cast<std::size_t>(length), T(0));
     } else {
-      require(length == L,
-              "history length " + std::to_string(length) + " differs from the compile-time length " +
-                  std::to_string(L),
-              at_parameter("length"));
+      // Tested before the message is built: this constructor runs once per simulation, and a
+      // fixed-size simulation must not allocate (tests/nomalloc).
+      if (length != L)
+        throw Error("history length " + std::to_string(length) + " differs from the compile-time length " +
+                        std::to_string(L),
+                    at_parameter("length"));
       fill(T(0));
     }
   }
