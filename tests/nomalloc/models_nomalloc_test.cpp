@@ -217,3 +217,54 @@ TEST_CASE("fixed-size simulation-focus estimation allocates nothing per iteratio
   CHECK(news_in_iterations == 0);
   CHECK(s.final_cost < 1e-3 * s.initial_cost);
 }
+
+// The route estimate() takes for this structure: the structured simulation Jacobian
+// (models/detail/nlarx_sensitivity.hpp) keeps its sensitivity ring, gradients and regressor
+// duals on the stack, so its evaluations and a whole solve allocate nothing after set-up.
+TEST_CASE("structured simulation Jacobian: evaluation and LM iterations allocate nothing", "[nomalloc][models]") {
+  const Nlarx5 truth = make_nlarx5();
+  const Eigen::MatrixXd u = test_input(250);
+  Eigen::VectorXd y(250);
+  REQUIRE(truth.simulate<double>(u, nlid::detail::as_const_span(truth.parameters()), {}, nlid::detail::as_span(y)));
+  std::vector<nlid::detail::EstimationSegment> segs(1);
+  segs[0].u = &u;
+  segs[0].y = y;
+  segs[0].start = truth.history_length();
+  segs[0].x0 = truth.measured_state(u, y, truth.history_length());
+  using P = nlid::detail::NlarxSimulationProblem<Nlarx5, Nlarx5::num_params>;
+  STATIC_REQUIRE(nlid::detail::HasStructuredSimulationJacobian<Nlarx5>);
+  const P problem(truth, segs, {}, nlid::InitialCondition::measured, 1e6);
+  Nlarx5::Parameters theta = truth.parameters();
+  theta.head(3) += Eigen::Vector3d(0.02, -0.01, 0.01);
+  Eigen::VectorXd r(problem.num_residuals());
+  nlid::JacobianMatrix<Nlarx5::num_params> J(problem.num_residuals(), Nlarx5::num_params);
+  REQUIRE(problem.evaluate(theta, r, nullptr));  // grows the per-thread x0 scratch once
+  {
+    NoHeap guard;
+    CHECK(problem.evaluate(theta, r, &J));
+    CHECK(problem.evaluate(theta, r, nullptr));
+    CHECK(guard.new_calls() == 0);
+  }
+  long news_in_iterations = 0, last = -1;
+  int iterations = 0;
+  nlid::LmOptions o;
+  o.max_iterations = 8;
+  o.callback = [&](const nlid::IterationReport&) {
+    const long now = g_new_calls.load();
+    if (last >= 0) news_in_iterations += now - last;
+    last = now;
+    ++iterations;
+    return true;
+  };
+  nlid::LevenbergMarquardt<P> lm(o);
+  lm.setup(problem);
+  nlid::LmSummary s;
+  {
+    NoHeap guard;
+    s = lm.solve(problem, theta);
+  }
+  INFO(s.message());
+  CHECK(iterations >= 3);
+  CHECK(news_in_iterations == 0);
+  CHECK(s.final_cost < 1e-3 * s.initial_cost);
+}

@@ -11,9 +11,12 @@
 ///
 /// Residuals of several experiments are stacked; every experiment has its own initial
 /// condition (zero, measured past, or estimated: then its x0 joins θ as extra parameters, as
-/// the toolbox does for `nlhw1`). Jacobians come from forward AD (`AutoDiffProblem`): for
-/// simulation focus the duals run through the whole recursion, which is the exact gradient of
-/// the free-run error (Ljung 1999, eq. 10.43) and no hand-written sensitivity model is needed.
+/// the toolbox does for `nlhw1`). Jacobians are exact. Forward AD (`AutoDiffProblem`) is the
+/// general route: for simulation focus the duals run through the whole recursion (Ljung 1999,
+/// eq. 10.43). An Nlarx model whose nonlinearity has an analytic gradient (SigmoidNet) takes the
+/// structured route of models/detail/nlarx_sensitivity.hpp instead: the same Jacobian from one
+/// local gradient per sample and the output-lag recursion, several times faster
+/// (`EstimateOptions::structured_jacobian`).
 /// A diverging simulation (non-finite or beyond 10³·max|y|) makes `evaluate` return false, so
 /// the Levenberg–Marquardt step is rejected instead of poisoning the fit.
 ///
@@ -48,7 +51,9 @@
 #include "nlid/estimation/autodiff.hpp"
 #include "nlid/estimation/levenberg_marquardt.hpp"
 #include "nlid/linear/polynomial.hpp"
+#include "nlid/models/detail/estimation_segment.hpp"
 #include "nlid/models/detail/initial_state.hpp"
+#include "nlid/models/detail/nlarx_sensitivity.hpp"
 #include "nlid/models/detail/model_common.hpp"
 #include "nlid/models/hammerstein_wiener.hpp"
 #include "nlid/models/nlarx.hpp"
@@ -87,6 +92,12 @@ struct EstimateOptions {
   /// Nlarx with `starts` > 1: iterations of the main criterion each start runs before they are
   /// compared (counted against `solver.max_iterations` for the winner).
   int start_iterations = 30;
+  /// Nlarx with simulation focus: Jacobian of the free-run errors by the structured sensitivity
+  /// recursion (Ljung 1999, eq. 10.43) with the nonlinearity's analytic gradient, when it has
+  /// one (`DifferentiableNonlinearity`, e.g. SigmoidNet) and the output lag is static. The
+  /// same Jacobian as forward AD through the recursion, to rounding, at a fraction of the cost
+  /// (docs/performance.md). false: always forward AD.
+  bool structured_jacobian = true;
   /// Solver options of the main stage: `max_iterations`, `loss` (robust), `callback`,
   /// `lower_bounds`/`upper_bounds`/`fixed` (sized to the model's parameters; entries for
   /// estimated initial states are added automatically), tolerances.
@@ -94,22 +105,6 @@ struct EstimateOptions {
 };
 
 namespace detail {
-
-/// One experiment as the residual functors see it.
-struct EstimationSegment {
-  const Eigen::MatrixXd* u = nullptr;  ///< N×nu inputs (viewing the data set)
-  Eigen::VectorXd y;                   ///< N outputs
-  Eigen::Index start = 0;              ///< first simulated sample (n₀ for a measured past)
-  Eigen::VectorXd x0;                  ///< initial state (or its base when estimated)
-  int free_offset = -1;                ///< index in θ of its first estimated x0 entry (−1: none)
-};
-
-/// Scratch vector of scalar T, one per thread and type; capacity only grows.
-template <class T>
-std::vector<T>& initial_state_scratch() {
-  thread_local std::vector<T> buffer;
-  return buffer;
-}
 
 /// Free-run residuals of any `ModelStructure` over several experiments; `P` = the solver's
 /// static parameter count (the model's, or Dynamic when initial states are estimated).
@@ -269,6 +264,15 @@ LmSummary solve_functor(Functor functor, Eigen::VectorXd& theta, const LmOptions
   return s;
 }
 
+/// Runs LM on a `LeastSquaresProblem` with static count P, θ as VectorXd.
+template <int P, class Problem>
+LmSummary solve_problem(const Problem& problem, Eigen::VectorXd& theta, const LmOptions& options) {
+  Eigen::Matrix<double, P, 1> th = theta;
+  const LmSummary s = solve_least_squares(problem, th, options);
+  theta = th;
+  return s;
+}
+
 /// Solver options extended by `extra` free parameters (initial states): no bounds, not fixed.
 /// Throws `nlid::Error` if bounds/fixed are not sized to the model's `np` parameters.
 inline LmOptions extend_options(LmOptions o, int np, int extra, const std::vector<std::string>& names) {
@@ -322,7 +326,8 @@ std::vector<int> model_free_states(const M& model) {
 /// estimated initial states, solves, and writes the states back into the segments.
 template <class M>
 LmSummary simulation_stage(const M& model, std::vector<EstimationSegment>& segs, InitialCondition ic,
-                           Eigen::VectorXd& theta, const LmOptions& solver, double limit) {
+                           Eigen::VectorXd& theta, const LmOptions& solver, double limit,
+                           bool structured_jacobian = true) {
   const int np = model.num_parameters();
   std::vector<int> free;
   std::vector<std::string> names = model.parameter_names();
@@ -342,10 +347,23 @@ LmSummary simulation_stage(const M& model, std::vector<EstimationSegment>& segs,
   }
   const LmOptions o = extend_options(solver, np, static_cast<int>(full.size()) - np, names);
   LmSummary summary;
-  if (ic == InitialCondition::estimate || M::num_params == Dynamic) {
-    summary = solve_functor<Dynamic>(SimulationResiduals<M, Dynamic>(model, segs, free, ic, limit), full, o);
-  } else {
-    summary = solve_functor<M::num_params>(SimulationResiduals<M, M::num_params>(model, segs, free, ic, limit), full, o);
+  bool done = false;
+  if constexpr (HasStructuredSimulationJacobian<M>) {
+    if (structured_jacobian && ic != InitialCondition::equilibrium) {
+      if (ic == InitialCondition::estimate || M::num_params == Dynamic) {
+        summary = solve_problem<Dynamic>(NlarxSimulationProblem<M, Dynamic>(model, segs, free, ic, limit), full, o);
+      } else {
+        summary = solve_problem<M::num_params>(NlarxSimulationProblem<M, M::num_params>(model, segs, free, ic, limit), full, o);
+      }
+      done = true;
+    }
+  }
+  if (!done) {
+    if (ic == InitialCondition::estimate || M::num_params == Dynamic) {
+      summary = solve_functor<Dynamic>(SimulationResiduals<M, Dynamic>(model, segs, free, ic, limit), full, o);
+    } else {
+      summary = solve_functor<M::num_params>(SimulationResiduals<M, M::num_params>(model, segs, free, ic, limit), full, o);
+    }
   }
   theta = full.head(np);
   if (ic == InitialCondition::estimate) {
@@ -509,7 +527,7 @@ Nlarx<R, F> estimate(Nlarx<R, F> model, const Dataset& data, const EstimateOptio
     }
     LmOptions o = options.solver;
     o.max_iterations = main_iterations;
-    summary = detail::simulation_stage(model, segs, ic, th, o, limit);
+    summary = detail::simulation_stage(model, segs, ic, th, o, limit, options.structured_jacobian);
     iterations += summary.iterations;
   };
 
@@ -571,7 +589,7 @@ Nlarx<R, F> estimate(Nlarx<R, F> model, const Dataset& data, const EstimateOptio
         if (options.focus == Focus::simulation) {
           LmOptions so = options.solver;
           so.max_iterations = rest;
-          const LmSummary cont = detail::simulation_stage(model, segs, ic, theta, so, limit);
+          const LmSummary cont = detail::simulation_stage(model, segs, ic, theta, so, limit, options.structured_jacobian);
           const double c0 = summary.initial_cost;
           summary = cont;
           summary.initial_cost = c0;

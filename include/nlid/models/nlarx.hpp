@@ -13,7 +13,8 @@
 /// but the model may drift in free run); simulation-focus estimation minimises
 /// Σ (y(t) − ŷ_s(t))², the quality measure of the study, at the price of a recursion in the
 /// Jacobian: ∂ŷ_s(t)/∂θ = ∂F/∂θ + Σ_k ∂F/∂y(t−k) · ∂ŷ_s(t−k)/∂θ (Ljung 1999, eq. 10.43).
-/// nlid evaluates that recursion exactly by running `simulate` on dual numbers.
+/// nlid evaluates that recursion exactly, either by running `simulate` on dual numbers or, for a
+/// nonlinearity with an analytic gradient, by the recursion itself (models/detail/nlarx_sensitivity.hpp).
 ///
 /// Initial conditions of a simulation (`InitialCondition`), for an experiment of N samples:
 /// - `zero`: all past outputs and inputs before t = 0 are zero;

@@ -85,6 +85,17 @@ concept Nonlinearity =
       { cf.describe(ctheta) } -> std::convertible_to<std::string>;
     };
 
+/// A nonlinearity that also gives its exact gradient for plain numbers:
+///     double gradient(x, θ, g_θ, g_x)   returns g(x; θ), writes ∂g/∂θ (p) and ∂g/∂x (m).
+/// Optional: estimation uses it for the structured simulation Jacobian of Nlarx (one gradient
+/// per sample instead of dual arithmetic through the whole network). Satisfied by SigmoidNet.
+template <class F>
+concept DifferentiableNonlinearity =
+    Nonlinearity<F> && requires(const F& f, std::span<const double> x, std::span<const double> theta,
+                                std::span<double> g_theta, std::span<double> g_x) {
+      { f.gradient(x, theta, g_theta, g_x) } -> std::same_as<double>;
+    };
+
 /// A nonlinearity of one input (m = 1): the input and output blocks of a Hammerstein–Wiener
 /// model. A `Dynamic`-input type qualifies too; its `input_dimension()` must then be 1 at run
 /// time, which the model checks on construction.

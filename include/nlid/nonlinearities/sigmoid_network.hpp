@@ -136,6 +136,33 @@ class SigmoidNet {
     }
   }
 
+  /// g(x) together with its gradient, for plain numbers: ∂g/∂θ into `g_theta` (p entries) and
+  /// ∂g/∂x into `g_x` (m entries). The value is bitwise that of `operator()` (same operations in
+  /// the same order). With aₖ' = aₖσₖ(1 − σₖ):
+  ///     ∂g/∂L = z,  ∂g/∂d = 1,  ∂g/∂aₖ = σₖ,  ∂g/∂bₖ = aₖ' z,  ∂g/∂cₖ = aₖ',
+  ///     ∂g/∂xⱼ = (Lⱼ + Σₖ aₖ' bₖⱼ) / sⱼ.
+  /// Why: Nlarx's simulation-focus Jacobian needs one local gradient per sample
+  /// (models/detail/nlarx_sensitivity.hpp); written out it costs O(p) flops, where a p-wide
+  /// dual costs O(p) per operation of the network. Throws `nlid::Error` on wrong lengths.
+  double gradient(std::span<const double> x, std::span<const double> theta, std::span<double> g_theta,
+                  std::span<double> g_x) const {
+    if (static_cast<int>(x.size()) != m_) detail::check_size(x.size(), m_, "x", "SigmoidNet");
+    if (static_cast<int>(g_x.size()) != m_) detail::check_size(g_x.size(), m_, "g_x", "SigmoidNet");
+    if (static_cast<int>(theta.size()) != num_parameters()) {
+      detail::check_size(theta.size(), num_parameters(), "theta", "SigmoidNet");
+    }
+    if (static_cast<int>(g_theta.size()) != num_parameters()) {
+      detail::check_size(g_theta.size(), num_parameters(), "g_theta", "SigmoidNet");
+    }
+    if constexpr (M != Dynamic) {
+      std::array<double, static_cast<std::size_t>(M)> z;
+      for (int j = 0; j < M; ++j) z[static_cast<std::size_t>(j)] = norm_.z(x[static_cast<std::size_t>(j)], j);
+      return evaluate_gradient(theta, [&z](int j) { return z[static_cast<std::size_t>(j)]; }, g_theta, g_x);
+    } else {
+      return evaluate_gradient(theta, [&](int j) { return norm_.z(x[static_cast<std::size_t>(j)], j); }, g_theta, g_x);
+    }
+  }
+
   /// Data-driven start (see file comment). X is N × m, y has N entries, θ has p entries.
   void initialize(const Eigen::MatrixXd& X, const Eigen::VectorXd& y, std::span<double> theta) {
     initialize(X, y, theta, 0);
@@ -294,6 +321,53 @@ class SigmoidNet {
       for (int j = 0; j < m; ++j) s += at(ob + k * m + j) * z(j);
       g += at(oa + k) * detail::logistic(s);
     }
+    return g;
+  }
+
+  template <class Z>
+  double evaluate_gradient(std::span<const double> theta, Z&& z, std::span<double> g_theta, std::span<double> g_x) const {
+    const int m = M != Dynamic ? M : m_;
+    const int units = Units != Dynamic ? Units : units_;
+    const auto at = [&theta](int i) { return theta[static_cast<std::size_t>(i)]; };
+    const auto gt = [&g_theta](int i) -> double& { return g_theta[static_cast<std::size_t>(i)]; };
+    const auto gx = [&g_x](int j) -> double& { return g_x[static_cast<std::size_t>(j)]; };
+    const int od = LinearTerm ? m : 0, oa = od + 1, ob = oa + units, oc = ob + units * m;
+    double g = at(od);
+    gt(od) = 1.0;
+    for (int j = 0; j < m; ++j) {
+      if constexpr (LinearTerm) {
+        g += at(j) * z(j);
+        gt(j) = z(j);
+        gx(j) = at(j);
+      } else {
+        gx(j) = 0.0;
+      }
+    }
+    for (int k = 0; k < units; ++k) {
+      double s = at(oc + k);
+      for (int j = 0; j < m; ++j) s += at(ob + k * m + j) * z(j);
+      // detail::logistic's two branches, kept here so σ' = e/(1+e)² reuses its exp and g stays
+      // bitwise equal to operator().
+      double sig, dsig;
+      if (s >= 0) {
+        const double e = std::exp(-s);
+        sig = 1.0 / (1.0 + e);
+        dsig = e * sig * sig;
+      } else {
+        const double e = std::exp(s);
+        sig = e / (1.0 + e);
+        dsig = sig / (1.0 + e);
+      }
+      g += at(oa + k) * sig;
+      const double w = at(oa + k) * dsig;
+      gt(oa + k) = sig;
+      gt(oc + k) = w;
+      for (int j = 0; j < m; ++j) {
+        gt(ob + k * m + j) = w * z(j);
+        gx(j) += w * at(ob + k * m + j);
+      }
+    }
+    for (int j = 0; j < m; ++j) gx(j) *= norm_.inv_scale(j);
     return g;
   }
 

@@ -33,6 +33,8 @@ class Standardizer {
   [[nodiscard]] const Vector& center() const { return center_; }
   /// Regressor scale s (standard deviation, or 1 if standardisation is off).
   [[nodiscard]] Vector scale() const { return inv_scale_.cwiseInverse(); }
+  /// ∂zⱼ/∂xⱼ = 1/sⱼ (analytic gradients).
+  [[nodiscard]] double inv_scale(Eigen::Index j) const { return inv_scale_(j); }
   /// Whether `initialize` divides by the standard deviation (default) or only centres.
   [[nodiscard]] bool standardize() const { return standardize_; }
   /// Chooses scaling by the standard deviation (true) or centring only (false, as MATLAB's
