@@ -44,6 +44,7 @@
 #include "nlid/models/detail/model_common.hpp"
 #include "nlid/models/transfer_function_block.hpp"
 #include "nlid/nonlinearities/concepts.hpp"
+#include "nlid/nonlinearities/detail/bound_map.hpp"
 
 namespace nlid {
 
@@ -133,11 +134,13 @@ class HammersteinWiener {
     State<T> s = make_state<T>();
     for (int i = 0; i < s.size(); ++i) s(i) = x0.empty() ? T(0) : x0[static_cast<std::size_t>(i)];
     const std::span<T> ss(s.data(), static_cast<std::size_t>(s.size()));
+    // θ-only work of the maps (PwLinear's breakpoint positions) once, not per sample.
+    const detail::BoundScalarMap<In, T> f(f_, th_f);
+    const detail::BoundScalarMap<Out, T> h(h_, th_h);
     for (Eigen::Index t = 0; t < u.rows(); ++t) {
-      const T ut(u(t, 0));
-      const T w = f_(std::span<const T>(&ut, 1), th_f);
+      const T w = f(T(u(t, 0)));
       const T x = lin_.step(ss, w, th_l);
-      T yt = h_(std::span<const T>(&x, 1), th_h);
+      T yt = h(x);
       if (!detail::is_finite_scalar(yt) || std::abs(static_cast<double>(value_of(yt))) > limit) return t;
       y[static_cast<std::size_t>(t)] = std::move(yt);
     }

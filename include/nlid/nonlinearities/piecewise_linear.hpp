@@ -36,9 +36,11 @@
 ///    interpolation of their neighbours instead of arbitrary numbers.
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <span>
 #include <string>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -124,6 +126,54 @@ class PwLinear {
       xk = xn;
     }
     return theta[n];  // unreachable: n ≥ 2
+  }
+
+  /// The θ-only part of g for one θ: breakpoint positions xₖ and segment slopes, with a view of
+  /// the values yₖ in θ. Built once per simulation by `prepare`, so the n − 1 exponentials of
+  /// the positions are not recomputed at every sample (on a 46-wide Dual each is 47 exps' worth
+  /// of work; see docs/performance.md, nlhw2).
+  template <class T>
+  struct Prepared {
+    /// Storage of n (or n − 1) scalars: on the stack for a fixed n.
+    using Values = std::conditional_t<Breakpoints == Dynamic, std::vector<T>, std::array<T, (Breakpoints > 0 ? Breakpoints : 1)>>;
+    Values x{};                  ///< breakpoint positions x₀ < … < x_{n−1}
+    Values slope{};              ///< slope of segment k (k < n − 1)
+    std::span<const T> values;  ///< y₀ … y_{n−1} (a view of θ)
+  };
+
+  /// Positions and slopes of θ (see `Prepared`). Throws `nlid::Error` if θ has the wrong length.
+  template <class T>
+  [[nodiscard]] Prepared<T> prepare(std::span<const T> theta) const {
+    using std::exp;
+    if (static_cast<int>(theta.size()) != 2 * n_) detail::check_size(theta.size(), 2 * n_, "theta", "PwLinear");
+    const auto n = static_cast<std::size_t>(n_);
+    Prepared<T> p;
+    if constexpr (Breakpoints == Dynamic) {
+      p.x.resize(n);
+      p.slope.resize(n);
+    }
+    p.values = theta.subspan(n);
+    // The same operations in the same order as operator(), so both give bitwise the same g.
+    T xk = theta[0];
+    p.x[0] = xk;
+    for (std::size_t k = 0; k + 1 < n; ++k) {
+      const T gap = exp(theta[1 + k]);
+      const T xn = xk + gap;
+      p.slope[k] = (theta[n + k + 1] - theta[n + k]) / gap;
+      p.x[k + 1] = xn;
+      xk = xn;
+    }
+    return p;
+  }
+
+  /// g(x) from a `prepare`d θ; equal to `operator()` with that θ.
+  template <class T>
+  [[nodiscard]] T evaluate_prepared(const Prepared<T>& p, const T& xv) const {
+    const auto n = static_cast<std::size_t>(n_);
+    for (std::size_t k = 0; k + 1 < n; ++k) {
+      if (xv < p.x[k + 1] || k + 2 == n) return p.values[k] + p.slope[k] * (xv - p.x[k]);
+    }
+    return p.values[0];  // unreachable: n ≥ 2
   }
 
   /// Breakpoint positions (given, or by hinge forward selection) and least-squares values.
