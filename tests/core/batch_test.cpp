@@ -108,6 +108,38 @@ TEST_CASE("Batch exp is within 2 ulp of std::exp and keeps its special values", 
   CHECK(exp(f)[2] == std::exp(0.5f));
 }
 
+TEST_CASE("Batch logistic is within 4 ulp of the scalar logistic, one division per lane", "[core][batch]") {
+  std::mt19937_64 rng(9);
+  std::uniform_real_distribution<double> dist(-40.0, 40.0);
+  double worst = 0.0;
+  for (int rep = 0; rep < 20000; ++rep) {
+    B8 x;
+    for (int i = 0; i < 8; ++i) x[i] = rep < 10000 ? dist(rng) : dist(rng) / 20.0;
+    const B8 g = nlid::logistic(x);
+    for (int i = 0; i < 8; ++i) worst = std::max(worst, ulps(g[i], nlid::detail::logistic(x[i])));
+  }
+  CHECK(worst <= 4.0);
+  // The generic nonlinearity helper routes double batches here.
+  B8 v(0.3);
+  CHECK(nlid::detail::logistic(v)[5] == nlid::logistic(v)[5]);
+  // Far tails: exactly 1, a vanishing positive number (clamped at e^-708), NaN stays NaN.
+  const double inf = std::numeric_limits<double>::infinity(), nan = std::numeric_limits<double>::quiet_NaN();
+  const double special[8] = {0.0, 800.0, inf, -800.0, -inf, 700.0, -700.0, nan};
+  B8 s;
+  for (int i = 0; i < 8; ++i) s[i] = special[i];
+  const B8 g = nlid::logistic(s);
+  CHECK(g[0] == 0.5);
+  CHECK(g[1] == 1.0);
+  CHECK(g[2] == 1.0);
+  CHECK(g[3] >= 0.0);
+  CHECK(g[3] < 1e-300);
+  CHECK(g[4] >= 0.0);
+  CHECK(g[4] < 1e-300);
+  CHECK(g[5] == 1.0);
+  CHECK(ulps(g[6], std::exp(-700.0)) <= 4.0);
+  CHECK(std::isnan(g[7]));
+}
+
 TEST_CASE("Batch comparisons give masks that cannot be used as a bool", "[core][batch]") {
   B4 a;
   for (int i = 0; i < 4; ++i) a[i] = i - 1.5;  // −1.5 −0.5 0.5 1.5

@@ -306,49 +306,92 @@ NLID_BATCH_COMPARISON(!=)
 // ---- math ----------------------------------------------------------------------------------------
 
 namespace detail {
-/// e^x for W doubles in one vectorisable loop. Cody–Waite reduction x = k·ln2 + r, |r| ≤ ln2/2,
-/// with ln2 split in a 32-bit-exact high part and a low part; e^r by a rational approximation;
-/// 2^k assembled in the exponent bits (k taken from
-/// the rounding of x/ln2 + 1.5·2⁵² without a float→int instruction, which SSE2 lacks for
-/// packed doubles). Lanes outside [−708, 709] (overflow, subnormal results, NaN) are rare and
-/// are recomputed by std::exp, so every lane gets libm's special-value behaviour.
-template <int W>
-void exp_lanes(const double* x, double* out) {
+
+// The kernels below are forced inline: called out of line (as GCC chose for W = 8) every call
+// spills the lanes to memory and back, which cost more than the arithmetic (perf, see
+// docs/performance.md).
+#if defined(__GNUC__)
+#define NLID_BATCH_INLINE [[gnu::always_inline]] inline
+#else
+#define NLID_BATCH_INLINE inline
+#endif
+
+/// Cody–Waite reduction of e^x for one lane: x = k·ln2 + r, |r| ≤ ln2/2, with ln2 split in a
+/// 32-bit-exact high part and a low part, k taken from the rounding of x/ln2 + 1.5·2⁵² without
+/// a float→int instruction (SSE2 lacks one for packed doubles). Returns 2^k and sets px = r·P(r²),
+/// qx = Q(r²) of Cephes' rational form e^r = (qx + px)/(qx − px), relative error below 2.2·10⁻¹⁶.
+/// Valid for x in [−708, 709]; outside, the exponent bits wrap (unsigned: defined behaviour).
+NLID_BATCH_INLINE double exp_reduce(double x, double& px, double& qx) {
   constexpr double kLog2e = 1.4426950408889634074;
   constexpr double kLn2Hi = 6.93147180369123816490e-01;
   constexpr double kLn2Lo = 1.90821492927058770002e-10;
   constexpr double kShift = 6755399441055744.0;  // 1.5·2⁵²: rounds to an integer in the low bits
   constexpr std::uint64_t kShiftBits = std::bit_cast<std::uint64_t>(kShift);
-  // Branch-free body so the compiler vectorises it. Lanes outside the range produce garbage
-  // here (unsigned arithmetic: wrap-around is defined) and are recomputed below.
+  const double kd = x * kLog2e + kShift;
+  const std::uint64_t k = std::bit_cast<std::uint64_t>(kd) - kShiftBits;
+  const double kf = kd - kShift;
+  const double r = (x - kf * kLn2Hi) - kf * kLn2Lo;
+  const double rr = r * r;
+  px = r * ((1.26177193074810590878e-4 * rr + 3.02994407707441961300e-2) * rr + 9.99999999999999999910e-1);
+  qx = ((3.00198505138664455042e-6 * rr + 2.52448340349684104192e-3) * rr + 2.27265548208155028766e-1) * rr +
+       2.00000000000000000009e0;
+  return std::bit_cast<double>((k + 1023u) << 52);
+}
+
+/// 1 if |x| > limit or x is NaN, else 0 — on the bit pattern, so a loop over lanes vectorises
+/// (a floating-point compare would not, under the default -ftrapping-math). limit ≥ 0.
+NLID_BATCH_INLINE std::uint64_t beyond(double x, double limit) {
+  const std::uint64_t a = std::bit_cast<std::uint64_t>(x) & 0x7fffffffffffffffULL;
+  return (std::bit_cast<std::uint64_t>(limit) - a) >> 63;  // wraps (top bit set) iff a > limit
+}
+
+/// e^x for W doubles in one vectorisable loop (see `exp_reduce`). Lanes with |x| > 708 (overflow,
+/// subnormal results) or NaN are rare and are recomputed by std::exp, so every lane gets libm's
+/// special-value behaviour.
+template <int W>
+NLID_BATCH_INLINE void exp_lanes(const double* x, double* out) {
+  // Branch-free body so the compiler vectorises it. e^r = 1 + 2·P/(Q − P): the form whose
+  // rounding keeps the result within 2 ulp of libm (tests/core/batch_test.cpp).
   for (int i = 0; i < W; ++i) {
-    const double xc = x[i];
-    const double kd = xc * kLog2e + kShift;
-    const std::uint64_t k = std::bit_cast<std::uint64_t>(kd) - kShiftBits;
-    const double kf = kd - kShift;
-    const double r = (xc - kf * kLn2Hi) - kf * kLn2Lo;
-    // e^r = 1 + 2r·P(r²)/(Q(r²) − r·P(r²)) (Cephes' rational approximation, relative error
-    // below 2.2·10⁻¹⁶ on |r| ≤ ln2/2): about half the operations of a Taylor polynomial.
-    const double rr = r * r;
-    const double px = r * ((1.26177193074810590878e-4 * rr + 3.02994407707441961300e-2) * rr + 9.99999999999999999910e-1);
-    const double qx = ((3.00198505138664455042e-6 * rr + 2.52448340349684104192e-3) * rr + 2.27265548208155028766e-1) * rr +
-                      2.00000000000000000009e0;
-    const double p = 1.0 + 2.0 * (px / (qx - px));
-    out[i] = p * std::bit_cast<double>((k + 1023u) << 52);
+    double px, qx;
+    const double two_k = exp_reduce(x[i], px, qx);
+    out[i] = (1.0 + 2.0 * (px / (qx - px))) * two_k;
   }
-  // Rare lanes (overflow, subnormal results, NaN) take libm's exact special-value behaviour.
-  int outside = 0;
-  for (int i = 0; i < W; ++i) outside |= static_cast<int>(!(x[i] >= -708.0)) | static_cast<int>(x[i] > 709.0);
+  std::uint64_t outside = 0;
+  for (int i = 0; i < W; ++i) outside |= beyond(x[i], 708.0);
   if (outside != 0) {
     for (int i = 0; i < W; ++i)
-      if (!(x[i] >= -708.0 && x[i] <= 709.0)) out[i] = std::exp(x[i]);
+      if (beyond(x[i], 708.0) != 0) out[i] = std::exp(x[i]);
+  }
+}
+
+/// The logistic function σ(s) = 1/(1 + e^(−s)) for W doubles with *one* division per lane:
+/// with e^(−s) = 2^k·N/D (N = qx + px, D = qx − px from `exp_reduce`), σ = D / (D + 2^k·N).
+/// Computing e^(−s) first and then 1/(1 + e^(−s)) costs two divisions, the slowest operation
+/// of a sigmoid network's unit. Lanes with |s| > 708 or NaN (rare) take the scalar formula.
+template <int W>
+NLID_BATCH_INLINE void logistic_lanes(const double* s, double* out) {
+  // Branch-free (a compare in this loop would stop GCC from vectorising it under the default
+  // -ftrapping-math); out-of-range lanes produce garbage here and are redone below.
+  for (int i = 0; i < W; ++i) {
+    double px, qx;
+    const double two_k = exp_reduce(-s[i], px, qx);
+    const double den = qx - px;
+    out[i] = den / (den + two_k * (qx + px));
+  }
+  std::uint64_t outside = 0;
+  for (int i = 0; i < W; ++i) outside |= beyond(s[i], 708.0);
+  if (outside != 0) {
+    for (int i = 0; i < W; ++i) {
+      if (beyond(s[i], 708.0) != 0) out[i] = s[i] >= 0 ? 1.0 / (1.0 + std::exp(-s[i])) : std::exp(s[i]) / (1.0 + std::exp(s[i]));
+    }
   }
 }
 }  // namespace detail
 
 /// Lane-wise e^x (vectorised kernel for double; std::exp per lane otherwise).
 template <class T, int W>
-Batch<T, W> exp(const Batch<T, W>& x) {
+NLID_BATCH_INLINE Batch<T, W> exp(const Batch<T, W>& x) {
   if constexpr (std::is_same_v<T, double>) {
     Batch<T, W> r;
     detail::exp_lanes<W>(x.v.data(), r.v.data());
@@ -356,6 +399,15 @@ Batch<T, W> exp(const Batch<T, W>& x) {
   } else {
     return detail::map_lanes(x, [](T a) { return std::exp(a); });
   }
+}
+
+/// Lane-wise logistic 1/(1 + e^(−x)) for double lanes (one division per lane; see
+/// `detail::logistic_lanes`), used by the sigmoid networks.
+template <int W>
+NLID_BATCH_INLINE Batch<double, W> logistic(const Batch<double, W>& x) {
+  Batch<double, W> r;
+  detail::logistic_lanes<W>(x.v.data(), r.v.data());
+  return r;
 }
 
 #define NLID_BATCH_UNARY(NAME)                                                                  \
