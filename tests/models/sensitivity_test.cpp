@@ -105,10 +105,14 @@ TEST_CASE("SigmoidNet::gradient equals the Dual derivative and the value of oper
   dyn.set_normalization(net.center(), net.scale());
   Eigen::VectorXd x = Eigen::VectorXd::LinSpaced(6, -1.0, 1.0), gt1(P), gx1(6), gt2(P), gx2(6);
   const auto th = nlid::detail::as_const_span(m.parameters());
-  CHECK(net.gradient(nlid::detail::as_const_span(x), th, nlid::detail::as_span(gt1), nlid::detail::as_span(gx1)) ==
-        dyn.gradient(nlid::detail::as_const_span(x), th, nlid::detail::as_span(gt2), nlid::detail::as_span(gx2)));
-  CHECK(rel_diff(gt1, gt2) == 0.0);
-  CHECK(rel_diff(gx1, gx2) == 0.0);
+  // (The fixed twin evaluates its units' logistic functions in SIMD lanes and sums in another
+  // order: equal to a few ulp, not bitwise.)
+  const double v1 = net.gradient(nlid::detail::as_const_span(x), th, nlid::detail::as_span(gt1), nlid::detail::as_span(gx1));
+  const double v2 = dyn.gradient(nlid::detail::as_const_span(x), th, nlid::detail::as_span(gt2), nlid::detail::as_span(gx2));
+  CHECK(std::abs(v1 - v2) <= 1e-14 * (1.0 + std::abs(v2)));
+  CHECK(v2 == dyn(nlid::detail::as_const_span(x), th));
+  CHECK(rel_diff(gt1, gt2) < 1e-14);
+  CHECK(rel_diff(gx1, gx2) < 1e-14);
   // Wrong lengths are named.
   Eigen::VectorXd short_g(P - 1);
   CHECK_THROWS_WITH(net.gradient(nlid::detail::as_const_span(x), th, nlid::detail::as_span(short_g), nlid::detail::as_span(gx1)),
@@ -143,8 +147,8 @@ TEST_CASE("structured simulation Jacobian equals forward AD through the recursio
       REQUIRE(fast.evaluate(th, r1, &J1));
       REQUIRE(ad.evaluate(th, r2, &J2));
       REQUIRE(fast.evaluate(th, r3, nullptr));
-      CHECK(rel_diff(r1, r2) == 0.0);  // the same simulation, bitwise
-      CHECK(rel_diff(r1, r3) == 0.0);  // with and without the Jacobian
+      CHECK(rel_diff(r1, r2) < 1e-13);  // the same simulation (Duals take the scalar logistic)
+      CHECK(rel_diff(r1, r3) == 0.0);  // with and without the Jacobian: bitwise
       CHECK(rel_diff(J2, J1) < 1e-11);
       CHECK(J1.cwiseAbs().maxCoeff() > 1e-3);  // a real Jacobian, not zeros
     }
@@ -166,7 +170,7 @@ TEST_CASE("structured simulation Jacobian equals forward AD through the recursio
     Eigen::MatrixXd J1(n, np), J2(n, np);
     REQUIRE(fast.evaluate(th, r1, &J1));
     REQUIRE(ad.evaluate(th, r2, &J2));
-    CHECK(rel_diff(r1, r2) == 0.0);
+    CHECK(rel_diff(r1, r2) < 1e-13);
     CHECK(rel_diff(J2, J1) < 1e-11);
     // Experiment 0's residuals do not depend on experiment 1's initial state, and vice versa.
     CHECK(J1.block(0, Nlarx5::num_params + 3, 400, 3).cwiseAbs().maxCoeff() == 0.0);
@@ -223,7 +227,7 @@ TEST_CASE("a custom regressor nonlinear in past outputs enters the sensitivity t
   const Eigen::Matrix<double, P, 1> t = th;
   REQUIRE(fast.evaluate(t, r1, &J1));
   REQUIRE(ad.evaluate(t, r2, &J2));
-  CHECK(rel_diff(r1, r2) < 1e-15);
+  CHECK(rel_diff(r1, r2) < 1e-13);
   CHECK(rel_diff(J2, J1) < 1e-11);
 }
 
