@@ -535,6 +535,7 @@ class LevenbergMarquardt {
         return false;
       }
     }
+    if (J_.allFinite()) return true;  // vectorised; the loop below only names the culprit
     for (int k = 0; k < n_; ++k) {
       for (Eigen::Index i = 0; i < m_; ++i) {
         if (!std::isfinite(J_(i, k))) {
@@ -557,7 +558,13 @@ class LevenbergMarquardt {
       rw_ = w_.cwiseProduct(r_);
       for (int k = 0; k < n_; ++k) J_.col(k).array() *= w_.array();
     }
-    A_.noalias() = J_.transpose() * J_;
+    // JᵀJ is symmetric: a rank update of the lower triangle (syrk) is half the flops of the
+    // general product, which was the largest single cost of a solve once the Jacobian is cheap
+    // (docs/performance.md); the upper triangle is mirrored, since the step code reads all of A.
+    A_.setZero();
+    A_.template selfadjointView<Eigen::Lower>().rankUpdate(J_.transpose());
+    for (int j = 1; j < n_; ++j)
+      for (int i = 0; i < j; ++i) A_(i, j) = A_(j, i);
     g_.noalias() = J_.transpose() * rw_;
     if (options_.jacobian_scaling) {
       for (int k = 0; k < n_; ++k) d_[k] = std::max(d_[k], std::sqrt(A_(k, k)));
