@@ -21,7 +21,8 @@
 ///
 /// Sensitivities. ∂ŷ/∂θ is computed exactly by forward AD through the integrator: a static
 /// physics is simulated once per experiment on `Dual<double, n_p + n_x>` (only that experiment's
-/// x₀ block can affect its residuals, so the Jacobian's block structure costs nothing); a runtime
+/// x₀ block can affect its residuals, so the Jacobian's block structure costs nothing), or on
+/// `Dual<double, n_p>` when the initial states are not estimated; a runtime
 /// physics in chunks of 8 columns on `RuntimeDual`. Jacobian columns of fixed parameters are zero.
 /// The sub-step count is computed from the double parameter values, so value and Dual runs take
 /// the same steps and the Jacobian is that of the residual function actually evaluated.
@@ -252,6 +253,14 @@ class GreyBoxProblem {
     }
     return RuntimeDual::num_derivatives;
   }
+  // Parameters only (initial states known: zero, equilibrium, or a fixed x0): no dual lanes
+  // are spent on states no column asks for.
+  static constexpr int params_width() {
+    if constexpr (kStatic) {
+      if constexpr (detail::EvaluatesPhysicsOn<P, Dual<double, NP>>) return NP;
+    }
+    return RuntimeDual::num_derivatives;
+  }
   static constexpr int states_width() {
     if constexpr (kStatic) {
       if constexpr (detail::EvaluatesPhysicsOn<P, Dual<double, NX>>) return NX;
@@ -345,7 +354,9 @@ class GreyBoxProblem {
     }
     constexpr int W = full_width();
     constexpr int WS = states_width();
+    constexpr int WP = params_width();
     if (states_only_) return passes<WS>(e, p, x0.data(), act.data(), nact, jinv, sub, r, *J);
+    if (ic_ != InitialCondition::estimate) return passes<WP>(e, p, x0.data(), act.data(), nact, jinv, sub, r, *J);
     return passes<W>(e, p, x0.data(), act.data(), nact, jinv, sub, r, *J);
   }
 
