@@ -361,12 +361,12 @@ inline bool isnan(const TraceScalar& x) {
 
 namespace detail {
 /// The sigmoid networks' logistic function becomes a call of the generated helper
-/// `nlid_logistic`, which has the same two overflow-safe branches (see nonlinearities/detail/
-/// common.hpp), instead of 2ⁿ traced paths for n units.
+/// `nlid_logistic`, which performs the operations of nlid's double logistic (the batch kernel of
+/// core/batch.hpp), instead of 2ⁿ traced paths for n units.
 template <>
 inline TraceScalar logistic<TraceScalar>(const TraceScalar& s) {
   const double v = s.value();
-  const double folded = v >= 0 ? 1.0 / (1.0 + std::exp(-v)) : std::exp(v) / (1.0 + std::exp(v));
+  const double folded = logistic(v);  // nlid's own double logistic, which the helper reproduces
   return TraceScalar::helper("nlid_logistic", s, folded);
 }
 }  // namespace detail
@@ -376,10 +376,30 @@ namespace codegen {
 /// C source of a helper function the traced code may call, by name.
 inline std::string helper_source(const std::string& name) {
   if (name == "nlid_logistic") {
-    return "/* logistic 1/(1+exp(-s)), overflow-safe in both directions (as nlid's C++) */\n"
+    // The operations of nlid::detail::logistic_lanes (core/batch.hpp) in the same order, so the
+    // generated code computes nlid's numbers bit for bit (when the C compiler does not contract
+    // a*b+c into fused multiply-adds: compile with -ffp-contract=off on FMA targets).
+    return "/* logistic 1/(1+exp(-s)) as nlid computes it: exp(-s) = 2^k (Q+P)/(Q-P) after a\n"
+           "   Cody-Waite reduction (Cephes' rational form), one division; |s| > 708 or NaN by libm */\n"
            "static double nlid_logistic(double s) {\n"
-           "  if (s >= 0) {\n    const double e = exp(-s);\n    return 1.0 / (1.0 + e);\n  } else {\n"
-           "    const double e = exp(s);\n    return e / (1.0 + e);\n  }\n}\n";
+           "  union { double d; unsigned long long u; } kb, tk;\n"
+           "  const double x = -s;\n"
+           "  if (!(s >= -708.0 && s <= 708.0)) {\n"
+           "    if (s >= 0) return 1.0 / (1.0 + exp(-s));\n"
+           "    return exp(s) / (1.0 + exp(s));\n"
+           "  }\n"
+           "  const double kd = x * 1.4426950408889634074 + 6755399441055744.0;\n"
+           "  kb.d = kd;\n"
+           "  const unsigned long long k = kb.u - 0x4338000000000000ULL;\n"
+           "  const double kf = kd - 6755399441055744.0;\n"
+           "  const double r = (x - kf * 6.93147180369123816490e-01) - kf * 1.90821492927058770002e-10;\n"
+           "  const double rr = r * r;\n"
+           "  const double px = r * ((1.26177193074810590878e-4 * rr + 3.02994407707441961300e-2) * rr + 9.99999999999999999910e-1);\n"
+           "  const double qx = ((3.00198505138664455042e-6 * rr + 2.52448340349684104192e-3) * rr + 2.27265548208155028766e-1) * rr + 2.00000000000000000009e0;\n"
+           "  tk.u = (k + 1023ULL) << 52;\n"
+           "  const double den = qx - px;\n"
+           "  return den / (den + tk.d * (qx + px));\n"
+           "}\n";
   }
   throw Error("codegen: unknown helper function '" + name + "'", at_parameter("helper"));
 }

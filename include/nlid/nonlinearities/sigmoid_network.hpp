@@ -313,24 +313,26 @@ class SigmoidNet {
     const auto at = [&theta](int i) -> const T& { return theta[static_cast<std::size_t>(i)]; };
     const int od = LinearTerm ? m : 0, oa = od + 1, ob = oa + units, oc = ob + units * m;
     if constexpr (std::is_same_v<T, double> && Units != Dynamic) {
-      // Plain numbers, unit count known (the fixed-size fast path; the Dynamic twin and Duals
-      // take the loop below and agree to a few ulp):
+      // Plain numbers, unit count known (the fixed-size fast path; the loop below computes the
+      // same numbers one unit at a time, for the Dynamic twin, Duals and code generation):
       // - the units are independent, so their logistic functions run side by side in SIMD
-      //   lanes (core/batch.hpp's kernel, one division per unit, within 4 ulp of the scalar
-      //   form) instead of one libm exp and two divisions after another;
+      //   lanes (core/batch.hpp's kernel, one division per unit; detail::logistic on double is
+      //   one lane of the same kernel) instead of one libm exp and two divisions after another;
       // - sums run from the last regressor to the first: in a free run the first regressors
       //   are the most recent outputs (ŷ(t−1) first in LaggedRegressors), so the terms of the
       //   inputs and older outputs are summed while the previous sample is still being
       //   computed, and ŷ(t−1) enters last, shortening the recursion's critical path.
       return evaluate_lanes(theta, z, m, od, oa, ob, oc);
     } else {
+      // The same order of operations as evaluate_lanes (last regressor first), so on double the
+      // twins agree bitwise.
       T g = at(od);
       if constexpr (LinearTerm) {
-        for (int j = 0; j < m; ++j) g += at(j) * z(j);
+        for (int j = m - 1; j >= 0; --j) g += at(j) * z(j);
       }
       for (int k = 0; k < units; ++k) {
         T s = at(oc + k);
-        for (int j = 0; j < m; ++j) s += at(ob + k * m + j) * z(j);
+        for (int j = m - 1; j >= 0; --j) s += at(ob + k * m + j) * z(j);
         g += at(oa + k) * detail::logistic(s);
       }
       return g;
@@ -357,50 +359,17 @@ class SigmoidNet {
 
   template <class Z>
   double evaluate_gradient(std::span<const double> theta, Z&& z, std::span<double> g_theta, std::span<double> g_x) const {
+    // The operations of `evaluate` on double in the same order (g bitwise operator()'s, for
+    // both twins), plus the derivatives; σ' = σ(1 − σ).
     const int m = M != Dynamic ? M : m_;
     const int units = Units != Dynamic ? Units : units_;
     const auto at = [&theta](int i) { return theta[static_cast<std::size_t>(i)]; };
     const auto gt = [&g_theta](int i) -> double& { return g_theta[static_cast<std::size_t>(i)]; };
     const auto gx = [&g_x](int j) -> double& { return g_x[static_cast<std::size_t>(j)]; };
     const int od = LinearTerm ? m : 0, oa = od + 1, ob = oa + units, oc = ob + units * m;
-    if constexpr (Units != Dynamic) {
-      // The fixed-size route of `evaluate_lanes`, with the same operations in the same order
-      // (so g is bitwise operator()'s), plus the derivatives; σ' = σ(1 − σ) from the kernel's σ.
-      std::array<double, static_cast<std::size_t>(Units)> s, sig;
-      for (int k = 0; k < Units; ++k) {
-        double sk = at(oc + k);
-        for (int j = m - 1; j >= 0; --j) sk += at(ob + k * m + j) * z(j);
-        s[static_cast<std::size_t>(k)] = sk;
-      }
-      detail::logistic_lanes<Units>(s.data(), sig.data());
-      double g = at(od);
-      gt(od) = 1.0;
-      for (int j = m - 1; j >= 0; --j) {
-        if constexpr (LinearTerm) {
-          g += at(j) * z(j);
-          gt(j) = z(j);
-          gx(j) = at(j);
-        } else {
-          gx(j) = 0.0;
-        }
-      }
-      for (int k = 0; k < Units; ++k) {
-        const double sg = sig[static_cast<std::size_t>(k)];
-        g += at(oa + k) * sg;
-        const double w = at(oa + k) * (sg * (1.0 - sg));
-        gt(oa + k) = sg;
-        gt(oc + k) = w;
-        for (int j = 0; j < m; ++j) {
-          gt(ob + k * m + j) = w * z(j);
-          gx(j) += w * at(ob + k * m + j);
-        }
-      }
-      for (int j = 0; j < m; ++j) gx(j) *= norm_.inv_scale(j);
-      return g;
-    }
     double g = at(od);
     gt(od) = 1.0;
-    for (int j = 0; j < m; ++j) {
+    for (int j = m - 1; j >= 0; --j) {
       if constexpr (LinearTerm) {
         g += at(j) * z(j);
         gt(j) = z(j);
@@ -411,21 +380,10 @@ class SigmoidNet {
     }
     for (int k = 0; k < units; ++k) {
       double s = at(oc + k);
-      for (int j = 0; j < m; ++j) s += at(ob + k * m + j) * z(j);
-      // detail::logistic's two branches, kept here so σ' = e/(1+e)² reuses its exp and g stays
-      // bitwise equal to operator().
-      double sig, dsig;
-      if (s >= 0) {
-        const double e = std::exp(-s);
-        sig = 1.0 / (1.0 + e);
-        dsig = e * sig * sig;
-      } else {
-        const double e = std::exp(s);
-        sig = e / (1.0 + e);
-        dsig = sig / (1.0 + e);
-      }
+      for (int j = m - 1; j >= 0; --j) s += at(ob + k * m + j) * z(j);
+      const double sig = detail::logistic(s);
       g += at(oa + k) * sig;
-      const double w = at(oa + k) * dsig;
+      const double w = at(oa + k) * (sig * (1.0 - sig));
       gt(oa + k) = sig;
       gt(oc + k) = w;
       for (int j = 0; j < m; ++j) {

@@ -33,11 +33,19 @@ inline T cast_to(double v) {
 /// A lane-parallel `Batch` (core/batch.hpp) cannot branch, and needs not: its lanes are plain
 /// numbers, for which 1/(1 + e^(−s)) is exact in IEEE arithmetic also when e^(−s) overflows
 /// (1/∞ = 0); only a Dual's derivative needs the second form.
+/// Plain doubles take one lane of the batch kernel (core/batch.hpp: Cody–Waite exp, one division,
+/// within 4 ulp of the two-branch form): the fixed-size sigmoid network evaluates its units in
+/// SIMD lanes with that kernel, and its Dynamic twin, a file-loaded model and the generated C
+/// code (codegen) must compute bitwise the same numbers.
 template <class T>
 inline T logistic(const T& s) {
   using std::exp;
   const T one = cast_to<T>(1.0);
-  if constexpr (is_batch_v<T>) {
+  if constexpr (std::is_same_v<T, double>) {
+    double out;
+    nlid::detail::logistic_lanes<1>(&s, &out);
+    return out;
+  } else if constexpr (is_batch_v<T>) {
     if constexpr (std::is_same_v<typename T::value_type, double>) {
       return nlid::logistic(s);  // one division per lane instead of two (core/batch.hpp)
     } else {
