@@ -148,6 +148,24 @@ struct ThrottleResiduals {
 
 // ---- problems: start point and the nlid residual functor ---------------------------------------------
 
+// The estimation segments of data1 + data2 as estimate() builds them (`start_of` sets the initial
+// condition of each), and the divergence limit from all outputs.
+template <class Setup, class StartOf>
+void segments_of(Setup& st, StartOf&& start_of) {
+  Eigen::VectorXd yall(data12().total_samples());
+  Eigen::Index k = 0;
+  for (const auto& e : data12()) {
+    nlid::detail::EstimationSegment seg;
+    seg.u = &e.u();
+    seg.y = e.y().col(0);
+    start_of(e, seg);
+    st.segs.push_back(seg);
+    yall.segment(k, e.size()) = seg.y;
+    k += e.size();
+  }
+  st.limit = nlid::detail::divergence_limit(yall);
+}
+
 struct Nlarx5Setup {
   perf::Nlarx5 model;
   Eigen::VectorXd theta0;
@@ -165,19 +183,10 @@ const Nlarx5Setup& nlarx5_setup() {
     o.solver.max_iterations = 20;
     st.model = nlid::estimate(perf::Nlarx5{}, data12(), o);
     st.theta0 = st.model.parameters();
-    Eigen::VectorXd yall(data12().total_samples());
-    Eigen::Index k = 0;
-    for (const auto& e : data12()) {
-      nlid::detail::EstimationSegment seg;
-      seg.u = &e.u();
-      seg.y = e.y().col(0);
-      seg.start = st.model.history_length();
+    segments_of(st, [&](const nlid::Experiment& e, nlid::detail::EstimationSegment& seg) {
+      seg.start = st.model.history_length();  // measured initial past
       seg.x0 = st.model.measured_state(e.u(), seg.y, seg.start);
-      st.segs.push_back(seg);
-      yall.segment(k, e.size()) = seg.y;
-      k += e.size();
-    }
-    st.limit = nlid::detail::divergence_limit(yall);
+    });
     return st;
   }();
   return s;
@@ -199,17 +208,7 @@ const Nlhw2Setup& nlhw2_setup() {
     o.solver.max_iterations = 0;  // nlid's data-driven initialisation only
     st.model = nlid::estimate(perf::Nlhw2{}, data12(), o);
     st.theta0 = st.model.parameters();
-    Eigen::VectorXd yall(data12().total_samples());
-    Eigen::Index k = 0;
-    for (const auto& e : data12()) {
-      nlid::detail::EstimationSegment seg;
-      seg.u = &e.u();
-      seg.y = e.y().col(0);
-      st.segs.push_back(seg);
-      yall.segment(k, e.size()) = seg.y;
-      k += e.size();
-    }
-    st.limit = nlid::detail::divergence_limit(yall);
+    segments_of(st, [](const nlid::Experiment&, nlid::detail::EstimationSegment&) {});  // zero initial state
     return st;
   }();
   return s;

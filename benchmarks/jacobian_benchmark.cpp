@@ -6,7 +6,8 @@
 //   NlidDual        nlid::Dual<double, 47>
 //   EigenAutoDiff   Eigen::AutoDiffScalar<Eigen::Matrix<double, 47, 1>>
 //   CeresJet        ceres::Jet<double, 47>                        (if Ceres is installed)
-//   NlidModel       nlid::AutoDiffProblem over Nlarx::simulate — what estimate() runs
+//   NlidModel       nlid::AutoDiffProblem over Nlarx::simulate (forward AD through the model)
+//   NlidStructured  the structured simulation Jacobian — what estimate() runs for this model
 //   Residuals       the same functor on double (no Jacobian): the floor
 //
 // Results, machine and command: docs/performance.md.
@@ -111,6 +112,24 @@ void NlidModel(benchmark::State& state) {
                                                    benchmark::Counter::kIsRate);
 }
 
+// What estimate() runs for this structure: the structured simulation Jacobian
+// (models/detail/nlarx_sensitivity.hpp), one analytic network gradient per sample.
+void NlidStructured(benchmark::State& state) {
+  const Setup& s = setup();
+  const nlid::detail::NlarxSimulationProblem<perf::Nlarx5, P> problem(s.model, s.segs, {}, nlid::InitialCondition::measured,
+                                                                      1e12);
+  Eigen::Matrix<double, P, 1> th = s.theta;
+  Eigen::VectorXd r(s.m);
+  Eigen::Matrix<double, Eigen::Dynamic, P> J(s.m, P);
+  for (auto _ : state) {
+    const bool ok = problem.evaluate(th, r, &J);
+    benchmark::DoNotOptimize(ok);
+    benchmark::DoNotOptimize(J.data());
+  }
+  state.counters["samples/s"] = benchmark::Counter(static_cast<double>(s.m) * static_cast<double>(state.iterations()),
+                                                   benchmark::Counter::kIsRate);
+}
+
 void Residuals(benchmark::State& state) {
   const Setup& s = setup();
   const perf::Nlarx5Residuals f(s.model, s.data);
@@ -131,6 +150,7 @@ BENCHMARK(EigenAutoDiff)->Unit(benchmark::kMicrosecond);
 BENCHMARK(CeresJet)->Unit(benchmark::kMicrosecond);
 #endif
 BENCHMARK(NlidModel)->Unit(benchmark::kMicrosecond);
+BENCHMARK(NlidStructured)->Unit(benchmark::kMicrosecond);
 BENCHMARK(Residuals)->Unit(benchmark::kMicrosecond);
 
 int main(int argc, char** argv) {
@@ -139,6 +159,9 @@ int main(int argc, char** argv) {
                                    {"nlid Dual / Eigen AutoDiffScalar (same functor)", "NlidDual", "EigenAutoDiff", 0.0},
                                    {"nlid Dual / Ceres Jet (same functor)", "NlidDual", "CeresJet", 0.0},
                                    {"nlid model path / Ceres Jet functor", "NlidModel", "CeresJet", 0.0},
+                                   {"nlid structured Jacobian / Ceres Jet functor", "NlidStructured", "CeresJet", 0.0},
+                                   {"nlid structured Jacobian / nlid model path (forward AD)", "NlidStructured", "NlidModel", 0.0},
                                    {"Jacobian / residuals-only (cost of 47 derivatives)", "NlidModel", "Residuals", 0.0},
+                                   {"structured Jacobian / residuals-only", "NlidStructured", "Residuals", 0.0},
                                });
 }

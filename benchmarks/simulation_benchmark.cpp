@@ -36,10 +36,9 @@ void count(benchmark::State& state, double samples_per_iteration) {
       benchmark::Counter(samples_per_iteration * static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
 }
 
-// ---- nlarx5 -------------------------------------------------------------------------------------
-
+// One free run of the input record per iteration, any model with the uniform simulate API.
 template <class Model>
-void run_nlarx(benchmark::State& state, const Model& m) {
+void run_model(benchmark::State& state, const Model& m) {
   const Eigen::MatrixXd& u = input();
   const Eigen::VectorXd th = m.parameters();
   std::vector<double> y(static_cast<std::size_t>(u.rows()));
@@ -52,8 +51,10 @@ void run_nlarx(benchmark::State& state, const Model& m) {
   count(state, static_cast<double>(u.rows()));
 }
 
-void Nlarx5_Fixed(benchmark::State& state) { run_nlarx(state, perf::make_nlarx5()); }
-void Nlarx5_Dynamic(benchmark::State& state) { run_nlarx(state, perf::make_nlarx5_dynamic()); }
+// ---- nlarx5 -------------------------------------------------------------------------------------
+
+void Nlarx5_Fixed(benchmark::State& state) { run_model(state, perf::make_nlarx5()); }
+void Nlarx5_Dynamic(benchmark::State& state) { run_model(state, perf::make_nlarx5_dynamic()); }
 void Nlarx5_Hand(benchmark::State& state) {
   const Eigen::MatrixXd& u = input();
   const perf::HandNlarx5 hand(perf::nlarx5_theta());
@@ -85,22 +86,8 @@ void Nlarx5_Batch(benchmark::State& state) {
 
 // ---- nlhw2 ----------------------------------------------------------------------------------------
 
-template <class Model>
-void run_hw(benchmark::State& state, const Model& m) {
-  const Eigen::MatrixXd& u = input();
-  const Eigen::VectorXd th = m.parameters();
-  std::vector<double> y(static_cast<std::size_t>(u.rows()));
-  for (auto _ : state) {
-    const bool ok = m.simulate(u, std::span<const double>(th.data(), static_cast<std::size_t>(th.size())),
-                               std::span<const double>(), std::span<double>(y));
-    benchmark::DoNotOptimize(ok);
-    benchmark::DoNotOptimize(y.data());
-  }
-  count(state, static_cast<double>(u.rows()));
-}
-
-void Nlhw2_Fixed(benchmark::State& state) { run_hw(state, perf::make_nlhw2()); }
-void Nlhw2_Dynamic(benchmark::State& state) { run_hw(state, perf::make_nlhw2_dynamic()); }
+void Nlhw2_Fixed(benchmark::State& state) { run_model(state, perf::make_nlhw2()); }
+void Nlhw2_Dynamic(benchmark::State& state) { run_model(state, perf::make_nlhw2_dynamic()); }
 void Nlhw2_Hand(benchmark::State& state) {
   const Eigen::MatrixXd& u = input();
   const perf::HandNlhw2 hand(perf::nlhw2_theta());

@@ -18,6 +18,8 @@
 #include "nlid/nonlinearities/sigmoid_network.hpp"
 #include "nlid/regressors/lagged.hpp"
 
+#include "../support/study_throttle.hpp"
+
 namespace {
 
 using B4 = nlid::Batch<double, 4>;
@@ -29,26 +31,7 @@ double ulps(double a, double b) {
   return std::abs(a - b) / std::abs(std::nextafter(b, 2 * b) - b);
 }
 
-// The throttle study's grey-box equation with its four parameters (stops at 15° and 90°):
-// y'' + c y' + k y + K (max(y, 90) − 90 + min(y, 15) − 15) = b u. Branch-free, so it batches.
-struct StudyThrottle {
-  static constexpr int num_states = 2, num_inputs = 1, num_outputs = 1, num_params = 4;
-  std::array<nlid::ParameterInfo, 4> parameter_info() const {
-    return {{{"c", "1/s", "", 20.0}, {"k", "1/s^2", "", 100.0}, {"K", "1/s^2", "", 1e4}, {"b", "", "", 100.0}}};
-  }
-  template <class T>
-  void derivative(const T* x, const T* u, const T* p, T* dx) const {
-    using std::max;
-    using std::min;
-    const T stop = max(x[0], T(90.0)) - 90.0 + min(x[0], T(15.0)) - 15.0;
-    dx[0] = x[1];
-    dx[1] = p[3] * u[0] - p[0] * x[1] - p[1] * x[0] - p[2] * stop;
-  }
-  template <class T>
-  void output(const T* x, const T*, const T*, T* y) const {
-    y[0] = x[0];
-  }
-};
+using nlid_test::StudyThrottle;  // the study's grey-box equation (tests/support/study_throttle.hpp)
 
 }  // namespace
 

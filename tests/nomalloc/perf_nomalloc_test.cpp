@@ -24,6 +24,8 @@
 #include "nlid/nonlinearities/sigmoid_network.hpp"
 #include "nlid/regressors/lagged.hpp"
 
+#include "../support/study_throttle.hpp"
+
 #ifndef EIGEN_RUNTIME_NO_MALLOC
 #error "tests/nomalloc must be compiled with EIGEN_RUNTIME_NO_MALLOC"
 #endif
@@ -43,23 +45,7 @@ Eigen::MatrixXd input(int n) {
   return u;
 }
 
-// The study's grey-box equation (4 parameters, stops at 15 and 90), branch-free so it batches.
-struct StudyThrottle {
-  static constexpr int num_states = 2, num_inputs = 1, num_outputs = 1, num_params = 4;
-  std::array<nlid::ParameterInfo, 4> parameter_info() const { return {}; }
-  template <class T>
-  void derivative(const T* x, const T* u, const T* p, T* dx) const {
-    using std::max;
-    using std::min;
-    const T stop = max(x[0], T(90.0)) - 90.0 + min(x[0], T(15.0)) - 15.0;
-    dx[0] = x[1];
-    dx[1] = p[3] * u[0] - p[0] * x[1] - p[1] * x[0] - p[2] * stop;
-  }
-  template <class T>
-  void output(const T* x, const T*, const T*, T* y) const {
-    y[0] = x[0];
-  }
-};
+using nlid_test::StudyThrottle;  // tests/support/study_throttle.hpp
 
 }  // namespace
 
