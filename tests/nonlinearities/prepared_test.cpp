@@ -54,7 +54,8 @@ TEST_CASE("BoundScalarMap falls back to operator() for maps without prepare", "[
   STATIC_REQUIRE(nlid::detail::PreparedEvaluation<nlid::PwLinear<10>, double>);
   STATIC_REQUIRE_FALSE(nlid::detail::PreparedEvaluation<nlid::Saturation, double>);
   const nlid::Saturation sat;
-  const Eigen::Vector2d th(15.0, 90.0);
+  Eigen::VectorXd th(2);  // a VectorXd: cspan() of a Vector2d would view a temporary copy
+  th << 15.0, 90.0;
   const nlid::detail::BoundScalarMap<nlid::Saturation, double> bound(sat, cspan(th));
   for (double x : {0.0, 15.0, 50.0, 90.0, 120.0}) CHECK(bound(x) == sat(std::span<const double>(&x, 1), cspan(th)));
 }
