@@ -54,6 +54,7 @@
 #include "nlid/models/detail/estimation_segment.hpp"
 #include "nlid/models/detail/initial_state.hpp"
 #include "nlid/models/detail/nlarx_sensitivity.hpp"
+#include "nlid/models/detail/simulation_residuals.hpp"
 #include "nlid/models/detail/model_common.hpp"
 #include "nlid/models/hammerstein_wiener.hpp"
 #include "nlid/models/nlarx.hpp"
@@ -105,72 +106,6 @@ struct EstimateOptions {
 };
 
 namespace detail {
-
-/// Free-run residuals of any `ModelStructure` over several experiments; `P` = the solver's
-/// static parameter count (the model's, or Dynamic when initial states are estimated).
-template <class M, int P>
-class SimulationResiduals {
- public:
-  /// Static parameter count.
-  static constexpr int num_params = P;
-
-  /// `free` lists the x0 entries estimated per experiment (empty unless ic == estimate).
-  SimulationResiduals(const M& model, std::vector<EstimationSegment> segments, std::vector<int> free,
-                      InitialCondition ic, double limit)
-      : model_(&model), segs_(std::move(segments)), free_(std::move(free)), ic_(ic), limit_(limit) {
-    for (const auto& s : segs_) m_ += s.y.size() - s.start;
-  }
-
-  /// Model parameters plus estimated initial states.
-  [[nodiscard]] int num_parameters() const {
-    return model_->num_parameters() + static_cast<int>(free_.size() * (ic_ == InitialCondition::estimate ? segs_.size() : 0));
-  }
-  /// Σ over experiments of the simulated samples.
-  [[nodiscard]] Eigen::Index num_residuals() const { return m_; }
-
-  /// r = ŷ_s − y, stacked; false if a simulation diverges.
-  template <class T>
-  bool residuals(std::span<const T> theta, std::span<T> r) const {
-    const auto np = static_cast<std::size_t>(model_->num_parameters());
-    const std::span<const T> th = theta.first(np);
-    std::size_t off = 0;
-    // Per-thread scratch for x0: grown on the first call, reused afterwards, so a fixed-size
-    // estimation allocates nothing per iteration (tests/nomalloc) and threads do not share it.
-    std::vector<T>& x0 = initial_state_scratch<T>();
-    for (const auto& s : segs_) {
-      const Eigen::Index len = s.y.size() - s.start;
-      const std::span<T> ri = r.subspan(off, static_cast<std::size_t>(len));
-      std::span<const T> x0s;
-      if (ic_ == InitialCondition::equilibrium) {
-        if constexpr (requires { model_->template equilibrium_state<T>(0.0, th); }) {
-          const auto xe = model_->template equilibrium_state<T>((*s.u)(0, 0), th);
-          x0.assign(xe.data(), xe.data() + xe.size());
-          x0s = std::span<const T>(x0);
-        }
-      } else if (s.x0.size() > 0) {
-        x0.resize(static_cast<std::size_t>(s.x0.size()));
-        for (Eigen::Index k = 0; k < s.x0.size(); ++k) x0[static_cast<std::size_t>(k)] = T(s.x0(k));
-        if (s.free_offset >= 0) {
-          for (std::size_t k = 0; k < free_.size(); ++k)
-            x0[static_cast<std::size_t>(free_[k])] = theta[np + static_cast<std::size_t>(s.free_offset) + k];
-        }
-        x0s = std::span<const T>(x0);
-      }
-      if (!model_->simulate(s.u->bottomRows(len), th, x0s, ri, limit_)) return false;
-      for (Eigen::Index t = 0; t < len; ++t) ri[static_cast<std::size_t>(t)] -= s.y(s.start + t);
-      off += static_cast<std::size_t>(len);
-    }
-    return true;
-  }
-
- private:
-  const M* model_;
-  std::vector<EstimationSegment> segs_;
-  std::vector<int> free_;
-  InitialCondition ic_;
-  double limit_;
-  Eigen::Index m_ = 0;
-};
 
 /// One-step prediction residuals of an Nlarx model over several experiments.
 template <class M>

@@ -13,8 +13,8 @@
 /// ∂φ/∂ŷ(t−k) is not just a selection), and Ly·P multiply-adds. Estimated initial states are
 /// columns of θ too: S(−k) is then the unit vector of the parameter holding ŷ(−k).
 ///
-/// The residuals are exactly those of `SimulationResiduals` (the residual-only path *is*
-/// `Nlarx::simulate`; the gradient path reproduces its value bitwise), and the Jacobian equals
+/// The residuals are exactly those of `SimulationResiduals`, which the problem holds (the
+/// residual-only path *is* its `residuals`; the gradient path reproduces its values bitwise), and the Jacobian equals
 /// the forward-AD one to rounding (tests/models/sensitivity_test.cpp). Sizes: a static
 /// parameter count keeps every buffer on the stack, so a fixed-size evaluation allocates
 /// nothing (tests/nomalloc).
@@ -34,6 +34,7 @@
 #include "nlid/core/initial_condition.hpp"
 #include "nlid/core/sizes.hpp"
 #include "nlid/models/detail/estimation_segment.hpp"
+#include "nlid/models/detail/simulation_residuals.hpp"
 #include "nlid/models/detail/model_common.hpp"
 #include "nlid/nonlinearities/concepts.hpp"
 #include "nlid/regressors/history.hpp"
@@ -101,34 +102,30 @@ class NlarxSimulationProblem {
   /// must be past outputs (indices < Ly), as `model_free_states` gives for Nlarx.
   NlarxSimulationProblem(const M& model, std::vector<EstimationSegment> segments, std::vector<int> free,
                          InitialCondition ic, double limit)
-      : model_(&model), segs_(std::move(segments)), free_(std::move(free)), ic_(ic), limit_(limit) {
-    require(ic_ != InitialCondition::equilibrium,
+      : res_(model, std::move(segments), std::move(free), ic, limit) {
+    require(ic != InitialCondition::equilibrium,
             "the structured simulation Jacobian supports zero, measured and estimated initial conditions",
             at_parameter("initial_condition"));
-    for (int k : free_) {
+    for (int k : res_.free_states()) {
       require(k >= 0 && k < model.output_lag(), "an estimated initial-state entry is not a past output",
               at_parameter("initial_condition"));
     }
-    for (const auto& s : segs_) m_ += s.y.size() - s.start;
   }
 
   /// Model parameters plus estimated initial states.
-  [[nodiscard]] int num_parameters() const {
-    return model_->num_parameters() + static_cast<int>(free_.size() * (ic_ == InitialCondition::estimate ? segs_.size() : 0));
-  }
+  [[nodiscard]] int num_parameters() const { return res_.num_parameters(); }
   /// Σ over experiments of the simulated samples.
-  [[nodiscard]] Eigen::Index num_residuals() const { return m_; }
+  [[nodiscard]] Eigen::Index num_residuals() const { return res_.num_residuals(); }
 
   /// r = ŷ_s − y stacked, and with `J` the m × n Jacobian; false if a simulation diverges.
   bool evaluate(const Eigen::Matrix<double, P, 1>& theta, Eigen::VectorXd& r, Eigen::Matrix<double, Eigen::Dynamic, P>* J) const {
+    const std::span<const double> th(theta.data(), static_cast<std::size_t>(theta.size()));
+    if (!J) return res_.residuals(th, std::span<double>(r.data(), static_cast<std::size_t>(r.size())));
+    std::vector<double>& scratch = initial_state_scratch<double>();
     Eigen::Index off = 0;
-    for (const auto& s : segs_) {
-      const std::span<const double> x0 = initial_state(s, theta);
+    for (const auto& s : res_.segments()) {
+      if (!simulate_with_sensitivity(s, theta, res_.initial_state(s, th, scratch), r, off, *J)) return false;
       const Eigen::Index len = s.y.size() - s.start;
-      const bool ok = J ? simulate_with_sensitivity(s, theta, x0, r, off, *J)
-                        : model_->simulate(s.u->bottomRows(len), parameters(theta), x0,
-                                           std::span<double>(r.data() + off, static_cast<std::size_t>(len)), limit_);
-      if (!ok) return false;
       for (Eigen::Index t = 0; t < len; ++t) r(off + t) -= s.y(s.start + t);
       off += len;
     }
@@ -142,35 +139,18 @@ class NlarxSimulationProblem {
   using D = Dual<double, (kLy > 0 ? kLy : 1)>;
   static constexpr int kRing = (P == Dynamic || kLy == 0) ? (kLy == 0 ? 1 : Dynamic) : kLy * P;
 
-  std::span<const double> parameters(const Eigen::Matrix<double, P, 1>& theta) const {
-    return {theta.data(), static_cast<std::size_t>(model_->num_parameters())};
-  }
-
-  // x0 of one experiment (estimated entries taken from θ), in the per-thread scratch.
-  std::span<const double> initial_state(const EstimationSegment& s, const Eigen::Matrix<double, P, 1>& theta) const {
-    if (s.x0.size() == 0) return {};
-    std::vector<double>& x0 = initial_state_scratch<double>();
-    x0.resize(static_cast<std::size_t>(s.x0.size()));
-    for (Eigen::Index k = 0; k < s.x0.size(); ++k) x0[static_cast<std::size_t>(k)] = s.x0(k);
-    if (s.free_offset >= 0) {
-      const int np = model_->num_parameters();
-      for (std::size_t k = 0; k < free_.size(); ++k)
-        x0[static_cast<std::size_t>(free_[k])] = theta(np + s.free_offset + static_cast<Eigen::Index>(k));
-    }
-    return {x0.data(), x0.size()};
-  }
-
   bool simulate_with_sensitivity(const EstimationSegment& s, const Eigen::Matrix<double, P, 1>& theta,
                                  std::span<const double> x0, Eigen::VectorXd& r, Eigen::Index off,
                                  Eigen::Matrix<double, Eigen::Dynamic, P>& J) const {
-    const int np = model_->num_parameters();
+    const M& model = res_.model();
+    const int np = model.num_parameters();
     const int n = P != Dynamic ? P : num_parameters();
-    const int ly = model_->output_lag();
-    const int lu = model_->input_lag();
-    const int nr = model_->regressors().size();
+    const int ly = model.output_lag();
+    const int lu = model.input_lag();
+    const int nr = model.regressors().size();
     const Eigen::Index len = s.y.size() - s.start;
     const auto u = s.u->bottomRows(len);
-    const std::span<const double> th = parameters(theta);
+    const std::span<const double> th(theta.data(), static_cast<std::size_t>(np));
 
     History<double, kLy> past(ly);
     if (!x0.empty()) {
@@ -191,9 +171,10 @@ class NlarxSimulationProblem {
     std::fill(S, S + static_cast<std::ptrdiff_t>(std::max(ly, 1)) * n, 0.0);
     int head = 0;
     if (s.free_offset >= 0) {
-      // ŷ(−k) = θ[np + offset + i] for free_[i] = k − 1: S(−k) is that unit vector.
-      for (std::size_t i = 0; i < free_.size(); ++i) {
-        const int k = free_[i] + 1;
+      // ŷ(−k) = θ[np + offset + i] for free[i] = k − 1: S(−k) is that unit vector.
+      const std::vector<int>& free = res_.free_states();
+      for (std::size_t i = 0; i < free.size(); ++i) {
+        const int k = free[i] + 1;
         const int slot = ((head - k + 1) % ly + ly) % ly;
         S[static_cast<std::ptrdiff_t>(slot) * n + np + s.free_offset + static_cast<int>(i)] = 1.0;
       }
@@ -201,14 +182,14 @@ class NlarxSimulationProblem {
     double* rw = row.data();
     double* gt = g_theta.data();
     double* gx = g_x.data();
-    const auto& regs = model_->regressors();
-    const auto& f = model_->nonlinearity();
+    const auto& regs = model.regressors();
+    const auto& f = model.nonlinearity();
     for (Eigen::Index t = 0; t < len; ++t) {
       w.set_time(t);
       regs.evaluate(seeded, phi.span());
       for (int j = 0; j < nr; ++j) x.data()[j] = phi.data()[j].a;
       const double yt = f.gradient(std::span<const double>(x.data(), static_cast<std::size_t>(nr)), th, g_theta.span(), g_x.span());
-      if (!std::isfinite(yt) || std::abs(yt) > limit_) return false;
+      if (!std::isfinite(yt) || std::abs(yt) > res_.limit()) return false;
       r(off + t) = yt;
       for (int c = 0; c < np; ++c) rw[c] = gt[c];
       for (int c = np; c < n; ++c) rw[c] = 0.0;
@@ -229,12 +210,7 @@ class NlarxSimulationProblem {
     return true;
   }
 
-  const M* model_;
-  std::vector<EstimationSegment> segs_;
-  std::vector<int> free_;
-  InitialCondition ic_;
-  double limit_;
-  Eigen::Index m_ = 0;
+  SimulationResiduals<M, P> res_;  // residuals, experiments and initial states, shared with forward AD
 };
 
 }  // namespace nlid::detail
