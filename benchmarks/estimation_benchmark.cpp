@@ -253,6 +253,17 @@ nlid::LmOptions lm_options(int iterations) {
   return o;
 }
 
+// Three complete LM solves of `problem` from `theta0` (one per benchmark iteration).
+template <class Problem, class Theta>
+void run_solve(benchmark::State& state, const std::string& key, const Problem& problem, const Theta& theta0, int iterations) {
+  nlid::LmSummary sum;
+  for (auto _ : state) {
+    Theta th = theta0;
+    sum = nlid::solve_least_squares(problem, th, lm_options(iterations));
+  }
+  report(state, key, sum.final_cost, sum.iterations);
+}
+
 // ---- nlid ------------------------------------------------------------------------------------------------
 
 void Nlarx5_Full_Nlid(benchmark::State& state) {
@@ -288,46 +299,25 @@ void Nlarx5_Sim_Nlid(benchmark::State& state) {
     const double dr = (r1 - r2).cwiseAbs().maxCoeff() / (1.0 + r1.cwiseAbs().maxCoeff());
     if (!(dj <= 1e-9 && dr <= 1e-12)) fail("nlarx5: structured Jacobian differs from forward AD by " + std::to_string(dj));
   }
-  nlid::LmSummary sum;
-  for (auto _ : state) {
-    Eigen::Matrix<double, perf::kNlarx5Params, 1> th = s.theta0;
-    sum = nlid::solve_least_squares(problem, th, lm_options(90));
-  }
-  report(state, "Nlarx5_Sim_Nlid", sum.final_cost, sum.iterations);
+  run_solve(state, "Nlarx5_Sim_Nlid", problem, Eigen::Matrix<double, perf::kNlarx5Params, 1>(s.theta0), 90);
 }
 
 // The same stage with forward AD (Dual<double, 47>) through the recursion: the route of
 // EstimateOptions::structured_jacobian = false and of nonlinearities without an analytic gradient.
 void Nlarx5_Sim_NlidForwardAD(benchmark::State& state) {
   const auto& s = nlarx5_setup();
-  nlid::AutoDiffProblem<Nlarx5Functor> problem(Nlarx5Functor(s.model, s.segs, {}, InitialCondition::measured, s.limit));
-  nlid::LmSummary sum;
-  for (auto _ : state) {
-    Eigen::Matrix<double, perf::kNlarx5Params, 1> th = s.theta0;
-    sum = nlid::solve_least_squares(problem, th, lm_options(90));
-  }
-  report(state, "Nlarx5_Sim_NlidForwardAD", sum.final_cost, sum.iterations);
+  const nlid::AutoDiffProblem<Nlarx5Functor> problem(Nlarx5Functor(s.model, s.segs, {}, InitialCondition::measured, s.limit));
+  run_solve(state, "Nlarx5_Sim_NlidForwardAD", problem, Eigen::Matrix<double, perf::kNlarx5Params, 1>(s.theta0), 90);
 }
 
 void Nlhw2_Nlid(benchmark::State& state) {
   const auto& s = nlhw2_setup();
-  nlid::AutoDiffProblem<Nlhw2Functor> problem(Nlhw2Functor(s.model, s.segs, {}, InitialCondition::zero, s.limit));
-  nlid::LmSummary sum;
-  for (auto _ : state) {
-    Eigen::Matrix<double, perf::kNlhw2Params, 1> th = s.theta0;
-    sum = nlid::solve_least_squares(problem, th, lm_options(200));
-  }
-  report(state, "Nlhw2_Nlid", sum.final_cost, sum.iterations);
+  const nlid::AutoDiffProblem<Nlhw2Functor> problem(Nlhw2Functor(s.model, s.segs, {}, InitialCondition::zero, s.limit));
+  run_solve(state, "Nlhw2_Nlid", problem, Eigen::Matrix<double, perf::kNlhw2Params, 1>(s.theta0), 200);
 }
 
 void Throttle_Nlid(benchmark::State& state) {
-  const auto problem = throttle_problem();
-  nlid::LmSummary sum;
-  for (auto _ : state) {
-    Eigen::VectorXd th = throttle_theta0();
-    sum = nlid::solve_least_squares(problem, th, lm_options(100));
-  }
-  report(state, "Throttle_Nlid", sum.final_cost, sum.iterations);
+  run_solve(state, "Throttle_Nlid", throttle_problem(), throttle_theta0(), 100);
 }
 
 // ---- Ceres -------------------------------------------------------------------------------------------------

@@ -96,10 +96,10 @@ void CeresJet(benchmark::State& state) {
 }
 #endif
 
-void NlidModel(benchmark::State& state) {
+// One full Jacobian per iteration of a problem built on the setup's segments.
+template <class Problem>
+void run_problem(benchmark::State& state, const Problem& problem) {
   const Setup& s = setup();
-  using F = nlid::detail::SimulationResiduals<perf::Nlarx5, P>;
-  nlid::AutoDiffProblem<F> problem(F(s.model, s.segs, {}, nlid::InitialCondition::measured, 1e12));
   Eigen::Matrix<double, P, 1> th = s.theta;
   Eigen::VectorXd r(s.m);
   Eigen::Matrix<double, Eigen::Dynamic, P> J(s.m, P);
@@ -112,22 +112,18 @@ void NlidModel(benchmark::State& state) {
                                                    benchmark::Counter::kIsRate);
 }
 
+void NlidModel(benchmark::State& state) {
+  const Setup& s = setup();
+  using F = nlid::detail::SimulationResiduals<perf::Nlarx5, P>;
+  run_problem(state, nlid::AutoDiffProblem<F>(F(s.model, s.segs, {}, nlid::InitialCondition::measured, 1e12)));
+}
+
 // What estimate() runs for this structure: the structured simulation Jacobian
 // (models/detail/nlarx_sensitivity.hpp), one analytic network gradient per sample.
 void NlidStructured(benchmark::State& state) {
   const Setup& s = setup();
-  const nlid::detail::NlarxSimulationProblem<perf::Nlarx5, P> problem(s.model, s.segs, {}, nlid::InitialCondition::measured,
-                                                                      1e12);
-  Eigen::Matrix<double, P, 1> th = s.theta;
-  Eigen::VectorXd r(s.m);
-  Eigen::Matrix<double, Eigen::Dynamic, P> J(s.m, P);
-  for (auto _ : state) {
-    const bool ok = problem.evaluate(th, r, &J);
-    benchmark::DoNotOptimize(ok);
-    benchmark::DoNotOptimize(J.data());
-  }
-  state.counters["samples/s"] = benchmark::Counter(static_cast<double>(s.m) * static_cast<double>(state.iterations()),
-                                                   benchmark::Counter::kIsRate);
+  run_problem(state, nlid::detail::NlarxSimulationProblem<perf::Nlarx5, P>(s.model, s.segs, {},
+                                                                           nlid::InitialCondition::measured, 1e12));
 }
 
 void Residuals(benchmark::State& state) {
