@@ -55,7 +55,7 @@ TEST_CASE("Rosenbrock, dynamic parameter count and without Jacobian scaling", "[
   CHECK((x - Eigen::Vector2d(1, 1)).cwiseAbs().maxCoeff() < 1e-8);
 
   LmOptions o;
-  o.jacobian_scaling = false;
+  o.scaling = nlid::LmScaling::levenberg;
   Eigen::VectorXd x2(2);
   x2 << -1.2, 1.0;
   const auto s2 = nlid::solve_least_squares(problem, x2, o);
@@ -440,6 +440,9 @@ TEST_CASE("invalid options throw errors that name the option and the parameter",
   o.parameter_tolerance = std::numeric_limits<double>::infinity();
   expect(o, "parameter_tolerance", "parameter_tolerance");
   o = {};
+  o.scaling = static_cast<nlid::LmScaling>(7);
+  expect(o, "LmOptions::scaling is not an LmScaling value (got 7)", "scaling");
+  o = {};
   o.initial_lambda = 0;
   expect(o, "initial_lambda must be finite and > 0", "initial_lambda");
   o = {};
@@ -480,4 +483,70 @@ TEST_CASE("a solver object is reusable and re-validates changed options", "[esti
   CHECK_THROWS_WITH(lm.solve(problem, th), Contains("initial_lambda"));
   CHECK(std::string(nlid::to_string(LmStatus::gradient_tolerance_reached)) ==
         "gradient_tolerance_reached");
+}
+
+namespace {
+// Rosenbrock with the second parameter in units a thousand times smaller (x₁ = 1000·z): the
+// same problem, written in other units.
+struct RosenbrockInOtherUnits {
+  static constexpr int num_params = 2;
+  int num_parameters() const { return 2; }
+  Eigen::Index num_residuals() const { return 2; }
+  template <class T>
+  bool residuals(std::span<const T> x, std::span<T> r) const {
+    r[0] = 10.0 * (1000.0 * x[1] - x[0] * x[0]);
+    r[1] = 1.0 - x[0];
+    return true;
+  }
+};
+
+std::vector<double> cost_history(const auto& problem, Eigen::Vector2d x, nlid::LmScaling scaling, nlid::LmSummary& s) {
+  std::vector<double> costs;
+  LmOptions o;
+  o.scaling = scaling;
+  o.callback = [&](const nlid::IterationReport& r) {
+    costs.push_back(r.cost);
+    return true;
+  };
+  s = nlid::solve_least_squares(problem, x, o);
+  return costs;
+}
+}  // namespace
+
+TEST_CASE("LmScaling: the column scalings are invariant to parameter units; all three converge", "[estimation][lm]") {
+  AutoDiffProblem plain(nlid_test::Rosenbrock<2>{});
+  AutoDiffProblem other(RosenbrockInOtherUnits{});
+  std::vector<double> running_max_costs;
+  for (auto scaling : {nlid::LmScaling::running_max, nlid::LmScaling::current}) {
+    CAPTURE(static_cast<int>(scaling));
+    nlid::LmSummary s1, s2;
+    const auto c1 = cost_history(plain, Eigen::Vector2d(-1.2, 1.0), scaling, s1);
+    const auto c2 = cost_history(other, Eigen::Vector2d(-1.2, 1e-3), scaling, s2);
+    CHECK(s1.converged());
+    CHECK(s2.converged());
+    // The same iterates in other units: the same costs, step for step.
+    REQUIRE(c1.size() == c2.size());
+    for (std::size_t k = 0; k < c1.size(); ++k) CHECK(c2[k] == Approx(c1[k]).epsilon(1e-8).margin(1e-20));
+    if (scaling == nlid::LmScaling::running_max) {
+      running_max_costs = c1;
+    } else {
+      CHECK(c1 != running_max_costs);  // the option changes the path
+    }
+  }
+  // automatic is running_max outside estimate(): the same iterates.
+  nlid::LmSummary sa;
+  CHECK(cost_history(plain, Eigen::Vector2d(-1.2, 1.0), nlid::LmScaling::automatic, sa) == running_max_costs);
+  // Levenberg damping is not unit-invariant, but converges on both.
+  for (const bool units : {false, true}) {
+    nlid::LmSummary s;
+    Eigen::Vector2d x(-1.2, units ? 1e-3 : 1.0);
+    LmOptions o;
+    o.scaling = nlid::LmScaling::levenberg;
+    o.max_iterations = 500;
+    s = units ? nlid::solve_least_squares(other, x, o) : nlid::solve_least_squares(plain, x, o);
+    INFO(s.message());
+    CHECK(s.converged());
+    CHECK(x[0] == Approx(1.0).epsilon(1e-7));
+    CHECK(x[1] * (units ? 1000.0 : 1.0) == Approx(1.0).epsilon(1e-7));
+  }
 }

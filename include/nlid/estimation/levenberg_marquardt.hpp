@@ -14,11 +14,13 @@
 /// where r̃ = w∘r, J̃ = diag(w)J are the robustly reweighted residuals and Jacobian (w = 1 for
 /// squared loss; J̃ᵀr̃ = ∇F exactly). Notation used below: A = J̃ᵀJ̃, g = J̃ᵀr̃.
 ///
-/// Scaling D. With `jacobian_scaling` (Marquardt 1963, Moré 1978 sec. 3), D = diag(d_k), d_k the
-/// largest column norm ‖J̃_k‖ seen so far in this solve: the iteration becomes invariant to the
-/// units of the parameters (a gain in degrees and a time constant in seconds are damped alike).
-/// Without it, D = √(max_k A_kk)·I (Levenberg damping made dimensionless, Madsen et al. 2004,
-/// eq. 3.14). The solver works in the scaled variables y = Dδ, so λ is dimensionless: the
+/// Scaling D (`LmOptions::scaling`). `running_max` (`automatic` here; Marquardt 1963, Moré 1978 sec. 3):
+/// D = diag(d_k), d_k the largest column norm ‖J̃_k‖ seen so far in this solve: the iteration
+/// becomes invariant to the units of the parameters (a gain in degrees and a time constant in
+/// seconds are damped alike). `current`: d_k the column norm at the current θ, floored at
+/// 10⁻³(1 + ‖J̃_k‖) (Marquardt's original choice; Ceres Solver's LM). `levenberg`:
+/// D = √(max_k A_kk)·I (Levenberg damping made dimensionless, Madsen et al. 2004, eq. 3.14). The
+/// solver works in the scaled variables y = Dδ, so λ is dimensionless: the
 /// scaled system is (Â + λI) y = −ĝ with Â = D⁻¹AD⁻¹ (diagonal ≤ 1), ĝ = D⁻¹g.
 ///
 /// Linear algebra. The damped system is factored by LDLT (pivoted Cholesky, n³/3 flops). If the
@@ -83,6 +85,24 @@ struct IterationReport {
   bool step_accepted;    ///< whether the step was taken (true at iteration 0)
 };
 
+/// How the damping term λ‖Dδ‖² scales the parameters (file comment: "Scaling D").
+enum class LmScaling {
+  /// The caller's default: `solve_least_squares` takes `running_max`; `estimate` takes
+  /// `levenberg` for Hammerstein–Wiener models and `running_max` for every other structure
+  /// (docs/estimation.md, "Scaling D", has the evidence).
+  automatic,
+  /// d_k = the largest column norm ‖J̃_k‖ seen so far in this solve (Moré 1978): invariant to
+  /// parameter units, and the damping never relaxes in a direction that was once steep.
+  running_max,
+  /// d_k = the column norm at the current θ (Marquardt 1963), floored at 10⁻³(1 + ‖J̃_k‖) so a
+  /// momentarily inactive parameter is still damped. This is the scaling of Ceres Solver's
+  /// Levenberg–Marquardt strategy (its Jacobi-scaled diagonal clamped at 10⁻⁶).
+  current,
+  /// D = √(max_k A_kk)·I, the running maximum over the solve (Levenberg 1944, made
+  /// dimensionless): not invariant to parameter units.
+  levenberg,
+};
+
 /// Options of `solve_least_squares`. Every field is validated at the start of a solve; a bad
 /// value throws `nlid::Error` whose location names the option (and the parameter, if any).
 struct LmOptions {
@@ -91,7 +111,7 @@ struct LmOptions {
   double gradient_tolerance = 1e-10;   ///< projected-gradient max-norm to stop, ≥ 0
   double parameter_tolerance = 1e-8;   ///< relative step size to stop, ≥ 0
   double initial_lambda = 1e-3;        ///< starting damping (dimensionless, see file comment), > 0
-  bool jacobian_scaling = true;        ///< Marquardt/Moré column scaling D (recommended)
+  LmScaling scaling = LmScaling::automatic;  ///< the damping's scale D (see LmScaling)
   Eigen::VectorXd lower_bounds;        ///< empty (none) or n entries; −∞ allowed
   Eigen::VectorXd upper_bounds;        ///< empty (none) or n entries; +∞ allowed
   std::vector<bool> fixed;             ///< empty (none) or n flags: true = hold at initial value
@@ -229,17 +249,43 @@ void apply_qt(const M& a, const V& tau, B& b) {
 
 }  // namespace detail
 
-/// Levenberg–Marquardt solver object for one problem type. Construct with options, optionally
-/// call `setup` once (validates options against the problem and allocates every buffer), then
-/// `solve` any number of times; `solve` calls `setup` itself when sizes changed.
+namespace detail {
+
+/// A problem's `evaluate` behind one function pointer: the solver's iteration and linear algebra
+/// (`LmEngine`) are then compiled once per parameter count, not once per problem type — an
+/// estimation builds several problems of the same size (prediction and simulation stages,
+/// structured and forward-AD Jacobians), and each solver instantiation costs seconds of compile
+/// time. One indirect call per evaluation of a whole residual vector costs nothing measurable.
+template <int P>
+struct LmEvaluator {
+  const void* problem;
+  bool (*evaluate)(const void* problem, const ParameterVector<P>& theta, Eigen::VectorXd& r, JacobianMatrix<P>* J);
+  int num_parameters;
+  Eigen::Index num_residuals;
+  bool operator()(const ParameterVector<P>& theta, Eigen::VectorXd& r, JacobianMatrix<P>* J) const {
+    return evaluate(problem, theta, r, J);
+  }
+};
+
 template <LeastSquaresProblem Problem>
-class LevenbergMarquardt {
+LmEvaluator<Problem::num_params> make_lm_evaluator(const Problem& problem) {
+  return {&problem,
+          [](const void* p, const ParameterVector<Problem::num_params>& theta, Eigen::VectorXd& r,
+             JacobianMatrix<Problem::num_params>* J) -> bool {
+            return static_cast<bool>(static_cast<const Problem*>(p)->evaluate(theta, r, J));
+          },
+          problem.num_parameters(), problem.num_residuals()};
+}
+
+/// The solver for problems of P parameters (see `LevenbergMarquardt`).
+template <int P>
+class LmEngine {
  public:
-  static constexpr int num_params = Problem::num_params;  ///< static parameter count (or Dynamic)
+  static constexpr int num_params = P;  ///< static parameter count (or Dynamic)
   using Parameters = ParameterVector<num_params>;          ///< θ
 
   /// Stores the options (validated in `setup`).
-  explicit LevenbergMarquardt(LmOptions options = {}) : options_(std::move(options)) {}
+  explicit LmEngine(LmOptions options = {}) : options_(std::move(options)) {}
 
   /// The options in use.
   const LmOptions& options() const { return options_; }
@@ -251,9 +297,9 @@ class LevenbergMarquardt {
 
   /// Validates the options for this problem and allocates all workspace.
   /// Throws `nlid::Error` naming the offending option / parameter.
-  void setup(const Problem& problem) {
-    const int n = problem.num_parameters();
-    const Eigen::Index m = problem.num_residuals();
+  void setup(const LmEvaluator<P>& problem) {
+    const int n = problem.num_parameters;
+    const Eigen::Index m = problem.num_residuals;
     if (n < 1 || (num_params != Dynamic && n != num_params)) {
       throw Error("problem reports " + std::to_string(n) + " parameters; expected " +
                       (num_params == Dynamic ? std::string("at least 1")
@@ -300,9 +346,9 @@ class LevenbergMarquardt {
   /// Minimises F from the initial `theta`, which receives the result (always the best accepted
   /// point, whatever the status). Throws `nlid::Error` for invalid options, a non-finite initial
   /// value, a fixed parameter outside its bounds, or a problem not evaluable at the start.
-  LmSummary solve(const Problem& problem, Parameters& theta) {
+  LmSummary solve(const LmEvaluator<P>& problem, Parameters& theta) {
     const auto t0 = std::chrono::steady_clock::now();
-    if (n_ != problem.num_parameters() || m_ != problem.num_residuals()) setup(problem);
+    if (n_ != problem.num_parameters || m_ != problem.num_residuals) setup(problem);
     LmSummary sum;
     if (theta.size() != n_) {
       throw Error("theta has " + std::to_string(theta.size()) + " entries, the problem has " +
@@ -350,7 +396,7 @@ class LevenbergMarquardt {
       rhs_.noalias() = A_ * y_;
       const double predicted = -(g_.dot(y_) + 0.5 * y_.dot(rhs_));
       ++sum.residual_evaluations;
-      bool ok = problem.evaluate(x_trial_, r_trial_, nullptr);
+      bool ok = problem(x_trial_, r_trial_, nullptr);
       check_residual_size(r_trial_);
       ok = ok && r_trial_.allFinite();
       const double new_cost = ok ? robust_cost(options_.loss, r_trial_) : 0.0;
@@ -429,6 +475,12 @@ class LevenbergMarquardt {
 
   void validate_options(int n) const {
     const LmOptions& o = options_;
+    if (o.scaling != LmScaling::automatic && o.scaling != LmScaling::running_max && o.scaling != LmScaling::current &&
+        o.scaling != LmScaling::levenberg) {
+      throw Error("LmOptions::scaling is not an LmScaling value (got " +
+                      std::to_string(static_cast<int>(o.scaling)) + ")",
+                  at_parameter("scaling"));
+    }
     if (o.max_iterations < 0) {
       throw Error("LmOptions::max_iterations must be >= 0, got " + std::to_string(o.max_iterations),
                   at_parameter("max_iterations"));
@@ -515,10 +567,10 @@ class LevenbergMarquardt {
   }
 
   // r_ and J_ at x_ (J_ then reweighted). False if not evaluable; bad_detail_ says why.
-  bool evaluate_with_jacobian(const Problem& problem, LmSummary& sum) {
+  bool evaluate_with_jacobian(const LmEvaluator<P>& problem, LmSummary& sum) {
     ++sum.residual_evaluations;
     ++sum.jacobian_evaluations;
-    const bool ok = problem.evaluate(x_, r_, &J_);
+    const bool ok = problem(x_, r_, &J_);
     check_residual_size(r_);
     if (J_.rows() != m_ || J_.cols() != n_) {
       throw Error("the problem's evaluate() resized the Jacobian", at_parameter("J"));
@@ -566,8 +618,13 @@ class LevenbergMarquardt {
     for (int j = 1; j < n_; ++j)
       for (int i = 0; i < j; ++i) A_(i, j) = A_(j, i);
     g_.noalias() = J_.transpose() * rw_;
-    if (options_.jacobian_scaling) {
+    if (options_.scaling == LmScaling::running_max || options_.scaling == LmScaling::automatic) {
       for (int k = 0; k < n_; ++k) d_[k] = std::max(d_[k], std::sqrt(A_(k, k)));
+    } else if (options_.scaling == LmScaling::current) {
+      for (int k = 0; k < n_; ++k) {
+        const double c = std::sqrt(A_(k, k));
+        d_[k] = std::max(c, 1e-3 * (1.0 + c));
+      }
     } else {
       const double dmax = std::sqrt(A_.diagonal().maxCoeff());
       if (dmax > d_[0]) d_.setConstant(dmax);  // running maximum, like the scaled case
@@ -676,6 +733,40 @@ class LevenbergMarquardt {
   double cost_ = 0;
   bool qr_ready_ = false;
   std::string bad_detail_, bad_param_;
+};
+
+}  // namespace detail
+
+/// Levenberg–Marquardt solver object for one problem type. Construct with options, optionally
+/// call `setup` once (validates options against the problem and allocates every buffer), then
+/// `solve` any number of times; `solve` calls `setup` itself when sizes changed.
+template <LeastSquaresProblem Problem>
+class LevenbergMarquardt {
+ public:
+  static constexpr int num_params = Problem::num_params;  ///< static parameter count (or Dynamic)
+  using Parameters = ParameterVector<num_params>;          ///< θ
+
+  /// Stores the options (validated in `setup`).
+  explicit LevenbergMarquardt(LmOptions options = {}) : engine_(std::move(options)) {}
+
+  /// The options in use.
+  const LmOptions& options() const { return engine_.options(); }
+  /// Replaces the options; the next `solve` re-validates them.
+  void set_options(LmOptions options) { engine_.set_options(std::move(options)); }
+
+  /// Validates the options for this problem and allocates all workspace.
+  /// Throws `nlid::Error` naming the offending option / parameter.
+  void setup(const Problem& problem) { engine_.setup(detail::make_lm_evaluator(problem)); }
+
+  /// Minimises F from the initial `theta`, which receives the result (always the best accepted
+  /// point, whatever the status). Throws `nlid::Error` for invalid options, a non-finite initial
+  /// value, a fixed parameter outside its bounds, or a problem not evaluable at the start.
+  LmSummary solve(const Problem& problem, Parameters& theta) {
+    return engine_.solve(detail::make_lm_evaluator(problem), theta);
+  }
+
+ private:
+  detail::LmEngine<num_params> engine_;
 };
 
 /// Minimises ½ Σ ρ(rᵢ(θ)²) from the initial `theta` (which receives the result).
