@@ -185,8 +185,8 @@ std::vector<nlid::detail::EstimationSegment> measured_segment(const Nlarx5& trut
 // Solves `problem` from `theta` (off the truth, so real steps are taken) with both heap traps
 // armed, counting operator new between iterations: after set-up (workspace, per-thread
 // scratch, which the caller has grown) no iteration may allocate, and the solve must converge.
-template <class P>
-void check_iterations_allocate_nothing(const P& problem, Nlarx5::Parameters theta) {
+template <class P, class Theta>
+void check_iterations_allocate_nothing(const P& problem, Theta theta) {
   int iterations = 0;
   long news_in_iterations = 0;
   long last = -1;
@@ -255,6 +255,40 @@ TEST_CASE("structured simulation Jacobian: evaluation and LM iterations allocate
   const Nlarx5::Parameters theta = off_truth(truth);
   Eigen::VectorXd r(problem.num_residuals());
   nlid::JacobianMatrix<Nlarx5::num_params> J(problem.num_residuals(), Nlarx5::num_params);
+  REQUIRE(problem.evaluate(theta, r, nullptr));  // grows the per-thread x0 scratch once
+  {
+    NoHeap guard;
+    CHECK(problem.evaluate(theta, r, &J));
+    CHECK(problem.evaluate(theta, r, nullptr));
+    CHECK(guard.new_calls() == 0);
+  }
+  check_iterations_allocate_nothing(problem, theta);
+}
+
+// The route estimate() takes for the study's nlhw2 shape (static blocks, zero initial state):
+// the structured Hammerstein-Wiener Jacobian (models/detail/hw_sensitivity.hpp) keeps its duals,
+// breakpoint tables and block state on the stack.
+TEST_CASE("structured Hammerstein-Wiener Jacobian: evaluation and LM iterations allocate nothing", "[nomalloc][models]") {
+  using Hw = nlid::HammersteinWiener<nlid::PwLinear<4>, nlid::TransferFunctionBlock<3, 3, 0>, nlid::PwLinear<4>>;
+  STATIC_REQUIRE(nlid::detail::HasStructuredHwJacobian<Hw>);
+  Hw truth;
+  Eigen::VectorXd th(Hw::num_params);
+  th << -0.8, -0.5, -0.5, -0.5, -0.5, 0.0, 0.5, 0.8,  // input breakpoints and values
+      0.2, 0.1, 0.05, -0.9, 0.2, -0.02,                // linear block
+      -1.0, 0.0, 0.0, 0.0, -0.6, 0.0, 0.6, 0.9;        // output breakpoints and values
+  truth.set_parameters(th);
+  const Eigen::MatrixXd u = test_input(300);
+  Eigen::VectorXd y(300);
+  REQUIRE(truth.simulate<double>(u, nlid::detail::as_const_span(th), {}, nlid::detail::as_span(y)));
+  std::vector<nlid::detail::EstimationSegment> segs(1);
+  segs[0].u = &u;
+  segs[0].y = y;
+  using P = nlid::detail::HwSimulationProblem<Hw, Hw::num_params>;
+  const P problem(truth, segs, nlid::InitialCondition::zero, 1e6);
+  Hw::Parameters theta = th;
+  theta.segment(8, 3) += Eigen::Vector3d(0.02, -0.01, 0.01);  // off the truth: real steps
+  Eigen::VectorXd r(problem.num_residuals());
+  nlid::JacobianMatrix<Hw::num_params> J(problem.num_residuals(), Hw::num_params);
   REQUIRE(problem.evaluate(theta, r, nullptr));  // grows the per-thread x0 scratch once
   {
     NoHeap guard;
