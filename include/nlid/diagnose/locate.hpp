@@ -198,12 +198,6 @@ inline int level_bin(double x, double lo, double hi, int nb) {
   return std::clamp(b, 0, nb - 1);
 }
 
-inline std::string fmt_num(double x) {
-  char buf[48];
-  std::snprintf(buf, sizeof buf, "%.4g", x);
-  return buf;
-}
-
 }  // namespace detail
 
 inline Mismatch locate_mismatch(const Dataset& data, const std::vector<Eigen::VectorXd>& simulated,

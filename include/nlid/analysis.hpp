@@ -1,0 +1,10 @@
+#pragma once
+/// @file
+/// Umbrella header of the analysis layer: fit (`fit_percent`), `compare`, residual analysis
+/// (`resid`), linearisation about an operating point.
+
+#include "nlid/analysis/compare.hpp"
+#include "nlid/analysis/concepts.hpp"
+#include "nlid/analysis/fit.hpp"
+#include "nlid/analysis/linearize.hpp"
+#include "nlid/analysis/resid.hpp"
