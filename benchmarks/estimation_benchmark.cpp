@@ -9,9 +9,12 @@
 //                        state, ≤ 200 iterations from nlid's data-driven start.
 //   Throttle_{Nlid,Ceres} the study's grey-box equation, 4 parameters, RK4, ≤ 100 iterations.
 //
-// Both sides: Levenberg–Marquardt. nlid's Jacobians: for nlarx5 the structured simulation
-// Jacobian estimate() uses (Nlarx5_Sim_NlidForwardAD: forward AD through the recursion, for
-// comparison); for nlhw2 and the grey box forward AD (Dual) through the model's own simulate.
+// Both sides: Levenberg–Marquardt, each with its own defaults (nlid: the options estimate()
+// uses, i.e. uniform damping for Hammerstein-Wiener; Nlhw2_NlidCeresDamping: Ceres' damping, so
+// the same iterates and the per-iteration cost alone). nlid's Jacobians: the structured ones
+// estimate() uses for nlarx5 (models/detail/nlarx_sensitivity.hpp) and nlhw2
+// (models/detail/hw_sensitivity.hpp), with *_NlidForwardAD (forward AD through the whole
+// simulation) for comparison; for the grey box forward AD (Dual) through the ODE solution.
 // Ceres: AutoDiffCostFunction + Jet through a templated functor of the same residuals,
 // DENSE_QR, one thread. Before timing, the residual vectors of both are compared at
 // the start (they must agree to 1e-9). Counters: final cost ½Σr², iterations. The ratio table
@@ -247,19 +250,23 @@ void report(benchmark::State& state, const std::string& key, double cost, int it
   final_costs()[key] = cost;
 }
 
-nlid::LmOptions lm_options(int iterations) {
+// The solver options estimate() uses: its defaults, and for Hammerstein-Wiener models uniform
+// (Levenberg) damping, which LmScaling::automatic selects there (models/estimate.hpp).
+nlid::LmOptions lm_options(int iterations, nlid::LmScaling scaling = nlid::LmScaling::automatic) {
   nlid::LmOptions o;
   o.max_iterations = iterations;
+  o.scaling = scaling;
   return o;
 }
 
 // Three complete LM solves of `problem` from `theta0` (one per benchmark iteration).
 template <class Problem, class Theta>
-void run_solve(benchmark::State& state, const std::string& key, const Problem& problem, const Theta& theta0, int iterations) {
+void run_solve(benchmark::State& state, const std::string& key, const Problem& problem, const Theta& theta0,
+               const nlid::LmOptions& options) {
   nlid::LmSummary sum;
   for (auto _ : state) {
     Theta th = theta0;
-    sum = nlid::solve_least_squares(problem, th, lm_options(iterations));
+    sum = nlid::solve_least_squares(problem, th, options);
   }
   report(state, key, sum.final_cost, sum.iterations);
 }
@@ -299,7 +306,7 @@ void Nlarx5_Sim_Nlid(benchmark::State& state) {
     const double dr = (r1 - r2).cwiseAbs().maxCoeff() / (1.0 + r1.cwiseAbs().maxCoeff());
     if (!(dj <= 1e-9 && dr <= 1e-12)) fail("nlarx5: structured Jacobian differs from forward AD by " + std::to_string(dj));
   }
-  run_solve(state, "Nlarx5_Sim_Nlid", problem, Eigen::Matrix<double, perf::kNlarx5Params, 1>(s.theta0), 90);
+  run_solve(state, "Nlarx5_Sim_Nlid", problem, Eigen::Matrix<double, perf::kNlarx5Params, 1>(s.theta0), lm_options(90));
 }
 
 // The same stage with forward AD (Dual<double, 47>) through the recursion: the route of
@@ -307,17 +314,51 @@ void Nlarx5_Sim_Nlid(benchmark::State& state) {
 void Nlarx5_Sim_NlidForwardAD(benchmark::State& state) {
   const auto& s = nlarx5_setup();
   const nlid::AutoDiffProblem<Nlarx5Functor> problem(Nlarx5Functor(s.model, s.segs, {}, InitialCondition::measured, s.limit));
-  run_solve(state, "Nlarx5_Sim_NlidForwardAD", problem, Eigen::Matrix<double, perf::kNlarx5Params, 1>(s.theta0), 90);
+  run_solve(state, "Nlarx5_Sim_NlidForwardAD", problem, Eigen::Matrix<double, perf::kNlarx5Params, 1>(s.theta0), lm_options(90));
 }
+
+// nlhw2 as estimate() runs it: the structured Hammerstein-Wiener Jacobian
+// (models/detail/hw_sensitivity.hpp), checked against forward AD through the chain first.
+using Nlhw2Structured = nlid::detail::HwSimulationProblem<perf::Nlhw2, perf::kNlhw2Params>;
 
 void Nlhw2_Nlid(benchmark::State& state) {
   const auto& s = nlhw2_setup();
+  const Nlhw2Structured problem(s.model, s.segs, InitialCondition::zero, s.limit);
+  {
+    nlid::AutoDiffProblem<Nlhw2Functor> ad(Nlhw2Functor(s.model, s.segs, {}, InitialCondition::zero, s.limit));
+    const Eigen::Index m = problem.num_residuals();
+    Eigen::VectorXd r1(m), r2(m);
+    nlid::JacobianMatrix<perf::kNlhw2Params> J1(m, perf::kNlhw2Params), J2(m, perf::kNlhw2Params);
+    const Eigen::Matrix<double, perf::kNlhw2Params, 1> th = s.theta0;
+    if (!ad.evaluate(th, r1, &J1) || !problem.evaluate(th, r2, &J2)) fail("nlhw2: evaluation at the start");
+    const double dj = (J1 - J2).cwiseAbs().maxCoeff() / (1.0 + J1.cwiseAbs().maxCoeff());
+    if (!(dj <= 1e-9)) fail("nlhw2: structured Jacobian differs from forward AD by " + std::to_string(dj));
+  }
+  run_solve(state, "Nlhw2_Nlid", problem, Eigen::Matrix<double, perf::kNlhw2Params, 1>(s.theta0),
+            lm_options(200, nlid::LmScaling::levenberg));
+}
+
+// The same structured problem with Ceres' own damping (Marquardt scaling by the current column
+// norms, initial damping 1e-4 = 1 / Ceres' initial trust radius): both solvers then take the same
+// 200 iterates, so this ratio is the per-iteration cost alone.
+void Nlhw2_NlidCeresDamping(benchmark::State& state) {
+  const auto& s = nlhw2_setup();
+  const Nlhw2Structured problem(s.model, s.segs, InitialCondition::zero, s.limit);
+  nlid::LmOptions o = lm_options(200, nlid::LmScaling::current);
+  o.initial_lambda = 1e-4;
+  run_solve(state, "Nlhw2_NlidCeresDamping", problem, Eigen::Matrix<double, perf::kNlhw2Params, 1>(s.theta0), o);
+}
+
+// The same solve with forward AD (Dual<double, 46>) through the whole chain.
+void Nlhw2_NlidForwardAD(benchmark::State& state) {
+  const auto& s = nlhw2_setup();
   const nlid::AutoDiffProblem<Nlhw2Functor> problem(Nlhw2Functor(s.model, s.segs, {}, InitialCondition::zero, s.limit));
-  run_solve(state, "Nlhw2_Nlid", problem, Eigen::Matrix<double, perf::kNlhw2Params, 1>(s.theta0), 200);
+  run_solve(state, "Nlhw2_NlidForwardAD", problem, Eigen::Matrix<double, perf::kNlhw2Params, 1>(s.theta0),
+            lm_options(200, nlid::LmScaling::levenberg));
 }
 
 void Throttle_Nlid(benchmark::State& state) {
-  run_solve(state, "Throttle_Nlid", throttle_problem(), throttle_theta0(), 100);
+  run_solve(state, "Throttle_Nlid", throttle_problem(), throttle_theta0(), lm_options(100));
 }
 
 // ---- Ceres -------------------------------------------------------------------------------------------------
@@ -397,6 +438,8 @@ BENCHMARK(Nlarx5_Sim_NlidForwardAD)->Unit(benchmark::kMillisecond)->Iterations(3
 BENCHMARK(Nlarx5_Sim_Ceres)->Unit(benchmark::kMillisecond)->Iterations(3);
 #endif
 BENCHMARK(Nlhw2_Nlid)->Unit(benchmark::kMillisecond)->Iterations(3);
+BENCHMARK(Nlhw2_NlidForwardAD)->Unit(benchmark::kMillisecond)->Iterations(3);
+BENCHMARK(Nlhw2_NlidCeresDamping)->Unit(benchmark::kMillisecond)->Iterations(3);
 #ifdef NLID_HAVE_CERES
 BENCHMARK(Nlhw2_Ceres)->Unit(benchmark::kMillisecond)->Iterations(3);
 #endif
@@ -413,19 +456,25 @@ int main(int argc, char** argv) {
                                            {"nlarx5 stage, forward-AD Jacobian / Ceres",
                                             "Nlarx5_Sim_NlidForwardAD/iterations:3", "Nlarx5_Sim_Ceres/iterations:3", 0.0},
                                            {"nlhw2: nlid speed / Ceres speed", "Nlhw2_Nlid/iterations:3", "Nlhw2_Ceres/iterations:3", 2.0},
+                                           {"nlhw2, Ceres' damping (same iterates) / Ceres",
+                                            "Nlhw2_NlidCeresDamping/iterations:3", "Nlhw2_Ceres/iterations:3", 0.0},
+                                           {"nlhw2, forward-AD Jacobian / Ceres", "Nlhw2_NlidForwardAD/iterations:3",
+                                            "Nlhw2_Ceres/iterations:3", 0.0},
                                            {"throttle grey-box: nlid speed / Ceres speed", "Throttle_Nlid/iterations:3",
                                             "Throttle_Ceres/iterations:3", 2.0},
                                        });
   const auto& c = final_costs();
-  auto line = [&](const char* what, const char* a, const char* b) {
+  auto line = [&](const char* what, const char* a, const char* b, bool info = false) {
     if (!c.count(a) || !c.count(b)) return;
     const double x = c.at(a), y = c.at(b);
-    std::printf("%-58s nlid %.6g  Ceres %.6g  %s\n", what, x, y, x <= y * (1 + 1e-6) ? "MET (nlid <= Ceres)" : "MISSED");
+    const char* verdict = info ? "(info)" : x <= y * (1 + 1e-6) ? "MET (nlid <= Ceres)" : "MISSED";
+    std::printf("%-58s nlid %.9g  Ceres %.9g  %s\n", what, x, y, verdict);
   };
   std::printf("\nfinal cost 1/2 sum r^2 (nlid must reach an equal or lower cost)\n");
   line("nlarx5 simulation stage", "Nlarx5_Sim_Nlid", "Nlarx5_Sim_Ceres");
   line("nlarx5 stage, forward-AD Jacobian", "Nlarx5_Sim_NlidForwardAD", "Nlarx5_Sim_Ceres");
   line("nlhw2", "Nlhw2_Nlid", "Nlhw2_Ceres");
+  line("nlhw2, Ceres' damping (same iterates)", "Nlhw2_NlidCeresDamping", "Nlhw2_Ceres", true);
   line("throttle grey-box", "Throttle_Nlid", "Throttle_Ceres");
   if (c.count("Nlarx5_Full_Nlid")) std::printf("%-58s %s\n", "nlarx5 full estimate() <= 1 s", "(see Nlarx5_Full_Nlid CPU time)");
   return rc;
