@@ -121,15 +121,9 @@ class NlarxSimulationProblem {
   bool evaluate(const Eigen::Matrix<double, P, 1>& theta, Eigen::VectorXd& r, Eigen::Matrix<double, Eigen::Dynamic, P>* J) const {
     const std::span<const double> th(theta.data(), static_cast<std::size_t>(theta.size()));
     if (!J) return res_.residuals(th, std::span<double>(r.data(), static_cast<std::size_t>(r.size())));
-    std::vector<double>& scratch = initial_state_scratch<double>();
-    Eigen::Index off = 0;
-    for (const auto& s : res_.segments()) {
-      if (!simulate_with_sensitivity(s, theta, res_.initial_state(s, th, scratch), r, off, *J)) return false;
-      const Eigen::Index len = s.y.size() - s.start;
-      for (Eigen::Index t = 0; t < len; ++t) r(off + t) -= s.y(s.start + t);
-      off += len;
-    }
-    return true;
+    return res_.stacked_with_sensitivity(th, r, [&](const EstimationSegment& s, std::span<const double> x0, Eigen::Index off) {
+      return simulate_with_sensitivity(s, theta, x0, r, off, *J);
+    });
   }
 
  private:

@@ -71,6 +71,22 @@ class SimulationResiduals {
     return std::span<const T>(x0);
   }
 
+  /// The outer loop of a structured Jacobian (nlarx_sensitivity.hpp, hw_sensitivity.hpp): for
+  /// each experiment `simulate(s, x0, off)` writes ŷ_s into r[off …] and its Jacobian rows (false:
+  /// diverged); the measured y is then subtracted. Returns false at the first divergence.
+  template <class Simulate>
+  bool stacked_with_sensitivity(std::span<const double> theta, Eigen::VectorXd& r, Simulate&& simulate) const {
+    std::vector<double>& x0 = initial_state_scratch<double>();
+    Eigen::Index off = 0;
+    for (const auto& s : segs_) {
+      if (!simulate(s, initial_state(s, theta, x0), off)) return false;
+      const Eigen::Index len = s.y.size() - s.start;
+      for (Eigen::Index t = 0; t < len; ++t) r(off + t) -= s.y(s.start + t);
+      off += len;
+    }
+    return true;
+  }
+
   /// r = ŷ_s − y, stacked; false if a simulation diverges.
   template <class T>
   bool residuals(std::span<const T> theta, std::span<T> r) const {
