@@ -8,6 +8,7 @@
 #include <cmath>
 #include <random>
 
+#include "jacobian_checks.hpp"
 #include "nlid/models/estimate.hpp"
 #include "nlid/nonlinearities/linear.hpp"
 #include "nlid/nonlinearities/sigmoid_network.hpp"
@@ -70,10 +71,7 @@ std::vector<nlid::detail::EstimationSegment> segments(const std::vector<Eigen::M
   return segs;
 }
 
-template <class A, class B>
-double rel_diff(const A& a, const B& b) {
-  return (a - b).cwiseAbs().maxCoeff() / (1.0 + a.cwiseAbs().maxCoeff());
-}
+using nlid_test::rel_diff;
 
 }  // namespace
 
@@ -183,21 +181,11 @@ TEST_CASE("structured simulation Jacobian equals forward AD through the recursio
     constexpr int P = Nlarx5::num_params;
     nlid::detail::NlarxSimulationProblem<Nlarx5, P> fast(m, segs, {}, nlid::InitialCondition::measured, 1e6);
     const Eigen::Index n = fast.num_residuals();
-    Eigen::VectorXd r(n), rp(n), rm(n);
+    Eigen::VectorXd r(n);
     nlid::JacobianMatrix<P> J(n, P);
     const Eigen::Matrix<double, P, 1> th = theta;
     REQUIRE(fast.evaluate(th, r, &J));
-    for (int c = 0; c < P; ++c) {
-      const double h = 1e-6 * (1.0 + std::abs(th(c)));
-      Eigen::Matrix<double, P, 1> tp = th, tm = th;
-      tp(c) += h;
-      tm(c) -= h;
-      REQUIRE(fast.evaluate(tp, rp, nullptr));
-      REQUIRE(fast.evaluate(tm, rm, nullptr));
-      const Eigen::VectorXd fd = (rp - rm) / (2.0 * h);
-      CAPTURE(c);
-      CHECK(rel_diff(fd, J.col(c)) < 1e-6);
-    }
+    nlid_test::check_central_differences(fast, th, J, 1e-6);
   }
 }
 
