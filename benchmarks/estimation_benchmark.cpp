@@ -271,6 +271,22 @@ void run_solve(benchmark::State& state, const std::string& key, const Problem& p
   report(state, key, sum.final_cost, sum.iterations);
 }
 
+// A structured Jacobian must equal forward AD at the start, or its timing compares nothing.
+template <class Structured, class ForwardAD>
+void check_structured(const char* name, const Structured& problem, const ForwardAD& ad,
+                      const Eigen::Matrix<double, Structured::num_params, 1>& th) {
+  constexpr int P = Structured::num_params;
+  const Eigen::Index m = problem.num_residuals();
+  Eigen::VectorXd r1(m), r2(m);
+  nlid::JacobianMatrix<P> J1(m, P), J2(m, P);
+  if (!ad.evaluate(th, r1, &J1) || !problem.evaluate(th, r2, &J2)) fail(std::string(name) + ": evaluation at the start");
+  const double dj = (J1 - J2).cwiseAbs().maxCoeff() / (1.0 + J1.cwiseAbs().maxCoeff());
+  const double dr = (r1 - r2).cwiseAbs().maxCoeff() / (1.0 + r1.cwiseAbs().maxCoeff());
+  if (!(dj <= 1e-9 && dr <= 1e-12))
+    fail(std::string(name) + ": structured Jacobian differs from forward AD by " + std::to_string(dj) + " (residuals " +
+         std::to_string(dr) + ")");
+}
+
 // ---- nlid ------------------------------------------------------------------------------------------------
 
 void Nlarx5_Full_Nlid(benchmark::State& state) {
@@ -295,17 +311,9 @@ using Nlarx5Structured = nlid::detail::NlarxSimulationProblem<perf::Nlarx5, perf
 void Nlarx5_Sim_Nlid(benchmark::State& state) {
   const auto& s = nlarx5_setup();
   const Nlarx5Structured problem(s.model, s.segs, {}, InitialCondition::measured, s.limit);
-  {
-    nlid::AutoDiffProblem<Nlarx5Functor> ad(Nlarx5Functor(s.model, s.segs, {}, InitialCondition::measured, s.limit));
-    const Eigen::Index m = problem.num_residuals();
-    Eigen::VectorXd r1(m), r2(m);
-    nlid::JacobianMatrix<perf::kNlarx5Params> J1(m, perf::kNlarx5Params), J2(m, perf::kNlarx5Params);
-    const Eigen::Matrix<double, perf::kNlarx5Params, 1> th = s.theta0;
-    if (!ad.evaluate(th, r1, &J1) || !problem.evaluate(th, r2, &J2)) fail("nlarx5: evaluation at the start");
-    const double dj = (J1 - J2).cwiseAbs().maxCoeff() / (1.0 + J1.cwiseAbs().maxCoeff());
-    const double dr = (r1 - r2).cwiseAbs().maxCoeff() / (1.0 + r1.cwiseAbs().maxCoeff());
-    if (!(dj <= 1e-9 && dr <= 1e-12)) fail("nlarx5: structured Jacobian differs from forward AD by " + std::to_string(dj));
-  }
+  check_structured("nlarx5", problem,
+                   nlid::AutoDiffProblem<Nlarx5Functor>(Nlarx5Functor(s.model, s.segs, {}, InitialCondition::measured, s.limit)),
+                   s.theta0);
   run_solve(state, "Nlarx5_Sim_Nlid", problem, Eigen::Matrix<double, perf::kNlarx5Params, 1>(s.theta0), lm_options(90));
 }
 
@@ -324,16 +332,9 @@ using Nlhw2Structured = nlid::detail::HwSimulationProblem<perf::Nlhw2, perf::kNl
 void Nlhw2_Nlid(benchmark::State& state) {
   const auto& s = nlhw2_setup();
   const Nlhw2Structured problem(s.model, s.segs, InitialCondition::zero, s.limit);
-  {
-    nlid::AutoDiffProblem<Nlhw2Functor> ad(Nlhw2Functor(s.model, s.segs, {}, InitialCondition::zero, s.limit));
-    const Eigen::Index m = problem.num_residuals();
-    Eigen::VectorXd r1(m), r2(m);
-    nlid::JacobianMatrix<perf::kNlhw2Params> J1(m, perf::kNlhw2Params), J2(m, perf::kNlhw2Params);
-    const Eigen::Matrix<double, perf::kNlhw2Params, 1> th = s.theta0;
-    if (!ad.evaluate(th, r1, &J1) || !problem.evaluate(th, r2, &J2)) fail("nlhw2: evaluation at the start");
-    const double dj = (J1 - J2).cwiseAbs().maxCoeff() / (1.0 + J1.cwiseAbs().maxCoeff());
-    if (!(dj <= 1e-9)) fail("nlhw2: structured Jacobian differs from forward AD by " + std::to_string(dj));
-  }
+  check_structured("nlhw2", problem,
+                   nlid::AutoDiffProblem<Nlhw2Functor>(Nlhw2Functor(s.model, s.segs, {}, InitialCondition::zero, s.limit)),
+                   s.theta0);
   run_solve(state, "Nlhw2_Nlid", problem, Eigen::Matrix<double, perf::kNlhw2Params, 1>(s.theta0),
             lm_options(200, nlid::LmScaling::levenberg));
 }
