@@ -1,5 +1,6 @@
 // Explicit instantiation (Sophus style): every member and every overload must compile for
 // float and double, fixed and dynamic N. Plus compile-time checks of the AdScalar concept.
+// nlid-unity: separate (explicit instantiations must be at namespace scope of nlid)
 #include <catch2/catch.hpp>
 
 #include <complex>

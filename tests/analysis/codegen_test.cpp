@@ -28,6 +28,8 @@
 #include "nlid/nonlinearities/sigmoid_network.hpp"
 #include "nlid/regressors.hpp"
 
+#include "../support/scratch_dir.hpp"
+
 namespace fs = std::filesystem;
 
 namespace {
@@ -47,7 +49,7 @@ auto spring() {
 }
 
 fs::path temp_dir(const std::string& tag) {
-  const fs::path d = fs::temp_directory_path() / ("nlid_codegen_" + tag + "_" + std::to_string(::getpid()));
+  const fs::path d = nlid_test::scratch_dir() / tag;
   fs::create_directories(d);
   return d;
 }

@@ -15,15 +15,15 @@
 #include "nlid/io/series_serial.hpp"
 #include "nlid/models/physics/catalogue.hpp"
 
+#include "../support/scratch_dir.hpp"
+
 namespace fs = std::filesystem;
 using namespace nlid;
 
 namespace {
 
 std::string temp_path(const std::string& name) {
-  const fs::path d = fs::temp_directory_path() / "nlid_model_file_extra_test";
-  fs::create_directories(d);
-  return (d / name).string();
+  return (nlid_test::scratch_dir() / name).string();
 }
 
 Experiment steps(int n, double ts) {

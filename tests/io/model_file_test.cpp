@@ -18,6 +18,8 @@
 #include "nlid/models/physics/catalogue.hpp"
 #include "nlid/nonlinearities.hpp"
 #include "nlid/regressors.hpp"
+
+#include "../support/scratch_dir.hpp"
 #include "nlid/regressors/expression.hpp"
 
 namespace fs = std::filesystem;
@@ -25,11 +27,7 @@ using namespace nlid;
 
 namespace {
 
-std::string temp_dir() {
-  const fs::path d = fs::temp_directory_path() / ("nlid_model_file_test_" + std::to_string(::getpid()));
-  fs::create_directories(d);
-  return d.string();
-}
+std::string temp_dir() { return nlid_test::scratch_dir().string(); }
 std::string temp_path(const std::string& name) { return (fs::path(temp_dir()) / name).string(); }
 
 // A throttle-like record: steps and pulses through a saturating second-order system, 100 Hz.

@@ -1,6 +1,7 @@
 // Proof that fixed-size model evaluation allocates nothing: Nlarx and Hammerstein-Wiener
 // free-run simulation and one-step prediction on double and on Dual (the Jacobian pass), and a
 // whole simulation-focus residual + Jacobian evaluation (one estimator iteration's model work).
+// nlid-unity: separate (replaces the global operator new, which must be at global scope)
 //
 // Two traps are armed together: Eigen's EIGEN_RUNTIME_NO_MALLOC assertion (NDEBUG undone so it
 // fires) and a counting replacement of the global operator new, which also sees std::vector,

@@ -17,6 +17,8 @@
 #include <string>
 #include <vector>
 
+#include "../support/scratch_dir.hpp"
+
 namespace tool_test {
 
 namespace fs = std::filesystem;
@@ -26,15 +28,8 @@ struct Run {
   std::string out, err;
 };
 
-/// A scratch directory per test process.
-inline fs::path work_dir() {
-  static const fs::path dir = [] {
-    fs::path d = fs::temp_directory_path() / ("nlid_tool_test_" + std::to_string(::getpid()));
-    fs::create_directories(d);
-    return d;
-  }();
-  return dir;
-}
+/// A scratch directory per test process, removed at exit.
+inline const fs::path& work_dir() { return nlid_test::scratch_dir(); }
 
 inline std::string slurp(const fs::path& p) {
   std::ifstream f(p);
