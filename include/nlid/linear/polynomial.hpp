@@ -82,7 +82,8 @@ inline Eigen::VectorXd convolve(const Eigen::VectorXd& p, const Eigen::VectorXd&
 /// Roots in the z-plane of P(q) = p₀ + p₁q⁻¹ + … + pₙq⁻ⁿ, i.e. of p₀zⁿ + … + pₙ.
 /// Leading zero coefficients are pure delays (q⁻ᵏ has no finite root in z) and are skipped;
 /// trailing zeros give roots at z = 0. Computed as eigenvalues of the companion matrix.
-inline Eigen::VectorXcd roots(const Eigen::VectorXd& p) {
+template <int = 0>
+Eigen::VectorXcd roots(const Eigen::VectorXd& p) {
   Eigen::Index first = 0;
   while (first < p.size() && p(first) == 0.0) ++first;
   const Eigen::Index degree = p.size() - first - 1;
@@ -105,7 +106,8 @@ inline Eigen::VectorXd poly_from_roots(const Eigen::VectorXcd& r) {
 }
 
 /// Largest root magnitude of P (0 for a constant): < 1 means B/P is stable.
-inline double spectral_radius(const Eigen::VectorXd& p) {
+template <int = 0>
+double spectral_radius(const Eigen::VectorXd& p) {
   const Eigen::VectorXcd r = roots(p);
   double m = 0.0;
   for (Eigen::Index k = 0; k < r.size(); ++k) m = std::max(m, std::abs(r(k)));
@@ -113,13 +115,15 @@ inline double spectral_radius(const Eigen::VectorXd& p) {
 }
 
 /// True if every root of the monic polynomial lies strictly inside the circle |z| < `radius`.
-inline bool is_stable_polynomial(const Eigen::VectorXd& p, double radius = 1.0) {
+template <int = 0>
+bool is_stable_polynomial(const Eigen::VectorXd& p, double radius = 1.0) {
   return spectral_radius(p) < radius;
 }
 
 /// Monic polynomial with every root r outside the unit circle replaced by 1/r̄ (roots on or
 /// inside the circle are kept). Used to restart an output-error search from a stable F.
-inline Eigen::VectorXd reflect_unstable(const Eigen::VectorXd& p) {
+template <int = 0>
+Eigen::VectorXd reflect_unstable(const Eigen::VectorXd& p) {
   require(p.size() > 0 && p(0) != 0.0, "reflect_unstable: polynomial must have p0 != 0",
           at_parameter("p"));
   Eigen::VectorXcd r = roots(p);
@@ -229,8 +233,10 @@ struct TransferFunction {
     return nlid::frequency_response(numerator, denominator, w, ts);
   }
   /// Poles: roots of the denominator.
+  template <int = 0>
   [[nodiscard]] Eigen::VectorXcd poles() const { return roots(denominator); }
   /// Zeros: roots of the numerator (leading zeros are delays and give no root).
+  template <int = 0>
   [[nodiscard]] Eigen::VectorXcd zeros() const { return roots(numerator); }
   /// "B(q)/A(q)" as text.
   [[nodiscard]] std::string str(int digits = 4) const {
