@@ -413,7 +413,10 @@ AnyModel fit_series_spec(M model, const ModelSpec& s, const Dataset& data, const
 /// The unestimated structure of a spec (for inspection: `describe()`, parameter names).
 /// `num_inputs` is the number of input channels (nlarx regressors count them). Throws
 /// `nlid::Error` for sizes a component rejects.
-inline AnyModel make_model(const ModelSpec& s, int num_inputs = 1) {
+// A template only so that its body (one AnyModel instantiation per model family, estimators
+// included) is compiled where it is called, not in every file that includes this header.
+template <int = 0>
+AnyModel make_model(const ModelSpec& s, int num_inputs = 1) {
   register_series_model_kind();
   require(num_inputs == 1 || s.family == "nlarx" || s.family == "linear:arx",
           "a " + s.family + " model has one input, the data have " + std::to_string(num_inputs), at_parameter("input"));
@@ -452,7 +455,8 @@ inline AnyModel make_model(const ModelSpec& s, int num_inputs = 1) {
 /// estimated, with the spec as the file description. Estimators: arx/oe of the linear layer,
 /// `estimate` (models/estimate.hpp) for nlarx and hw, the series estimator for wh, hammerstein
 /// and wiener, the grey-box estimator for greybox. Throws `nlid::Error` on data that do not fit.
-inline AnyModel fit_model_spec(const ModelSpec& s, const Dataset& data, const SpecFitOptions& o = {}) {
+template <int = 0>  // compiled where called, as make_model
+AnyModel fit_model_spec(const ModelSpec& s, const Dataset& data, const SpecFitOptions& o = {}) {
   register_series_model_kind();
   require(data.size() > 0, "no estimation data", at_parameter("data"));
   const int nu = data.num_inputs();
