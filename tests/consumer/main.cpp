@@ -2,7 +2,7 @@
 #include <cmath>
 #include <cstdio>
 
-#include "nlid/ad/dual.hpp"
+#include "nlid/ad.hpp"  // an area umbrella: installed from its own file set
 #include "nlid/core/error.hpp"
 
 int main() {
