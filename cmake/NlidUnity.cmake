@@ -11,8 +11,9 @@
 #      includes inside the files below then expand to nothing), and
 #   2. includes each file inside a namespace of its own,
 # which keeps the files' local names apart. Only #include lines are hoisted: a setting made with
-# #define/#undef before the includes (NDEBUG, EIGEN_*) belongs on the target, for all its files. A file that must stay at global scope (explicit
-# instantiations, specialisations of other libraries' templates) says so with the line
+# #define/#undef before the includes (NDEBUG, EIGEN_*) belongs on the target, for all its files.
+# A file that must stay at global scope (explicit instantiations, a replaced global operator new)
+# says so with the line
 #   // nlid-unity: separate
 # and is compiled on its own.
 #

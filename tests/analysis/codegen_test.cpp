@@ -13,7 +13,6 @@
 #include <sstream>
 #include <string>
 
-#include <unistd.h>
 
 #include "nlid/codegen.hpp"  // before the custom regressor's lambda (nlid::max on TraceScalar)
 #include "nlid/data/csv.hpp"

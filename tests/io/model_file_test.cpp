@@ -18,9 +18,9 @@
 #include "nlid/models/physics/catalogue.hpp"
 #include "nlid/nonlinearities.hpp"
 #include "nlid/regressors.hpp"
+#include "nlid/regressors/expression.hpp"
 
 #include "../support/scratch_dir.hpp"
-#include "nlid/regressors/expression.hpp"
 
 namespace fs = std::filesystem;
 using namespace nlid;
