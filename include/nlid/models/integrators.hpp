@@ -183,17 +183,18 @@ class Rk4Stepper {
     k4_.resize(n);
     tmp_.resize(n);
     const R hh = R(h), half = R(0.5) * R(h), sixth = R(h) / R(6);
+    // Element loops, not Eigen expressions: the physics writes each slope as scalars, and a
+    // packet load right after scalar stores defeats store-to-load forwarding — a 2-state step
+    // took 1.4x longer (docs/performance.md). Same roundings as the vector form.
     f(x, k1_);
-    tmp_ = x + half * k1_;
+    for (Eigen::Index i = 0; i < n; ++i) tmp_[i] = x[i] + half * k1_[i];
     f(tmp_, k2_);
-    tmp_ = x + half * k2_;
+    for (Eigen::Index i = 0; i < n; ++i) tmp_[i] = x[i] + half * k2_[i];
     f(tmp_, k3_);
-    tmp_ = x + hh * k3_;
+    for (Eigen::Index i = 0; i < n; ++i) tmp_[i] = x[i] + hh * k3_[i];
     f(tmp_, k4_);
     // Sum the slopes first: one rounding of the weighted average instead of four updates of x.
-    tmp_ = k1_ + k4_;
-    tmp_ += R(2) * (k2_ + k3_);
-    x += sixth * tmp_;
+    for (Eigen::Index i = 0; i < n; ++i) x[i] += sixth * ((k1_[i] + k4_[i]) + R(2) * (k2_[i] + k3_[i]));
   }
 
   /// Advances `x` by `n` equal steps covering `h`. Returns false (x then holds the first
