@@ -178,6 +178,7 @@ BENCHMARK(Throttle_Dynamic);
 BENCHMARK(Throttle_Hand);
 BENCHMARK_TEMPLATE(Throttle_Batch, 4);
 BENCHMARK_TEMPLATE(Throttle_Batch, 8);
+BENCHMARK_TEMPLATE(Throttle_Batch, 16);
 
 int main(int argc, char** argv) {
   return perf::run_with_ratios(
@@ -195,5 +196,6 @@ int main(int argc, char** argv) {
           {"throttle RK4: nlid fixed / Dynamic twin", "Throttle_Fixed", "Throttle_Dynamic", 0.0},
           {"throttle RK4: Batch<double,4> / single fixed", "Throttle_Batch<4>", "Throttle_Fixed", 0.0},
           {"throttle RK4: Batch<double,8> / single fixed", "Throttle_Batch<8>", "Throttle_Fixed", 4.0},
+          {"throttle RK4: Batch<double,16> / single fixed", "Throttle_Batch<16>", "Throttle_Fixed", 0.0},
       });
 }
