@@ -238,3 +238,35 @@ TEST_CASE("Batched grey-box throttle (RK4) equals W single simulations", "[core]
   CHECK(hit_upper > 90.0);  // the contact term is exercised
   CHECK(worst <= 1e-12 * 100.0);
 }
+
+TEST_CASE("A batched RK4 simulation stops where its first lane diverges, as that lane alone does",
+          "[core][batch][greybox]") {
+  // One lane's stop stiffness puts h·ρ far outside RK4's stability region (one sub-step), so
+  // that lane blows up to ±∞/NaN; the finiteness test of every sub-step must see it although
+  // the other lanes stay finite.
+  constexpr int W = 4;
+  using B = nlid::Batch<double, W>;
+  StudyThrottle phys;
+  nlid::IntegratorOptions opt;
+  const int n = 600;
+  const double ts = 0.01;
+  Eigen::MatrixXd u(n, 1);
+  for (int t = 0; t < n; ++t) u(t, 0) = (t / 100) % 2 == 0 ? 1.2 : 0.2;
+  const double p0[4] = {22.0, 110.0, 1.2e4, 9000.0};
+  std::array<B, 4> pb;
+  for (int j = 0; j < 4; ++j) pb[j] = B(p0[j]);
+  pb[2][2] = 1e7;  // lane 2 only
+  const int sub = 1;
+  auto single = [&](int w) {
+    double p[4], x[2] = {20.0, 0.0};
+    for (int j = 0; j < 4; ++j) p[j] = pb[j][w];
+    return nlid::simulate_physics<double>(phys, opt, sub, u, ts, p, x, [](Eigen::Index, const double*) {});
+  };
+  const Eigen::Index bad = single(2);
+  REQUIRE(bad < n);
+  for (int w : {0, 1, 3}) REQUIRE(single(w) == n);
+  std::array<B, 2> xb{B(20.0), B(0.0)};
+  const Eigen::Index got =
+      nlid::simulate_physics<B>(phys, opt, sub, u, ts, pb.data(), xb.data(), [](Eigen::Index, const B*) {});
+  CHECK(got == bad);
+}
