@@ -13,7 +13,6 @@
 #include <sstream>
 #include <string>
 
-
 #include "nlid/codegen.hpp"  // before the custom regressor's lambda (nlid::max on TraceScalar)
 #include "nlid/data/csv.hpp"
 #include "nlid/data/resample.hpp"

@@ -343,8 +343,10 @@ NLID_DUAL_COMPARE(!=)
 // ---- elementary functions ---------------------------------------------------------------------
 // Each applies the chain rule f(x)' = f'(a)·x'.
 namespace detail {
+/// True if the value part of `s` is finite (derivatives are not inspected). Found by ADL, so a
+/// `Batch` (core/batch.hpp) answers for all its lanes at once.
 template <class T>
-bool slope_is_finite(const T& s) {
+bool value_is_finite(const T& s) {
   using std::isfinite;
   return isfinite(value_of(s));
 }
@@ -352,7 +354,7 @@ bool slope_is_finite(const T& s) {
 // 0 (that variable does not move x, so it cannot move f(x)) rather than becoming ∞·0 = NaN.
 template <class T, int N>
 Dual<T, N> chain(const Dual<T, N>& x, const T& fa, const T& slope) {
-  if (slope_is_finite(slope)) return Dual<T, N>(fa, x.v * slope);
+  if (value_is_finite(slope)) return Dual<T, N>(fa, x.v * slope);
   Dual<T, N> r(fa);
   r.v = x.v;
   for (Eigen::Index k = 0; k < r.v.size(); ++k) {
