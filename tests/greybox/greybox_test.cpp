@@ -155,6 +155,120 @@ TEST_CASE("Simulation is generic over double, float and Dual", "[greybox]") {
   }
 }
 
+namespace {
+
+// Outputs and call counts of one experiment's simulation, filled by its per-sample callback.
+struct Trace {
+  explicit Trace(Eigen::Index n) : y(Eigen::VectorXd::Constant(n, -1.0)), calls(Eigen::VectorXi::Zero(n)) {}
+  auto sink() {
+    return [this](Eigen::Index k, const double* yk) {
+      y[k] = yk[0];
+      ++calls[k];
+    };
+  }
+  Eigen::VectorXd y;
+  Eigen::VectorXi calls;
+};
+
+// Runs `ua` and `ub` in lockstep and alone; every number and every callback must agree.
+void check_pair_equals_singles(const nlid::IntegratorOptions& opt, const Eigen::MatrixXd& ua,
+                               const Eigen::MatrixXd& ub) {
+  const physics::Throttle phys;
+  const Eigen::VectorXd p = throttle_truth();
+  const int sub = 4;
+  Trace pa(ua.rows()), pb(ub.rows()), sa(ua.rows()), sb(ub.rows());
+  double xa[2] = {15.0, 0.0}, xb[2] = {60.0, -5.0}, ya[2] = {15.0, 0.0}, yb[2] = {60.0, -5.0};
+  const auto got = nlid::simulate_physics_pair(phys, opt, sub, ua, ub, 0.01, p.data(), xa, xb, pa.sink(), pb.sink());
+  const auto ga = nlid::simulate_physics<double>(phys, opt, sub, ua, 0.01, p.data(), ya, sa.sink());
+  const auto gb = nlid::simulate_physics<double>(phys, opt, sub, ub, 0.01, p.data(), yb, sb.sink());
+  CHECK(got[0] == ga);
+  CHECK(got[1] == gb);
+  CHECK((pa.y - sa.y).cwiseAbs().maxCoeff() == 0.0);
+  CHECK((pb.y - sb.y).cwiseAbs().maxCoeff() == 0.0);
+  CHECK(pa.calls == sa.calls);
+  CHECK(pb.calls == sb.calls);
+  CHECK(pa.calls.maxCoeff() == 1);
+  CHECK(xa[0] == ya[0]);
+  CHECK(xa[1] == ya[1]);
+  CHECK(xb[0] == yb[0]);
+  CHECK(xb[1] == yb[1]);
+}
+
+}  // namespace
+
+TEST_CASE("Two experiments in lockstep give exactly the numbers of two single runs", "[greybox]") {
+  const Eigen::MatrixXd longer = nlid_test::steps({0.3, 0.9, -0.2, 0.5}, 60, 240);
+  const Eigen::MatrixXd shorter = nlid_test::steps({0.8, 0.1, 0.6}, 35, 170);
+  nlid::IntegratorOptions opt;
+  SECTION("RK4, the longer record first or second") {
+    check_pair_equals_singles(opt, longer, shorter);
+    check_pair_equals_singles(opt, shorter, longer);
+    check_pair_equals_singles(opt, longer, longer);
+  }
+  SECTION("Euler") {
+    opt.method = nlid::IntegratorMethod::euler;
+    check_pair_equals_singles(opt, longer, shorter);
+  }
+  SECTION("Dormand-Prince (each record its own steps: run one after the other)") {
+    opt.method = nlid::IntegratorMethod::dormand_prince;
+    check_pair_equals_singles(opt, shorter, longer);
+  }
+  SECTION("records of one and two samples") {
+    check_pair_equals_singles(opt, longer.topRows(1), longer.topRows(2));
+    check_pair_equals_singles(opt, longer.topRows(2), shorter);
+  }
+  SECTION("a record that diverges stops where it stops alone; the other runs to its end") {
+    Eigen::MatrixXd wild = shorter;
+    wild(77, 0) = 1e305;  // b·u overflows: the state leaves the finite numbers in interval 77
+    check_pair_equals_singles(opt, longer, wild);
+    check_pair_equals_singles(opt, wild, longer);
+    opt.method = nlid::IntegratorMethod::euler;
+    check_pair_equals_singles(opt, wild, longer);
+  }
+}
+
+TEST_CASE("Residuals alone equal the residuals of the Jacobian pass, bit for bit", "[greybox]") {
+  // Three records of different lengths: the first two in lockstep, the third alone.
+  GreyBox<physics::Throttle> m;
+  m.set_parameters(throttle_truth());
+  const double ts = 0.01;
+  Dataset d;
+  d.add(nlid_test::simulated(m, nlid_test::steps({0.3, 0.9, -0.2, 0.5}, 60, 240), ts, Eigen::Vector2d(15.0, 0.0), 0.3, 1, "a"));
+  d.add(nlid_test::simulated(m, nlid_test::steps({0.8, 0.1, 0.6}, 35, 170), ts, Eigen::Vector2d(15.0, 0.0), 0.3, 2, "b"));
+  d.add(nlid_test::simulated(m, nlid_test::steps({0.5, 0.2}, 40, 200), ts, Eigen::Vector2d(15.0, 0.0), 0.3, 3, "c"));
+  Eigen::VectorXd p = throttle_truth();
+  p[0] *= 1.3;  // away from the truth, so the residuals are not noise alone
+  for (const InitialCondition ic : {InitialCondition::zero, InitialCondition::estimate, InitialCondition::equilibrium}) {
+    nlid::GreyBoxProblem<physics::Throttle> pb(m.physics(), m.integrator(), d, ic);
+    Eigen::VectorXd theta(pb.num_parameters());
+    theta.head(7) = p;
+    pb.refresh_initial_states(theta);
+    Eigen::VectorXd r(pb.num_residuals()), rj(pb.num_residuals());
+    Eigen::MatrixXd J(pb.num_residuals(), pb.num_parameters());
+    REQUIRE(pb.evaluate(theta, r, nullptr));
+    REQUIRE(pb.evaluate(theta, rj, &J));
+    INFO("initial condition " << static_cast<int>(ic));
+    CHECK(r.norm() > 1.0);
+    if (ic == InitialCondition::equilibrium) {
+      // The Jacobian pass starts from x̄ − (∂f/∂x)⁻¹ f(x̄) (the sensitivity step): x̄ moved by
+      // the equilibrium solver's residual, ~1e-11, not by a different simulation.
+      CHECK((r - rj).cwiseAbs().maxCoeff() <= 1e-9 * r.cwiseAbs().maxCoeff());
+    } else {
+      CHECK((r - rj).cwiseAbs().maxCoeff() == 0.0);
+    }
+  }
+  SECTION("one diverging record fails the evaluation") {
+    Dataset bad;
+    bad.add(d[0]);
+    Eigen::MatrixXd u = d[1].u();
+    u(50, 0) = 1e305;
+    bad.add(Experiment(u, d[1].y(), ts, "wild"));
+    nlid::GreyBoxProblem<physics::Throttle> pb(m.physics(), m.integrator(), bad, InitialCondition::zero);
+    Eigen::VectorXd r(pb.num_residuals());
+    CHECK_FALSE(pb.evaluate(p, r, nullptr));
+  }
+}
+
 TEST_CASE("Exact sensitivities equal central finite differences", "[greybox][jacobian]") {
   const double ts = 0.01;
   SECTION("throttle, two experiments, estimated initial states, through both stops") {
