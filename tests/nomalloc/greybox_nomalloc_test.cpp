@@ -3,6 +3,8 @@
 // allocation per sample or per evaluation (all buffers belong to the caller or the stack).
 #include <catch2/catch.hpp>
 
+#include <array>
+
 #include "nlid/models/greybox.hpp"
 #include "nlid/models/greybox_problem.hpp"
 #include "nlid/models/physics/catalogue.hpp"
@@ -28,6 +30,14 @@ TEST_CASE("Grey-box simulation and Jacobian allocate nothing", "[nomalloc][greyb
   const nlid::Dataset data(nlid::Experiment(u, y, ts, "sim"));
   const nlid::GreyBoxProblem<Throttle> pb(m.physics(), m.integrator(), data,
                                           nlid::InitialCondition::estimate);
+  // Two records of unequal length: residual-only evaluation runs them in lockstep
+  // (simulate_physics_pair), then the longer one's tail alone.
+  const Eigen::MatrixXd u2 = u.topRows(250);
+  const nlid::Dataset data2{nlid::Experiment(u, y, ts, "sim"),
+                            nlid::Experiment(u2, m.simulate(u2, ts, Eigen::Vector2d(15.0, 0.0)), ts, "short")};
+  const nlid::GreyBoxProblem<Throttle> pb2(m.physics(), m.integrator(), data2, nlid::InitialCondition::zero);
+  Eigen::VectorXd r2(pb2.num_residuals());
+  const Eigen::VectorXd p_dyn = p;  // evaluate takes a VectorXd: convert before the guard
   Eigen::VectorXd theta(9);
   theta << p, 15.0, 0.0;
   Eigen::VectorXd r(pb.num_residuals());
@@ -36,8 +46,9 @@ TEST_CASE("Grey-box simulation and Jacobian allocate nothing", "[nomalloc][greyb
   nlid::IntegratorOptions adaptive;
   adaptive.method = nlid::IntegratorMethod::dormand_prince;
 
-  bool ok_r = false, ok_j = false;
+  bool ok_r = false, ok_j = false, ok_pair = false;
   Eigen::Index got_d = 0, got_dual = 0, got_dp = 0;
+  std::array<Eigen::Index, 2> got_pair{};
   double sum = 0.0;
   {
     MallocGuard guard;
@@ -55,7 +66,16 @@ TEST_CASE("Grey-box simulation and Jacobian allocate nothing", "[nomalloc][greyb
                                             [&](Eigen::Index, const double* yk) { sum += yk[0]; });
     ok_r = pb.evaluate(theta, r, nullptr);
     ok_j = pb.evaluate(theta, r, &J);
+    double xb[2] = {15.0, 0.0}, xc[2] = {15.0, 0.0};
+    got_pair = nlid::simulate_physics_pair(m.physics(), m.integrator(), sub, u, u2, ts, p.data(), xb, xc,
+                                           [&](Eigen::Index, const double* yk) { sum += yk[0]; },
+                                           [&](Eigen::Index, const double* yk) { sum += yk[0]; });
+    ok_pair = pb2.evaluate(p_dyn, r2, nullptr);
   }
+  CHECK(got_pair[0] == n);
+  CHECK(got_pair[1] == 250);
+  CHECK(ok_pair);
+  CHECK(r2.norm() > 1.0);  // started from zero, not from the records' 15 degrees
   CHECK(got_d == n);
   CHECK(got_dual == n);
   CHECK(got_dp == n);
