@@ -214,24 +214,29 @@ std::array<Eigen::Index, 2> simulate_physics_pair(const P& phys, const Integrato
   const bool rk4 = options.method == IntegratorMethod::rk4;
   const int sub = std::max(1, substeps);
   const double h = ts / sub;
+  auto step = [&](auto& f, auto& rk, auto& eu, State& x) {
+    if (rk4) {
+      rk.step(f, x, h);
+    } else {
+      eu.step(f, x, h);
+    }
+  };
   // One interval of a lane alone, with the same steps and checks as the lockstep loop.
   auto interval = [&](auto& f, auto& rk, auto& eu, State& x) {
     for (int i = 0; i < sub; ++i) {
-      if (rk4) {
-        rk.step(f, x, h);
-      } else {
-        eu.step(f, x, h);
-      }
+      step(f, rk, eu, x);
       if (!detail::values_finite(x)) return false;
     }
     return true;
   };
-  // Lockstep up to the last sample both share; that sample, and everything after it, is
-  // delivered by the single-trajectory loop, which also reports a non-finite output as alone.
+  // Lockstep up to the last sample both share; from sample `resume` on, each lane still alive
+  // runs in the single-trajectory loop, which also reports a non-finite output as alone.
   const Eigen::Index shared = std::min(ua.rows(), ub.rows());
   State a0(nx), b0(nx);  // states at t_k, kept to redo an interval in which a lane diverged
-  Eigen::Index k = 0;
-  for (; k + 1 < shared; ++k) {
+  bool alive_a = true, alive_b = true;
+  Eigen::Index resume = 0;
+  for (; resume + 1 < shared; ++resume) {
+    const Eigen::Index k = resume;
     for (int j = 0; j < nu; ++j) {
       uka[j] = ua(k, j);
       ukb[j] = ub(k, j);
@@ -245,13 +250,8 @@ std::array<Eigen::Index, 2> simulate_physics_pair(const P& phys, const Integrato
     b0 = sb;
     bool finite = true;
     for (int i = 0; i < sub && finite; ++i) {
-      if (rk4) {
-        rk4a.step(fa, sa, h);
-        rk4b.step(fb, sb, h);
-      } else {
-        eua.step(fa, sa, h);
-        eub.step(fb, sb, h);
-      }
+      step(fa, rk4a, eua, sa);
+      step(fb, rk4b, eub, sb);
       finite = detail::values_finite(sa) && detail::values_finite(sb);
     }
     if (!finite) {
@@ -259,20 +259,16 @@ std::array<Eigen::Index, 2> simulate_physics_pair(const P& phys, const Integrato
       // each lane stops (or goes on) exactly where it would alone.
       sa = a0;
       sb = b0;
-      const bool oka = interval(fa, rk4a, eua, sa), okb = interval(fb, rk4b, eub, sb);
-      const Eigen::Index ga = oka ? detail::simulate_physics_from<double>(phys, options, substeps, ua, k + 1, ts, p, sa, on_a) : k + 1;
-      const Eigen::Index gb = okb ? detail::simulate_physics_from<double>(phys, options, substeps, ub, k + 1, ts, p, sb, on_b) : k + 1;
-      if (ga == ua.rows()) {
-        for (int i = 0; i < nx; ++i) xa[i] = sa[i];
-      }
-      if (gb == ub.rows()) {
-        for (int i = 0; i < nx; ++i) xb[i] = sb[i];
-      }
-      return {ga, gb};
+      alive_a = interval(fa, rk4a, eua, sa);
+      alive_b = interval(fb, rk4b, eub, sb);
+      resume = k + 1;
+      break;
     }
   }
-  const Eigen::Index ga = detail::simulate_physics_from<double>(phys, options, substeps, ua, k, ts, p, sa, on_a);
-  const Eigen::Index gb = detail::simulate_physics_from<double>(phys, options, substeps, ub, k, ts, p, sb, on_b);
+  const Eigen::Index ga =
+      alive_a ? detail::simulate_physics_from<double>(phys, options, substeps, ua, resume, ts, p, sa, on_a) : resume;
+  const Eigen::Index gb =
+      alive_b ? detail::simulate_physics_from<double>(phys, options, substeps, ub, resume, ts, p, sb, on_b) : resume;
   if (ga == ua.rows()) {
     for (int i = 0; i < nx; ++i) xa[i] = sa[i];
   }
