@@ -3,6 +3,7 @@
 // parameter sets equals W single simulations (nlarx5-like sigmoid network, grey-box throttle).
 #include <catch2/catch.hpp>
 
+#include <array>
 #include <cmath>
 #include <limits>
 #include <random>
@@ -48,6 +49,22 @@ double worst_ulps(F batched, Ref reference, double range, double narrow, unsigne
 }
 
 using nlid_test::StudyThrottle;  // the study's grey-box equation (tests/support/study_throttle.hpp)
+
+// Throttle command switching between 1.2 (into the upper stop) and 0.2 every `hold` samples.
+Eigen::MatrixXd throttle_square_wave(int n, int hold) {
+  Eigen::MatrixXd u(n, 1);
+  for (int t = 0; t < n; ++t) u(t, 0) = (t / hold) % 2 == 0 ? 1.2 : 0.2;
+  return u;
+}
+
+// Lane w of a batched throttle run, simulated alone on double from the same start (20, 0).
+template <int W, class OnSample>
+Eigen::Index throttle_lane(const std::array<nlid::Batch<double, W>, 4>& pb, int w, const nlid::IntegratorOptions& opt,
+                           const Eigen::MatrixXd& u, double ts, int sub, OnSample&& on_sample) {
+  double p[4], x[2] = {20.0, 0.0};
+  for (int j = 0; j < 4; ++j) p[j] = pb[j][w];
+  return nlid::simulate_physics<double>(StudyThrottle{}, opt, sub, u, ts, p, x, on_sample);
+}
 
 }  // namespace
 
@@ -212,8 +229,7 @@ TEST_CASE("Batched grey-box throttle (RK4) equals W single simulations", "[core]
   nlid::IntegratorOptions opt;
   const int n = 800;
   const double ts = 0.01;
-  Eigen::MatrixXd u(n, 1);
-  for (int t = 0; t < n; ++t) u(t, 0) = (t / 150) % 2 == 0 ? 1.2 : 0.2;  // drives into both stops
+  const Eigen::MatrixXd u = throttle_square_wave(n, 150);  // drives into both stops
   const double p0[4] = {22.0, 110.0, 1.2e4, 9000.0};
   std::array<B, 4> pb;
   std::array<B, 2> xb{B(20.0), B(0.0)};
@@ -225,11 +241,9 @@ TEST_CASE("Batched grey-box throttle (RK4) equals W single simulations", "[core]
                                     [&](Eigen::Index k, const B* y) { yb[static_cast<std::size_t>(k)] = y[0]; }) == n);
   double hit_upper = 0, worst = 0;
   for (int w = 0; w < W; ++w) {
-    double p[4], x[2] = {20.0, 0.0};
-    for (int j = 0; j < 4; ++j) p[j] = pb[j][w];
     std::vector<double> y(n);
-    REQUIRE(nlid::simulate_physics<double>(phys, opt, sub, u, ts, p, x,
-                                           [&](Eigen::Index k, const double* v) { y[static_cast<std::size_t>(k)] = v[0]; }) == n);
+    REQUIRE(throttle_lane<W>(pb, w, opt, u, ts, sub,
+                             [&](Eigen::Index k, const double* v) { y[static_cast<std::size_t>(k)] = v[0]; }) == n);
     for (int t = 0; t < n; ++t) {
       worst = std::max(worst, std::abs(y[static_cast<std::size_t>(t)] - yb[static_cast<std::size_t>(t)][w]));
       hit_upper = std::max(hit_upper, y[static_cast<std::size_t>(t)]);
@@ -250,18 +264,13 @@ TEST_CASE("A batched RK4 simulation stops where its first lane diverges, as that
   nlid::IntegratorOptions opt;
   const int n = 600;
   const double ts = 0.01;
-  Eigen::MatrixXd u(n, 1);
-  for (int t = 0; t < n; ++t) u(t, 0) = (t / 100) % 2 == 0 ? 1.2 : 0.2;
+  const Eigen::MatrixXd u = throttle_square_wave(n, 100);
   const double p0[4] = {22.0, 110.0, 1.2e4, 9000.0};
   std::array<B, 4> pb;
   for (int j = 0; j < 4; ++j) pb[j] = B(p0[j]);
   pb[2][2] = 1e7;  // lane 2 only
   const int sub = 1;
-  auto single = [&](int w) {
-    double p[4], x[2] = {20.0, 0.0};
-    for (int j = 0; j < 4; ++j) p[j] = pb[j][w];
-    return nlid::simulate_physics<double>(phys, opt, sub, u, ts, p, x, [](Eigen::Index, const double*) {});
-  };
+  auto single = [&](int w) { return throttle_lane<W>(pb, w, opt, u, ts, sub, [](Eigen::Index, const double*) {}); };
   const Eigen::Index bad = single(2);
   REQUIRE(bad < n);
   for (int w : {0, 1, 3}) REQUIRE(single(w) == n);
