@@ -187,26 +187,23 @@ class Rk4Stepper {
   template <class System>
     requires OdeSystem<System, State>
   NLID_FLATTEN void step(System& f, State& x, double h) {
-    using R = detail::real_of_t<typename State::Scalar>;
-    const Eigen::Index n = x.size();
-    k1_.resize(n);
-    k2_.resize(n);
-    k3_.resize(n);
-    k4_.resize(n);
-    tmp_.resize(n);
-    const R hh = R(h), half = R(0.5) * R(h), sixth = R(h) / R(6);
-    // Element loops, not Eigen expressions: the physics writes each slope as scalars, and a
-    // packet load right after scalar stores defeats store-to-load forwarding — a 2-state step
-    // took 1.4x longer (docs/performance.md). Same roundings as the vector form.
-    f(x, k1_);
-    for (Eigen::Index i = 0; i < n; ++i) tmp_[i] = x[i] + half * k1_[i];
-    f(tmp_, k2_);
-    for (Eigen::Index i = 0; i < n; ++i) tmp_[i] = x[i] + half * k2_[i];
-    f(tmp_, k3_);
-    for (Eigen::Index i = 0; i < n; ++i) tmp_[i] = x[i] + hh * k3_[i];
-    f(tmp_, k4_);
-    // Sum the slopes first: one rounding of the weighted average instead of four updates of x.
-    for (Eigen::Index i = 0; i < n; ++i) x[i] += sixth * ((k1_[i] + k4_[i]) + R(2) * (k2_[i] + k3_[i]));
+    if constexpr (State::SizeAtCompileTime != Eigen::Dynamic && is_dual_v<typename State::Scalar>) {
+      // Fixed-size dual states (the grey-box Jacobian pass): stage slopes as locals, which the
+      // compiler keeps in registers or short-lived stack slots; as members every stage went
+      // through the stepper object, and the throttle's Dual<4> pass took 1.2x longer. Not for
+      // Batch lanes: there locals made the portable Batch<double, 8> throttle 1.3x slower
+      // (docs/performance.md); plain doubles measured the same either way.
+      State k1, k2, k3, k4, tmp;
+      step_with(f, x, h, k1, k2, k3, k4, tmp);
+    } else {
+      const Eigen::Index n = x.size();
+      k1_.resize(n);
+      k2_.resize(n);
+      k3_.resize(n);
+      k4_.resize(n);
+      tmp_.resize(n);
+      step_with(f, x, h, k1_, k2_, k3_, k4_, tmp_);
+    }
   }
 
   /// Advances `x` by `n` equal steps covering `h`. Returns false (x then holds the first
@@ -223,6 +220,26 @@ class Rk4Stepper {
   }
 
  private:
+  template <class System>
+  NLID_FLATTEN static void step_with(System& f, State& x, double h, State& k1, State& k2, State& k3, State& k4,
+                                     State& tmp) {
+    using R = detail::real_of_t<typename State::Scalar>;
+    const Eigen::Index n = x.size();
+    const R hh = R(h), half = R(0.5) * R(h), sixth = R(h) / R(6);
+    // Element loops, not Eigen expressions: the physics writes each slope as scalars, and a
+    // packet load right after scalar stores defeats store-to-load forwarding — a 2-state step
+    // took 1.4x longer (docs/performance.md). Same roundings as the vector form.
+    f(x, k1);
+    for (Eigen::Index i = 0; i < n; ++i) tmp[i] = x[i] + half * k1[i];
+    f(tmp, k2);
+    for (Eigen::Index i = 0; i < n; ++i) tmp[i] = x[i] + half * k2[i];
+    f(tmp, k3);
+    for (Eigen::Index i = 0; i < n; ++i) tmp[i] = x[i] + hh * k3[i];
+    f(tmp, k4);
+    // Sum the slopes first: one rounding of the weighted average instead of four updates of x.
+    for (Eigen::Index i = 0; i < n; ++i) x[i] += sixth * ((k1[i] + k4[i]) + R(2) * (k2[i] + k3[i]));
+  }
+
   State k1_, k2_, k3_, k4_, tmp_;
 };
 
