@@ -133,6 +133,12 @@ inline int substeps_for(double h, double spectral_radius, const IntegratorOption
 }
 
 namespace detail {
+/// A dual number with a compile-time derivative count (its gradient lives inside the object).
+template <class S>
+inline constexpr bool is_fixed_dual_v = false;
+template <class T, int N>
+inline constexpr bool is_fixed_dual_v<Dual<T, N>> = N != Dynamic;
+
 /// The real type under a scalar: double for Dual<double, N>, float for float.
 template <class S>
 using real_of_t = std::remove_cvref_t<decltype(value_of(std::declval<S>()))>;
@@ -187,13 +193,15 @@ class Rk4Stepper {
   template <class System>
     requires OdeSystem<System, State>
   NLID_FLATTEN void step(System& f, State& x, double h) {
-    if constexpr (State::SizeAtCompileTime != Eigen::Dynamic && is_dual_v<typename State::Scalar>) {
+    using S = typename State::Scalar;
+    if constexpr (State::SizeAtCompileTime != Eigen::Dynamic && detail::is_fixed_dual_v<S>) {
       // Fixed-size dual states (the grey-box Jacobian pass): stage slopes as locals, which the
       // compiler keeps in registers or short-lived stack slots; as members every stage went
       // through the stepper object, and the throttle's Dual<4> pass took 1.2x longer. Not for
       // Batch lanes, where locals never helped: the portable Batch<double, 8> throttle ran 1.3x
       // slower with them (before Batch copied lane by lane), the native Batch<double, 4> 10 %
       // slower (after); plain doubles measured the same either way (docs/performance.md).
+      // Not for DynamicDual either: fresh locals would allocate their gradients every step.
       State k1, k2, k3, k4, tmp;
       step_with(f, x, h, k1, k2, k3, k4, tmp);
     } else {
