@@ -4,6 +4,8 @@
 #include <catch2/catch.hpp>
 
 #include <array>
+#include <bit>
+#include <cstddef>
 #include <cmath>
 #include <limits>
 #include <random>
@@ -93,6 +95,112 @@ TEST_CASE("Batch arithmetic acts lane by lane", "[core][batch]") {
     CHECK(th[i] == std::tanh(b[i]));
   }
   CHECK(B4(0)[3] == 0.0);  // int broadcast (generic code writes T(0))
+}
+
+// Every operation of Batch<T, W> against the same operation on each lane alone, bit for bit.
+// W picks the storage (core/batch.hpp): a plain array (W = 7), one register-wide vector, several
+// (W = 16, 32 exceed every x86 register), float lanes. Lane values include −0, ±∞ and NaN, and
+// the special lanes sit in the *last* lanes, so a reduction or a fix-up pass that only looks at
+// the first register of a multi-register batch fails here.
+template <class T, int W>
+void check_lanes_like_scalars() {
+  using B = nlid::Batch<T, W>;
+  static_assert(sizeof(B) == sizeof(T) * W && alignof(B) == alignof(T), "Batch has the layout of T[W]");
+  const T inf = std::numeric_limits<T>::infinity(), nan = std::numeric_limits<T>::quiet_NaN();
+  B a, b;
+  for (int i = 0; i < W; ++i) {
+    a[i] = static_cast<T>(0.75 * (i - W / 2) + 0.125);
+    b[i] = static_cast<T>(-0.5 * (i % 5) + 1.0);
+  }
+  a[W - 1] = nan;
+  b[W - 2 >= 0 ? W - 2 : 0] = -0.0f;
+  if (W >= 4) {
+    a[W - 3] = inf;
+    b[W - 4] = nan;
+  }
+  const auto same = [](T x, T y) { return std::bit_cast<nlid::detail::lane_bits_t<T>>(x) == std::bit_cast<nlid::detail::lane_bits_t<T>>(y); };
+  const B s = a + b, d = a - b, p = a * b, q = a / b, n = -a, mx = max(a, b), mn = min(a, b), ab = abs(b);
+  const B sel = select(a < b, a, b), bc(static_cast<T>(-0.0));
+  const auto lt = a < b, ge = a >= b, eq = a == a, ne = a != a;
+  for (int i = 0; i < W; ++i) {
+    INFO("W = " << W << ", lane " << i);
+    CHECK(same(s[i], a[i] + b[i]));
+    CHECK(same(d[i], a[i] - b[i]));
+    CHECK(same(p[i], a[i] * b[i]));
+    CHECK(same(q[i], a[i] / b[i]));
+    CHECK(same(n[i], -a[i]));
+    CHECK(same(mx[i], std::max(a[i], b[i])));
+    CHECK(same(mn[i], std::min(a[i], b[i])));
+    CHECK(same(ab[i], std::fabs(b[i])));
+    CHECK(same(sel[i], a[i] < b[i] ? a[i] : b[i]));
+    CHECK(same(bc[i], static_cast<T>(-0.0)));  // the broadcast keeps −0's sign
+    CHECK(lt[i] == (a[i] < b[i]));
+    CHECK(ge[i] == (a[i] >= b[i]));
+    CHECK(eq[i] == (a[i] == a[i]));
+    CHECK(ne[i] == (a[i] != a[i]));
+  }
+  CHECK_FALSE(nlid::isfinite(a));  // the NaN is in the last lane
+  B fin(static_cast<T>(1.5));
+  CHECK(nlid::isfinite(fin));
+  fin[W - 1] = -inf;
+  CHECK_FALSE(nlid::isfinite(fin));
+  CHECK(std::isnan(static_cast<T>(a)));
+  // Pointer round trip: load/store move the W lanes in order.
+  std::array<T, static_cast<std::size_t>(W)> buf{};
+  b.store(buf.data());
+  const B back = B::load(buf.data());
+  for (int i = 0; i < W; ++i) CHECK(same(back[i], b[i]));
+  if constexpr (std::is_same_v<T, double>) {
+    // exp and logistic: the far-argument fix-up must reach lanes in every register.
+    B x(0.25);
+    x[W - 1] = 710.0;  // overflows: +∞ from std::exp
+    if (W >= 2) x[W - 2] = -745.5;  // subnormal
+    const B e = exp(x), g = nlid::logistic(-x);
+    CHECK(e[W - 1] == std::exp(710.0));
+    if (W >= 2) CHECK(e[W - 2] == std::exp(-745.5));
+    CHECK(g[W - 1] >= 0.0);
+    CHECK(g[W - 1] < 1e-300);
+    if (W >= 3) {  // lane 0 keeps its ordinary argument
+      CHECK(ulps(e[0], std::exp(0.25)) <= 2.0);
+      CHECK(ulps(g[0], nlid::detail::logistic(-0.25)) <= 4.0);
+    }
+  }
+}
+
+TEST_CASE("Batch acts like W scalars for every lane storage (array, one or several registers, float)", "[core][batch]") {
+  check_lanes_like_scalars<double, 2>();
+  check_lanes_like_scalars<double, 4>();
+  check_lanes_like_scalars<double, 7>();
+  check_lanes_like_scalars<double, 8>();
+  check_lanes_like_scalars<double, 16>();
+  check_lanes_like_scalars<double, 32>();
+  check_lanes_like_scalars<float, 4>();
+  check_lanes_like_scalars<float, 16>();
+}
+
+TEST_CASE("Batch needs only the alignment of its lane type", "[core][batch]") {
+  // A Batch may sit wherever a double array may: here at an odd multiple of 8 bytes, as in
+  // Eigen's or std::vector's storage of Batch scalars. Operations must not assume the
+  // alignment of the underlying vector registers (a crash here, not a wrong number).
+  struct Packed {
+    double pad;
+    B8 x, y;
+  };
+  static_assert(offsetof(Packed, x) % 16 == 8);
+  Packed s{};
+  for (int i = 0; i < 8; ++i) {
+    s.x[i] = 0.1 * (i + 1);
+    s.y[i] = 2.0 - 0.2 * i;
+  }
+  s.y = nlid::logistic(s.x * s.y + exp(s.x)) / max(s.x, s.y);
+  for (int i = 0; i < 8; ++i) {
+    const double xi = 0.1 * (i + 1), yi = 2.0 - 0.2 * i;
+    CHECK(s.y[i] == Approx(nlid::detail::logistic(xi * yi + std::exp(xi)) / std::max(xi, yi)).epsilon(1e-15));
+  }
+  Eigen::Matrix<B8, Eigen::Dynamic, 1> m(5);
+  for (Eigen::Index k = 0; k < m.size(); ++k) m(k) = B8(static_cast<double>(k));
+  const B8 total = m.sum();
+  CHECK(total[7] == 10.0);
 }
 
 TEST_CASE("Batch copies and assigns every lane, itself included", "[core][batch]") {

@@ -33,6 +33,11 @@
 ///   cover every lane, which this representative does.
 /// - `isfinite(b)` is true if every lane is finite.
 ///
+/// Storage: with GCC or Clang and W a power of two the lanes are GNU vectors of the target's
+/// register width (`v.c[k]`; 16 bytes on baseline x86-64, 32 with AVX, 64 with AVX-512), so
+/// each Batch operation is one packed instruction per register whatever the auto-vectoriser
+/// would decide; otherwise a std::array. Either way a Batch has the size and alignment of T[W].
+///
 /// Eigen glue (`NumTraits`, `ScalarBinaryOpTraits` with T) lets a Batch be the scalar of Eigen
 /// matrices (integrator states, regressor vectors).
 ///
@@ -43,6 +48,7 @@
 #include <bit>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <limits>
 #include <span>
 #include <string>
@@ -55,6 +61,79 @@
 
 namespace nlid {
 
+namespace detail {
+/// Unsigned integer of a lane's width: masks are all-ones/all-zero lanes, as SIMD compares give.
+template <class T>
+using lane_bits_t = std::conditional_t<sizeof(T) == 8, std::uint64_t, std::uint32_t>;
+
+/// True where the lanes are stored as GNU vectors (GCC, Clang): float or double, W ≥ 2 and a
+/// power of two (what `vector_size` accepts). Every other W keeps a plain array.
+template <class T, int W>
+inline constexpr bool batch_simd_v =
+#if defined(__GNUC__)
+    (std::is_same_v<T, double> || std::is_same_v<T, float>) && W >= 2 && (W & (W - 1)) == 0;
+#else
+    false;
+#endif
+
+/// Bytes of the widest vector register of the target the translation unit is compiled for.
+inline constexpr std::size_t simd_bytes =
+#if defined(__AVX512F__)
+    64;
+#elif defined(__AVX__)
+    32;
+#else
+    16;  // SSE2 (baseline x86-64), NEON
+#endif
+
+/// Lane storage: `type` for the values, `bits` for masks of the same width.
+template <class T, int W, bool Simd = batch_simd_v<T, W>>
+struct batch_storage {
+  using type = std::array<T, static_cast<std::size_t>(W)>;
+  using bits = std::array<lane_bits_t<T>, static_cast<std::size_t>(W)>;
+};
+#if defined(__GNUC__)
+// Why vectors and not an array: as std::array the lanes reach the compiler as W separate
+// memory slots, and whether a chain of Batch operations became packed instructions was left to
+// the auto-vectoriser — which, inside a long inlined model, vectorised some operations,
+// scalarised others and copied values in 16-byte pieces that the next 32-byte load could not
+// forward from (docs/performance.md: the native nlarx5 batch ran at 0.55–0.9× one trajectory).
+// A vector is a value the compiler keeps in a register. Why chunks of the target's register
+// width and not one vector of all W lanes: a vector wider than any register of the target has
+// no machine mode, so GCC keeps it in memory and every operation loads and stores its pieces
+// (the portable throttle batch ran 1.4–2.2× slower that way). The alignment stays that of T, so
+// a Batch has the layout of T[W] and may sit wherever a T array may (Eigen's and std::vector's
+// allocations included).
+template <class T, int W>
+struct batch_storage<T, W, true> {
+  /// Bytes per chunk: the register width, or all W lanes if they fit in less.
+  static constexpr std::size_t bytes = sizeof(T) * W < simd_bytes ? sizeof(T) * W : simd_bytes;
+  /// Number of chunks.
+  static constexpr int chunks = static_cast<int>(sizeof(T) * W / bytes);
+  /// Lanes per chunk.
+  static constexpr int per_chunk = static_cast<int>(bytes / sizeof(T));
+  /// One register of lanes.
+  typedef T vec __attribute__((vector_size(bytes), aligned(alignof(T))));
+  /// One register of lane masks.
+  typedef lane_bits_t<T> vbits __attribute__((vector_size(bytes), aligned(alignof(T))));
+  /// The values.
+  struct type {
+    vec c[chunks];
+  };
+  /// The masks.
+  struct bits {
+    vbits c[chunks];
+  };
+};
+/// One chunk's lane types, for the math kernels (see `exp_reduce_into` for why a struct).
+template <class T, int W>
+struct batch_chunk {
+  using type = typename batch_storage<T, W>::vec;
+  using bits = typename batch_storage<T, W>::vbits;
+};
+#endif
+}  // namespace detail
+
 /// W lanes of T, operated on lane-wise (see file comment). Invariant: W ≥ 1.
 template <class T, int W>
   requires(std::is_floating_point_v<T> && W >= 1)
@@ -63,29 +142,35 @@ struct Batch {
   static constexpr int lanes = W;
   /// The lane type.
   using value_type = T;
+  /// True if the lanes are GNU vectors (`detail::batch_storage`), false for a plain array.
+  static constexpr bool simd = detail::batch_simd_v<T, W>;
+  /// The lanes' storage: register-wide GNU vectors `v.c[k]` (GCC, Clang; W a power of two) or
+  /// a std::array. Either way W consecutive T in memory; `operator[]` reads or writes lane i.
+  using storage = typename detail::batch_storage<T, W>::type;
 
   /// The lanes (public, like Dual's `a` and `v`: a plain value type).
-  std::array<T, static_cast<std::size_t>(W)> v{};
+  storage v{};
 
   /// All lanes zero.
   constexpr Batch() = default;
-  /// Copies lane by lane. Why not the implicit (memberwise, memcpy-like) copy: GCC expands
-  /// that in 16-byte pieces even where lanes are 32-byte AVX vectors, and the first 32-byte
-  /// load of the copy then waits for two 16-byte stores (a failed store-to-load forward).
-  /// `perf` of the native nlarx5 `Batch<double, 8>` found its hottest instructions right after
-  /// such copies; as a loop the copy vectorises at full width and that batch runs 2.3x faster
-  /// (docs/performance.md).
-  constexpr Batch(const Batch& o) {
-    for (int i = 0; i < W; ++i) v[static_cast<std::size_t>(i)] = o.v[static_cast<std::size_t>(i)];
-  }
-  /// Assigns lane by lane (see the copy constructor).
+  /// Copies the lanes. Why not the implicit copy: for the array storage GCC expands it in
+  /// 16-byte pieces even where lanes are 32-byte AVX vectors, and the first 32-byte load of the
+  /// copy then waits for two 16-byte stores (a failed store-to-load forward,
+  /// docs/performance.md); for vectors a register-wide copy is what is wanted anyway.
+  constexpr Batch(const Batch& o) { copy_from(o); }
+  /// Assigns the lanes (see the copy constructor).
   constexpr Batch& operator=(const Batch& o) {
-    for (int i = 0; i < W; ++i) v[static_cast<std::size_t>(i)] = o.v[static_cast<std::size_t>(i)];
+    copy_from(o);
     return *this;
   }
   /// Broadcast: every lane equals x (implicit, as a constant enters an expression).
   constexpr Batch(T x) {  // NOLINT(google-explicit-constructor)
-    v.fill(x);
+    if constexpr (simd) {
+      // x − (+0) is x for every x, −0 and NaN included: a broadcast.
+      for (int k = 0; k < detail::batch_storage<T, W>::chunks; ++k) v.c[k] = x - typename detail::batch_storage<T, W>::vec{};
+    } else {
+      v.fill(x);
+    }
   }
   /// Broadcast from another arithmetic type (int literals of generic code: `T(0)`).
   template <class U>
@@ -95,27 +180,39 @@ struct Batch {
   /// Lanes from W consecutive values.
   static Batch load(const T* p) {
     Batch b;
-    for (int i = 0; i < W; ++i) b.v[i] = p[i];
+    std::memcpy(&b.v, p, sizeof(storage));
     return b;
   }
   /// Writes the W lanes to consecutive values.
-  void store(T* p) const {
-    for (int i = 0; i < W; ++i) p[i] = v[i];
-  }
+  void store(T* p) const { std::memcpy(p, &v, sizeof(storage)); }
 
   /// Lane i.
-  constexpr T& operator[](int i) { return v[static_cast<std::size_t>(i)]; }
+  T& operator[](int i) {
+    if constexpr (simd) {
+      // A vector's element cannot bind a reference; the lanes are W consecutive T (size and
+      // alignment of T[W]), and GCC and Clang let T access a vector's elements.
+      return reinterpret_cast<T*>(&v)[i];
+    } else {
+      return v[static_cast<std::size_t>(i)];
+    }
+  }
   /// Lane i.
-  constexpr const T& operator[](int i) const { return v[static_cast<std::size_t>(i)]; }
+  const T& operator[](int i) const {
+    if constexpr (simd) {
+      return reinterpret_cast<const T*>(&v)[i];
+    } else {
+      return v[static_cast<std::size_t>(i)];
+    }
+  }
 
   /// The lane of largest magnitude; NaN if any lane is NaN (see file comment for why).
   explicit operator T() const {
     // Branch-free reductions (max, min, NaN flag) rather than an early-exit scan: generic code
     // asks this once per sample, so it must cost a few vector instructions.
-    T hi = v[0], lo = v[0];
+    T hi = (*this)[0], lo = (*this)[0];
     int nan = 0;
     for (int i = 0; i < W; ++i) {
-      const T x = v[static_cast<std::size_t>(i)];
+      const T x = (*this)[i];
       hi = x > hi ? x : hi;
       lo = x < lo ? x : lo;
       nan |= static_cast<int>(x != x);
@@ -126,40 +223,67 @@ struct Batch {
 
   /// Lane-wise compound arithmetic.
   Batch& operator+=(const Batch& o) {
-    for (int i = 0; i < W; ++i) v[i] += o.v[i];
+    if constexpr (simd) {
+      for (int k = 0; k < detail::batch_storage<T, W>::chunks; ++k) v.c[k] += o.v.c[k];
+    } else {
+      for (int i = 0; i < W; ++i) v[i] += o.v[i];
+    }
     return *this;
   }
   /// Lane-wise difference.
   Batch& operator-=(const Batch& o) {
-    for (int i = 0; i < W; ++i) v[i] -= o.v[i];
+    if constexpr (simd) {
+      for (int k = 0; k < detail::batch_storage<T, W>::chunks; ++k) v.c[k] -= o.v.c[k];
+    } else {
+      for (int i = 0; i < W; ++i) v[i] -= o.v[i];
+    }
     return *this;
   }
   /// Lane-wise product.
   Batch& operator*=(const Batch& o) {
-    for (int i = 0; i < W; ++i) v[i] *= o.v[i];
+    if constexpr (simd) {
+      for (int k = 0; k < detail::batch_storage<T, W>::chunks; ++k) v.c[k] *= o.v.c[k];
+    } else {
+      for (int i = 0; i < W; ++i) v[i] *= o.v[i];
+    }
     return *this;
   }
   /// Lane-wise quotient.
   Batch& operator/=(const Batch& o) {
-    for (int i = 0; i < W; ++i) v[i] /= o.v[i];
+    if constexpr (simd) {
+      for (int k = 0; k < detail::batch_storage<T, W>::chunks; ++k) v.c[k] /= o.v.c[k];
+    } else {
+      for (int i = 0; i < W; ++i) v[i] /= o.v[i];
+    }
     return *this;
   }
-};
 
-namespace detail {
-/// Unsigned integer of a lane's width: masks are all-ones/all-zero lanes, as SIMD compares give.
-template <class T>
-using lane_bits_t = std::conditional_t<sizeof(T) == 8, std::uint64_t, std::uint32_t>;
-}  // namespace detail
+ private:
+  constexpr void copy_from(const Batch& o) {
+    if constexpr (simd) {
+      for (int k = 0; k < detail::batch_storage<T, W>::chunks; ++k) v.c[k] = o.v.c[k];
+    } else {
+      for (int i = 0; i < W; ++i) v[static_cast<std::size_t>(i)] = o.v[static_cast<std::size_t>(i)];
+    }
+  }
+};
 
 /// Result of comparing batches: per lane all bits set (true) or clear (false), the form SIMD
 /// compare instructions produce. No conversion to bool (file comment).
 template <class T, int W>
 struct BatchMask {
-  /// Lane flags as bit masks.
-  std::array<detail::lane_bits_t<T>, static_cast<std::size_t>(W)> m{};
+  /// Lane flags as bit masks (register-wide vectors `m.c[k]` where the batch's lanes are).
+  typename detail::batch_storage<T, W>::bits m{};
+  /// The bits of lane i.
+  detail::lane_bits_t<T> bits(int i) const {
+    if constexpr (detail::batch_simd_v<T, W>) {
+      return reinterpret_cast<const detail::lane_bits_t<T>*>(&m)[i];
+    } else {
+      return m[static_cast<std::size_t>(i)];
+    }
+  }
   /// Lane i.
-  constexpr bool operator[](int i) const { return m[static_cast<std::size_t>(i)] != 0; }
+  bool operator[](int i) const { return bits(i) != 0; }
 };
 
 /// True for `Batch<T, W>` (cv/ref-qualified too).
@@ -183,35 +307,47 @@ concept BatchScalar = is_batch_v<X>;
 template <class T, int W>
 bool all(const BatchMask<T, W>& k) {
   detail::lane_bits_t<T> a = ~detail::lane_bits_t<T>(0);
-  for (int i = 0; i < W; ++i) a &= k.m[static_cast<std::size_t>(i)];
+  for (int i = 0; i < W; ++i) a &= k.bits(i);
   return a != 0;
 }
 /// True if some lane is set.
 template <class T, int W>
 bool any(const BatchMask<T, W>& k) {
   detail::lane_bits_t<T> a = 0;
-  for (int i = 0; i < W; ++i) a |= k.m[static_cast<std::size_t>(i)];
+  for (int i = 0; i < W; ++i) a |= k.bits(i);
   return a != 0;
 }
 /// Lane-wise not.
 template <class T, int W>
 BatchMask<T, W> operator!(const BatchMask<T, W>& k) {
   BatchMask<T, W> r;
-  for (int i = 0; i < W; ++i) r.m[static_cast<std::size_t>(i)] = ~k.m[static_cast<std::size_t>(i)];
+  if constexpr (detail::batch_simd_v<T, W>) {
+    for (int j = 0; j < detail::batch_storage<T, W>::chunks; ++j) r.m.c[j] = ~k.m.c[j];
+  } else {
+    for (int i = 0; i < W; ++i) r.m[static_cast<std::size_t>(i)] = ~k.m[static_cast<std::size_t>(i)];
+  }
   return r;
 }
 /// Lane-wise and.
 template <class T, int W>
 BatchMask<T, W> operator&&(const BatchMask<T, W>& a, const BatchMask<T, W>& b) {
   BatchMask<T, W> r;
-  for (int i = 0; i < W; ++i) r.m[static_cast<std::size_t>(i)] = a.m[static_cast<std::size_t>(i)] & b.m[static_cast<std::size_t>(i)];
+  if constexpr (detail::batch_simd_v<T, W>) {
+    for (int j = 0; j < detail::batch_storage<T, W>::chunks; ++j) r.m.c[j] = a.m.c[j] & b.m.c[j];
+  } else {
+    for (int i = 0; i < W; ++i) r.m[static_cast<std::size_t>(i)] = a.m[static_cast<std::size_t>(i)] & b.m[static_cast<std::size_t>(i)];
+  }
   return r;
 }
 /// Lane-wise or.
 template <class T, int W>
 BatchMask<T, W> operator||(const BatchMask<T, W>& a, const BatchMask<T, W>& b) {
   BatchMask<T, W> r;
-  for (int i = 0; i < W; ++i) r.m[static_cast<std::size_t>(i)] = a.m[static_cast<std::size_t>(i)] | b.m[static_cast<std::size_t>(i)];
+  if constexpr (detail::batch_simd_v<T, W>) {
+    for (int j = 0; j < detail::batch_storage<T, W>::chunks; ++j) r.m.c[j] = a.m.c[j] | b.m.c[j];
+  } else {
+    for (int i = 0; i < W; ++i) r.m[static_cast<std::size_t>(i)] = a.m[static_cast<std::size_t>(i)] | b.m[static_cast<std::size_t>(i)];
+  }
   return r;
 }
 /// Per lane: a where the mask is set, b elsewhere — the batched `k ? a : b` (bitwise blend,
@@ -220,10 +356,18 @@ template <class T, int W>
 Batch<T, W> select(const BatchMask<T, W>& k, const Batch<T, W>& a, const Batch<T, W>& b) {
   using U = detail::lane_bits_t<T>;
   Batch<T, W> r;
-  for (int i = 0; i < W; ++i) {
-    const auto j = static_cast<std::size_t>(i);
-    const U bits = (std::bit_cast<U>(a.v[j]) & k.m[j]) | (std::bit_cast<U>(b.v[j]) & ~k.m[j]);
-    r.v[j] = std::bit_cast<T>(bits);
+  if constexpr (detail::batch_simd_v<T, W>) {
+    using S = detail::batch_storage<T, W>;
+    for (int j = 0; j < S::chunks; ++j) {
+      r.v.c[j] = __builtin_bit_cast(typename S::vec, (__builtin_bit_cast(typename S::vbits, a.v.c[j]) & k.m.c[j]) |
+                                                         (__builtin_bit_cast(typename S::vbits, b.v.c[j]) & ~k.m.c[j]));
+    }
+  } else {
+    for (int i = 0; i < W; ++i) {
+      const auto j = static_cast<std::size_t>(i);
+      const U bits = (std::bit_cast<U>(a.v[j]) & k.m[j]) | (std::bit_cast<U>(b.v[j]) & ~k.m[j]);
+      r.v[j] = std::bit_cast<T>(bits);
+    }
   }
   return r;
 }
@@ -237,7 +381,11 @@ template <class T, int W> Batch<T, W> operator+(const Batch<T, W>& x) { return x
 /// Lane-wise negation.
 template <class T, int W> Batch<T, W> operator-(const Batch<T, W>& x) {
   Batch<T, W> r;
-  for (int i = 0; i < W; ++i) r.v[i] = -x.v[i];
+  if constexpr (detail::batch_simd_v<T, W>) {
+    for (int j = 0; j < detail::batch_storage<T, W>::chunks; ++j) r.v.c[j] = -x.v.c[j];
+  } else {
+    for (int i = 0; i < W; ++i) r.v[i] = -x.v[i];
+  }
   return r;
 }
 /// Lane-wise sum.
@@ -278,16 +426,13 @@ BatchMask<T, W> compare_lanes(const Batch<T, W>& a, const Batch<T, W>& b, Op op)
 template <class T, int W, class F>
 Batch<T, W> map_lanes(const Batch<T, W>& x, F f) {
   Batch<T, W> r;
-  for (int i = 0; i < W; ++i) r.v[static_cast<std::size_t>(i)] = f(x.v[static_cast<std::size_t>(i)]);
+  for (int i = 0; i < W; ++i) r[i] = f(x[i]);
   return r;
 }
 template <class T, int W, class F>
 Batch<T, W> map_lanes(const Batch<T, W>& x, const Batch<T, W>& y, F f) {
   Batch<T, W> r;
-  for (int i = 0; i < W; ++i) {
-    const auto k = static_cast<std::size_t>(i);
-    r.v[k] = f(x.v[k], y.v[k]);
-  }
+  for (int i = 0; i < W; ++i) r[i] = f(x[i], y[i]);
   return r;
 }
 }  // namespace detail
@@ -297,7 +442,15 @@ Batch<T, W> map_lanes(const Batch<T, W>& x, const Batch<T, W>& y, F f) {
   /** Lane-wise comparison (a mask). */                                                           \
   template <class T, int W>                                                                       \
   BatchMask<T, W> operator OP(const Batch<T, W>& a, const Batch<T, W>& b) {                          \
-    return detail::compare_lanes(a, b, [](T x, T y) { return x OP y; });                          \
+    if constexpr (detail::batch_simd_v<T, W>) {                                                   \
+      using S = detail::batch_storage<T, W>;                                                      \
+      BatchMask<T, W> r;                                                                          \
+      for (int j = 0; j < S::chunks; ++j)                                                         \
+        r.m.c[j] = __builtin_bit_cast(typename S::vbits, a.v.c[j] OP b.v.c[j]);                   \
+      return r;                                                                                   \
+    } else {                                                                                      \
+      return detail::compare_lanes(a, b, [](T x, T y) { return x OP y; });                        \
+    }                                                                                             \
   }                                                                                               \
   /** Comparison with a constant. */                                                              \
   template <class T, int W>                                                                       \
@@ -330,34 +483,127 @@ namespace detail {
 #define NLID_BATCH_INLINE inline
 #endif
 
-/// Cody–Waite reduction of e^x for one lane: x = k·ln2 + r, |r| ≤ ln2/2, with ln2 split in a
-/// 32-bit-exact high part and a low part, k taken from the rounding of x/ln2 + 1.5·2⁵² without
-/// a float→int instruction (SSE2 lacks one for packed doubles). Returns 2^k and sets px = r·P(r²),
-/// qx = Q(r²) of Cephes' rational form e^r = (qx + px)/(qx − px), relative error below 2.2·10⁻¹⁶.
-/// Valid for x in [−708, 709]; outside, the exponent bits wrap (unsigned: defined behaviour).
-NLID_BATCH_INLINE double exp_reduce(double x, double& px, double& qx) {
+/// Cody–Waite reduction of e^x: x = k·ln2 + r, |r| ≤ ln2/2, with ln2 split in a 32-bit-exact
+/// high part and a low part, k taken from the rounding of x/ln2 + 1.5·2⁵² without a float→int
+/// instruction (SSE2 lacks one for packed doubles). Sets two_k = 2^k, px = r·P(r²) and
+/// qx = Q(r²) of Cephes' rational form e^r = (qx + px)/(qx − px), relative error below
+/// 2.2·10⁻¹⁶. Valid for x in [−708, 709]; outside, the exponent bits wrap (unsigned: defined
+/// behaviour). L names the lane types: `scalar_lanes` (one double) or `batch_chunk<double, W>`
+/// (a GNU vector of doubles, `bits` its 64-bit unsigned twin): the same operations in the same
+/// order, so a vector lane and a scalar call give the same bits.
+/// Why L and not the vector type itself as the template argument: a template argument drops
+/// the storage typedef's reduced alignment (Clang then assumes 64-byte-aligned operands of
+/// 8-byte-aligned lanes); a member typedef of L keeps it. Vectors go by reference: passed or
+/// returned by value they are a -Wpsabi warning.
+template <class L>
+NLID_BATCH_INLINE void exp_reduce_into(const typename L::type& x, typename L::type& two_k, typename L::type& px,
+                                       typename L::type& qx) {
+  using V = typename L::type;
+  using U = typename L::bits;
   constexpr double kLog2e = 1.4426950408889634074;
   constexpr double kLn2Hi = 6.93147180369123816490e-01;
   constexpr double kLn2Lo = 1.90821492927058770002e-10;
   constexpr double kShift = 6755399441055744.0;  // 1.5·2⁵²: rounds to an integer in the low bits
   constexpr std::uint64_t kShiftBits = std::bit_cast<std::uint64_t>(kShift);
-  const double kd = x * kLog2e + kShift;
-  const std::uint64_t k = std::bit_cast<std::uint64_t>(kd) - kShiftBits;
-  const double kf = kd - kShift;
-  const double r = (x - kf * kLn2Hi) - kf * kLn2Lo;
-  const double rr = r * r;
+  const V kd = x * kLog2e + kShift;
+  const U k = __builtin_bit_cast(U, kd) - kShiftBits;
+  const V kf = kd - kShift;
+  const V r = (x - kf * kLn2Hi) - kf * kLn2Lo;
+  const V rr = r * r;
   px = r * ((1.26177193074810590878e-4 * rr + 3.02994407707441961300e-2) * rr + 9.99999999999999999910e-1);
   qx = ((3.00198505138664455042e-6 * rr + 2.52448340349684104192e-3) * rr + 2.27265548208155028766e-1) * rr +
        2.00000000000000000009e0;
-  return std::bit_cast<double>((k + 1023u) << 52);
+  two_k = __builtin_bit_cast(V, (k + std::uint64_t{1023}) << 52);
+}
+
+/// The lane types of one double (see `exp_reduce_into`).
+struct scalar_lanes {
+  using type = double;
+  using bits = std::uint64_t;
+};
+
+/// `exp_reduce_into` for one double; returns 2^k.
+NLID_BATCH_INLINE double exp_reduce(double x, double& px, double& qx) {
+  double two_k;
+  exp_reduce_into<scalar_lanes>(x, two_k, px, qx);
+  return two_k;
 }
 
 /// 1 if |x| > limit or x is NaN, else 0 — on the bit pattern, so a loop over lanes vectorises
-/// (a floating-point compare would not, under the default -ftrapping-math). limit ≥ 0.
-NLID_BATCH_INLINE std::uint64_t beyond(double x, double limit) {
-  const std::uint64_t a = std::bit_cast<std::uint64_t>(x) & 0x7fffffffffffffffULL;
-  return (std::bit_cast<std::uint64_t>(limit) - a) >> 63;  // wraps (top bit set) iff a > limit
+/// (a floating-point compare would not, under the default -ftrapping-math). limit ≥ 0. V, U as
+/// in `exp_reduce_into`.
+template <class L>
+NLID_BATCH_INLINE void beyond_into(const typename L::type& x, double limit, typename L::bits& out) {
+  using U = typename L::bits;
+  const U a = __builtin_bit_cast(U, x) & std::uint64_t{0x7fffffffffffffff};
+  out = (std::bit_cast<std::uint64_t>(limit) - a) >> 63;  // wraps (top bit set) iff a > limit
 }
+
+/// `beyond_into` for one double.
+NLID_BATCH_INLINE std::uint64_t beyond(double x, double limit) {
+  std::uint64_t out;
+  beyond_into<scalar_lanes>(x, limit, out);
+  return out;
+}
+
+#if defined(__GNUC__)
+/// Bitwise or of a chunk's lanes (0 iff every lane is 0).
+template <int W>
+NLID_BATCH_INLINE std::uint64_t or_lanes(const typename batch_chunk<double, W>::bits& u) {
+  std::uint64_t a = 0;
+  for (int i = 0; i < batch_storage<double, W>::per_chunk; ++i) a |= u[i];
+  return a;
+}
+
+/// e^x on the vector lanes of a Batch<double, W>: `exp_lanes` without the compiler's
+/// vectoriser in between (one lane's operations are the scalar kernel's, in its order).
+template <int W>
+NLID_BATCH_INLINE void exp_vector(const typename batch_storage<double, W>::type& x, typename batch_storage<double, W>::type& out) {
+  using L = batch_chunk<double, W>;
+  std::uint64_t outside = 0;
+  for (int j = 0; j < batch_storage<double, W>::chunks; ++j) {
+    typename L::type two_k, px, qx;
+    exp_reduce_into<L>(x.c[j], two_k, px, qx);
+    out.c[j] = (1.0 + 2.0 * (px / (qx - px))) * two_k;
+    typename L::bits far;
+    beyond_into<L>(x.c[j], 708.0, far);
+    outside |= or_lanes<W>(far);
+  }
+  if (outside != 0) [[unlikely]] {
+    const auto* xs = reinterpret_cast<const double*>(&x);
+    auto* os = reinterpret_cast<double*>(&out);
+    for (int i = 0; i < W; ++i)
+      if (beyond(xs[i], 708.0) != 0) os[i] = std::exp(xs[i]);
+  }
+}
+
+/// The logistic function on the vector lanes of a Batch<double, W> (see `logistic_lanes`).
+template <int W>
+NLID_BATCH_INLINE void logistic_vector(const typename batch_storage<double, W>::type& s,
+                                       typename batch_storage<double, W>::type& out) {
+  using L = batch_chunk<double, W>;
+  std::uint64_t outside = 0;
+  for (int j = 0; j < batch_storage<double, W>::chunks; ++j) {
+    typename L::type two_k, px, qx;
+    const typename L::type minus_s = -s.c[j];
+    exp_reduce_into<L>(minus_s, two_k, px, qx);
+    const typename L::type den = qx - px;
+    out.c[j] = den / (den + two_k * (qx + px));
+    typename L::bits far;
+    beyond_into<L>(s.c[j], 708.0, far);
+    outside |= or_lanes<W>(far);
+  }
+  if (outside != 0) [[unlikely]] {
+    const auto* ss = reinterpret_cast<const double*>(&s);
+    auto* os = reinterpret_cast<double*>(&out);
+    for (int i = 0; i < W; ++i) {
+      if (beyond(ss[i], 708.0) == 0) continue;
+      const double si = ss[i];
+      os[i] = si >= 0 ? 1.0 / (1.0 + std::exp(-si)) : std::exp(si) / (1.0 + std::exp(si));
+    }
+  }
+}
+#endif
 
 /// e^x for W doubles in one vectorisable loop (see `exp_reduce`). Lanes with |x| > 708 (overflow,
 /// subnormal results) or NaN are rare and are recomputed by std::exp, so every lane gets libm's
@@ -406,7 +652,11 @@ NLID_BATCH_INLINE void logistic_lanes(const double* s, double* out) {
 /// Lane-wise e^x (vectorised kernel for double; std::exp per lane otherwise).
 template <class T, int W>
 NLID_BATCH_INLINE Batch<T, W> exp(const Batch<T, W>& x) {
-  if constexpr (std::is_same_v<T, double>) {
+  if constexpr (std::is_same_v<T, double> && Batch<T, W>::simd) {
+    Batch<T, W> r;
+    detail::exp_vector<W>(x.v, r.v);
+    return r;
+  } else if constexpr (std::is_same_v<T, double>) {
     Batch<T, W> r;
     detail::exp_lanes<W>(x.v.data(), r.v.data());
     return r;
@@ -420,7 +670,11 @@ NLID_BATCH_INLINE Batch<T, W> exp(const Batch<T, W>& x) {
 template <int W>
 NLID_BATCH_INLINE Batch<double, W> logistic(const Batch<double, W>& x) {
   Batch<double, W> r;
-  detail::logistic_lanes<W>(x.v.data(), r.v.data());
+  if constexpr (Batch<double, W>::simd) {
+    detail::logistic_vector<W>(x.v, r.v);
+  } else {
+    detail::logistic_lanes<W>(x.v.data(), r.v.data());
+  }
   return r;
 }
 
@@ -458,7 +712,15 @@ NLID_BATCH_UNARY(trunc)
 template <class T, int W>
 Batch<T, W> abs(const Batch<T, W>& x) {
   Batch<T, W> r;
-  for (int i = 0; i < W; ++i) r.v[static_cast<std::size_t>(i)] = std::fabs(x.v[static_cast<std::size_t>(i)]);
+  if constexpr (Batch<T, W>::simd) {
+    // Clearing the sign bit is std::fabs, for NaN too.
+    using S = detail::batch_storage<T, W>;
+    const auto magnitude = std::numeric_limits<detail::lane_bits_t<T>>::max() >> 1;
+    for (int j = 0; j < S::chunks; ++j)
+      r.v.c[j] = __builtin_bit_cast(typename S::vec, __builtin_bit_cast(typename S::vbits, x.v.c[j]) & magnitude);
+  } else {
+    for (int i = 0; i < W; ++i) r.v[static_cast<std::size_t>(i)] = std::fabs(x.v[static_cast<std::size_t>(i)]);
+  }
   return r;
 }
 /// Lane-wise |x| (alias used by Eigen's norms).
@@ -495,33 +757,49 @@ Batch<T, W> pow(const Batch<T, W>& x, std::type_identity_t<T> c) {
 /// the plain comparison form of std::max is kept for identical results with double code).
 template <class T, int W>
 Batch<T, W> max(const Batch<T, W>& x, const Batch<T, W>& y) {
-  return detail::map_lanes(x, y, [](T a, T b) { return std::max(a, b); });
+  if constexpr (Batch<T, W>::simd) {
+    return select(x < y, y, x);  // std::max(a, b) is (a < b) ? b : a
+  } else {
+    return detail::map_lanes(x, y, [](T a, T b) { return std::max(a, b); });
+  }
 }
 /// Lane-wise minimum (std::min per lane).
 template <class T, int W>
 Batch<T, W> min(const Batch<T, W>& x, const Batch<T, W>& y) {
-  return detail::map_lanes(x, y, [](T a, T b) { return std::min(a, b); });
+  if constexpr (Batch<T, W>::simd) {
+    return select(y < x, y, x);  // std::min(a, b) is (b < a) ? b : a
+  } else {
+    return detail::map_lanes(x, y, [](T a, T b) { return std::min(a, b); });
+  }
 }
 /// True if every lane is finite.
 template <class T, int W>
 bool isfinite(const Batch<T, W>& x) {
-  // x − x is 0 for finite lanes and NaN for ±∞ and NaN: one vectorisable pass, no branches.
+  // x − x is +0 for finite lanes and NaN for ±∞ and NaN: one vectorisable pass, no branches.
+  if constexpr (Batch<T, W>::simd) {
+    using S = detail::batch_storage<T, W>;
+    typename S::vbits d{};
+    for (int j = 0; j < S::chunks; ++j) d |= __builtin_bit_cast(typename S::vbits, x.v.c[j] - x.v.c[j]);
+    detail::lane_bits_t<T> acc = 0;
+    for (int i = 0; i < S::per_chunk; ++i) acc |= d[i];
+    return acc == 0;
+  }
   T acc = T(0);
-  for (int i = 0; i < W; ++i) acc += x.v[static_cast<std::size_t>(i)] - x.v[static_cast<std::size_t>(i)];
+  for (int i = 0; i < W; ++i) acc += x[i] - x[i];
   return acc == T(0);
 }
 /// True if some lane is NaN.
 template <class T, int W>
 bool isnan(const Batch<T, W>& x) {
   bool bad = false;
-  for (int i = 0; i < W; ++i) bad |= std::isnan(x.v[static_cast<std::size_t>(i)]);
+  for (int i = 0; i < W; ++i) bad |= std::isnan(x[i]);
   return bad;
 }
 /// True if some lane is infinite.
 template <class T, int W>
 bool isinf(const Batch<T, W>& x) {
   bool bad = false;
-  for (int i = 0; i < W; ++i) bad |= std::isinf(x.v[static_cast<std::size_t>(i)]);
+  for (int i = 0; i < W; ++i) bad |= std::isinf(x[i]);
   return bad;
 }
 
