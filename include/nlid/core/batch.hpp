@@ -36,7 +36,11 @@
 /// Storage: with GCC or Clang and W a power of two the lanes are GNU vectors of the target's
 /// register width (`v.c[k]`; 16 bytes on baseline x86-64, 32 with AVX, 64 with AVX-512), so
 /// each Batch operation is one packed instruction per register whatever the auto-vectoriser
-/// would decide; otherwise a std::array. Either way a Batch has the size and alignment of T[W].
+/// would decide; otherwise a std::array. Either way a Batch has the size of T[W]; with vectors
+/// its alignment is that of one register (at most Eigen's EIGEN_MAX_ALIGN_BYTES, so Eigen's,
+/// std::vector's and `new`'s allocations of Batch scalars are aligned).
+/// (So the register width is a property of the translation unit, as it is for Eigen: link
+/// translation units compiled for different instruction sets only across non-inline boundaries.)
 ///
 /// Eigen glue (`NumTraits`, `ScalarBinaryOpTraits` with T) lets a Batch be the scalar of Eigen
 /// matrices (integrator states, regressor vectors).
@@ -77,7 +81,7 @@ inline constexpr bool batch_simd_v =
 #endif
 
 /// Bytes of the widest vector register of the target the translation unit is compiled for.
-inline constexpr std::size_t simd_bytes =
+inline constexpr std::size_t isa_bytes =
 #if defined(__AVX512F__)
     64;
 #elif defined(__AVX__)
@@ -85,6 +89,11 @@ inline constexpr std::size_t simd_bytes =
 #else
     16;  // SSE2 (baseline x86-64), NEON
 #endif
+/// Bytes per Batch register: the target's width, but no more than Eigen aligns its heap blocks
+/// to (a Batch in an Eigen matrix must be aligned; EIGEN_MAX_ALIGN_BYTES follows the same
+/// instruction-set macros unless the user lowers it). malloc's 16 bytes are the floor.
+inline constexpr std::size_t simd_bytes =
+    std::max(std::size_t{16}, std::min(isa_bytes, static_cast<std::size_t>(EIGEN_MAX_ALIGN_BYTES)));
 
 /// Lane storage: `type` for the values, `bits` for masks of the same width.
 template <class T, int W, bool Simd = batch_simd_v<T, W>>
@@ -101,9 +110,10 @@ struct batch_storage {
 // A vector is a value the compiler keeps in a register. Why chunks of the target's register
 // width and not one vector of all W lanes: a vector wider than any register of the target has
 // no machine mode, so GCC keeps it in memory and every operation loads and stores its pieces
-// (the portable throttle batch ran 1.4–2.2× slower that way). The alignment stays that of T, so
-// a Batch has the layout of T[W] and may sit wherever a T array may (Eigen's and std::vector's
-// allocations included).
+// (the portable throttle batch ran 1.4–2.2× slower that way). The vectors keep their natural
+// alignment: a typedef that lowers it (aligned(alignof(T))) is not honoured by Clang in every
+// templated expression — Clang -O1 emitted an aligned SSE load of a Batch at an 8-byte offset,
+// a crash (tests/core/batch_test.cpp).
 template <class T, int W>
 struct batch_storage<T, W, true> {
   /// Bytes per chunk: the register width, or all W lanes if they fit in less.
@@ -113,9 +123,9 @@ struct batch_storage<T, W, true> {
   /// Lanes per chunk.
   static constexpr int per_chunk = static_cast<int>(bytes / sizeof(T));
   /// One register of lanes.
-  typedef T vec __attribute__((vector_size(bytes), aligned(alignof(T))));
+  typedef T vec __attribute__((vector_size(bytes)));
   /// One register of lane masks.
-  typedef lane_bits_t<T> vbits __attribute__((vector_size(bytes), aligned(alignof(T))));
+  typedef lane_bits_t<T> vbits __attribute__((vector_size(bytes)));
   /// The values.
   struct type {
     vec c[chunks];
@@ -491,10 +501,7 @@ namespace detail {
 /// behaviour). L names the lane types: `scalar_lanes` (one double) or `batch_chunk<double, W>`
 /// (a GNU vector of doubles, `bits` its 64-bit unsigned twin): the same operations in the same
 /// order, so a vector lane and a scalar call give the same bits.
-/// Why L and not the vector type itself as the template argument: a template argument drops
-/// the storage typedef's reduced alignment (Clang then assumes 64-byte-aligned operands of
-/// 8-byte-aligned lanes); a member typedef of L keeps it. Vectors go by reference: passed or
-/// returned by value they are a -Wpsabi warning.
+/// Vectors go by reference: passed or returned by value they are a -Wpsabi warning.
 template <class L>
 NLID_BATCH_INLINE void exp_reduce_into(const typename L::type& x, typename L::type& two_k, typename L::type& px,
                                        typename L::type& qx) {
@@ -560,16 +567,18 @@ NLID_BATCH_INLINE std::uint64_t or_lanes(const typename batch_chunk<double, W>::
 template <int W>
 NLID_BATCH_INLINE void exp_vector(const typename batch_storage<double, W>::type& x, typename batch_storage<double, W>::type& out) {
   using L = batch_chunk<double, W>;
-  std::uint64_t outside = 0;
+  // The far-argument flags are or-ed as vectors and reduced across lanes once: a lane
+  // reduction costs a few extract instructions per register, measurable in a sigmoid network.
+  typename L::bits outside{};
   for (int j = 0; j < batch_storage<double, W>::chunks; ++j) {
     typename L::type two_k, px, qx;
     exp_reduce_into<L>(x.c[j], two_k, px, qx);
     out.c[j] = (1.0 + 2.0 * (px / (qx - px))) * two_k;
     typename L::bits far;
     beyond_into<L>(x.c[j], 708.0, far);
-    outside |= or_lanes<W>(far);
+    outside |= far;
   }
-  if (outside != 0) [[unlikely]] {
+  if (or_lanes<W>(outside) != 0) [[unlikely]] {
     const auto* xs = reinterpret_cast<const double*>(&x);
     auto* os = reinterpret_cast<double*>(&out);
     for (int i = 0; i < W; ++i)
@@ -582,7 +591,7 @@ template <int W>
 NLID_BATCH_INLINE void logistic_vector(const typename batch_storage<double, W>::type& s,
                                        typename batch_storage<double, W>::type& out) {
   using L = batch_chunk<double, W>;
-  std::uint64_t outside = 0;
+  typename L::bits outside{};  // reduced once (see exp_vector)
   for (int j = 0; j < batch_storage<double, W>::chunks; ++j) {
     typename L::type two_k, px, qx;
     const typename L::type minus_s = -s.c[j];
@@ -591,9 +600,9 @@ NLID_BATCH_INLINE void logistic_vector(const typename batch_storage<double, W>::
     out.c[j] = den / (den + two_k * (qx + px));
     typename L::bits far;
     beyond_into<L>(s.c[j], 708.0, far);
-    outside |= or_lanes<W>(far);
+    outside |= far;
   }
-  if (outside != 0) [[unlikely]] {
+  if (or_lanes<W>(outside) != 0) [[unlikely]] {
     const auto* ss = reinterpret_cast<const double*>(&s);
     auto* os = reinterpret_cast<double*>(&out);
     for (int i = 0; i < W; ++i) {
