@@ -135,7 +135,8 @@ struct batch_storage<T, W, true> {
     vbits c[chunks];
   };
 };
-/// One chunk's lane types, for the math kernels (see `exp_reduce_into` for why a struct).
+/// One chunk's lane types: the `L` of the math kernels, which also take `scalar_lanes` (one
+/// double), so scalar and vector lanes run one source.
 template <class T, int W>
 struct batch_chunk {
   using type = typename batch_storage<T, W>::vec;
@@ -199,8 +200,8 @@ struct Batch {
   /// Lane i.
   T& operator[](int i) {
     if constexpr (simd) {
-      // A vector's element cannot bind a reference; the lanes are W consecutive T (size and
-      // alignment of T[W]), and GCC and Clang let T access a vector's elements.
+      // A vector's element cannot bind a reference; the lanes are W consecutive T, and GCC and
+      // Clang let T access a vector's elements.
       return reinterpret_cast<T*>(&v)[i];
     } else {
       return v[static_cast<std::size_t>(i)];
