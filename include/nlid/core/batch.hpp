@@ -135,14 +135,15 @@ struct batch_storage<T, W, true> {
     vbits c[chunks];
   };
 };
+#endif
 /// One chunk's lane types: the `L` of the math kernels, which also take `scalar_lanes` (one
-/// double), so scalar and vector lanes run one source.
+/// double), so scalar and vector lanes run one source. Declared for every compiler so that the
+/// vector branches of the operations parse; instantiated only where `batch_simd_v` holds.
 template <class T, int W>
 struct batch_chunk {
   using type = typename batch_storage<T, W>::vec;
   using bits = typename batch_storage<T, W>::vbits;
 };
-#endif
 }  // namespace detail
 
 /// W lanes of T, operated on lane-wise (see file comment). Invariant: W ≥ 1.
@@ -554,7 +555,6 @@ NLID_BATCH_INLINE std::uint64_t beyond(double x, double limit) {
   return out;
 }
 
-#if defined(__GNUC__)
 /// Bitwise or of a chunk's lanes (0 iff every lane is 0).
 template <int W>
 NLID_BATCH_INLINE std::uint64_t or_lanes(const typename batch_chunk<double, W>::bits& u) {
@@ -613,7 +613,6 @@ NLID_BATCH_INLINE void logistic_vector(const typename batch_storage<double, W>::
     }
   }
 }
-#endif
 
 /// e^x for W doubles in one vectorisable loop (see `exp_reduce`). Lanes with |x| > 708 (overflow,
 /// subnormal results) or NaN are rare and are recomputed by std::exp, so every lane gets libm's
