@@ -57,6 +57,7 @@
 #include <span>
 #include <string>
 #include <type_traits>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -66,6 +67,28 @@
 namespace nlid {
 
 namespace detail {
+// Batch's kernels and helpers are forced inline: called out of line (as GCC chose for W = 8) every call
+// spills the lanes to memory and back, which cost more than the arithmetic (perf, see
+// docs/performance.md).
+#if defined(__GNUC__)
+#define NLID_BATCH_INLINE [[gnu::always_inline]] inline
+// The same for the lambdas given to for_each_chunk: a kernel's body repeated for 8 registers is
+// large enough for GCC's inliner to keep it out of line, every operand then through memory
+// (portable nlarx5 Batch<16>: 85 -> 18 M samples/s).
+#define NLID_CHUNK_LAMBDA __attribute__((always_inline))
+#else
+#define NLID_BATCH_INLINE inline
+#define NLID_CHUNK_LAMBDA
+#endif
+
+/// Calls f(0), f(1), …, f(N−1), expanded at compile time. Why not a loop over a Batch's
+/// registers: at -O2 GCC keeps such a loop, and every register it touches then lives in memory
+/// (the batched nlarx5 simulation ran 3x slower at -O2 than at -O3 that way).
+template <int N, class F>
+NLID_BATCH_INLINE void for_each_chunk(F&& f) {
+  [&]<int... K>(std::integer_sequence<int, K...>) NLID_CHUNK_LAMBDA { (f(K), ...); }(std::make_integer_sequence<int, N>{});
+}
+
 /// Unsigned integer of a lane's width: masks are all-ones/all-zero lanes, as SIMD compares give.
 template <class T>
 using lane_bits_t = std::conditional_t<sizeof(T) == 8, std::uint64_t, std::uint32_t>;
@@ -179,7 +202,7 @@ struct Batch {
   constexpr Batch(T x) {  // NOLINT(google-explicit-constructor)
     if constexpr (simd) {
       // x − (+0) is x for every x, −0 and NaN included: a broadcast.
-      for (int k = 0; k < detail::batch_storage<T, W>::chunks; ++k) v.c[k] = x - typename detail::batch_storage<T, W>::vec{};
+      detail::for_each_chunk<detail::batch_storage<T, W>::chunks>([&](int k) NLID_CHUNK_LAMBDA { v.c[k] = x - typename detail::batch_storage<T, W>::vec{}; });
     } else {
       v.fill(x);
     }
@@ -236,7 +259,7 @@ struct Batch {
   /// Lane-wise compound arithmetic.
   Batch& operator+=(const Batch& o) {
     if constexpr (simd) {
-      for (int k = 0; k < detail::batch_storage<T, W>::chunks; ++k) v.c[k] += o.v.c[k];
+      detail::for_each_chunk<detail::batch_storage<T, W>::chunks>([&](int k) NLID_CHUNK_LAMBDA { v.c[k] += o.v.c[k]; });
     } else {
       for (int i = 0; i < W; ++i) v[i] += o.v[i];
     }
@@ -245,7 +268,7 @@ struct Batch {
   /// Lane-wise difference.
   Batch& operator-=(const Batch& o) {
     if constexpr (simd) {
-      for (int k = 0; k < detail::batch_storage<T, W>::chunks; ++k) v.c[k] -= o.v.c[k];
+      detail::for_each_chunk<detail::batch_storage<T, W>::chunks>([&](int k) NLID_CHUNK_LAMBDA { v.c[k] -= o.v.c[k]; });
     } else {
       for (int i = 0; i < W; ++i) v[i] -= o.v[i];
     }
@@ -254,7 +277,7 @@ struct Batch {
   /// Lane-wise product.
   Batch& operator*=(const Batch& o) {
     if constexpr (simd) {
-      for (int k = 0; k < detail::batch_storage<T, W>::chunks; ++k) v.c[k] *= o.v.c[k];
+      detail::for_each_chunk<detail::batch_storage<T, W>::chunks>([&](int k) NLID_CHUNK_LAMBDA { v.c[k] *= o.v.c[k]; });
     } else {
       for (int i = 0; i < W; ++i) v[i] *= o.v[i];
     }
@@ -263,7 +286,7 @@ struct Batch {
   /// Lane-wise quotient.
   Batch& operator/=(const Batch& o) {
     if constexpr (simd) {
-      for (int k = 0; k < detail::batch_storage<T, W>::chunks; ++k) v.c[k] /= o.v.c[k];
+      detail::for_each_chunk<detail::batch_storage<T, W>::chunks>([&](int k) NLID_CHUNK_LAMBDA { v.c[k] /= o.v.c[k]; });
     } else {
       for (int i = 0; i < W; ++i) v[i] /= o.v[i];
     }
@@ -273,7 +296,7 @@ struct Batch {
  private:
   constexpr void copy_from(const Batch& o) {
     if constexpr (simd) {
-      for (int k = 0; k < detail::batch_storage<T, W>::chunks; ++k) v.c[k] = o.v.c[k];
+      detail::for_each_chunk<detail::batch_storage<T, W>::chunks>([&](int k) NLID_CHUNK_LAMBDA { v.c[k] = o.v.c[k]; });
     } else {
       for (int i = 0; i < W; ++i) v[static_cast<std::size_t>(i)] = o.v[static_cast<std::size_t>(i)];
     }
@@ -334,7 +357,7 @@ template <class T, int W>
 BatchMask<T, W> operator!(const BatchMask<T, W>& k) {
   BatchMask<T, W> r;
   if constexpr (detail::batch_simd_v<T, W>) {
-    for (int j = 0; j < detail::batch_storage<T, W>::chunks; ++j) r.m.c[j] = ~k.m.c[j];
+    detail::for_each_chunk<detail::batch_storage<T, W>::chunks>([&](int j) NLID_CHUNK_LAMBDA { r.m.c[j] = ~k.m.c[j]; });
   } else {
     for (int i = 0; i < W; ++i) r.m[static_cast<std::size_t>(i)] = ~k.m[static_cast<std::size_t>(i)];
   }
@@ -345,7 +368,7 @@ template <class T, int W>
 BatchMask<T, W> operator&&(const BatchMask<T, W>& a, const BatchMask<T, W>& b) {
   BatchMask<T, W> r;
   if constexpr (detail::batch_simd_v<T, W>) {
-    for (int j = 0; j < detail::batch_storage<T, W>::chunks; ++j) r.m.c[j] = a.m.c[j] & b.m.c[j];
+    detail::for_each_chunk<detail::batch_storage<T, W>::chunks>([&](int j) NLID_CHUNK_LAMBDA { r.m.c[j] = a.m.c[j] & b.m.c[j]; });
   } else {
     for (int i = 0; i < W; ++i) r.m[static_cast<std::size_t>(i)] = a.m[static_cast<std::size_t>(i)] & b.m[static_cast<std::size_t>(i)];
   }
@@ -356,7 +379,7 @@ template <class T, int W>
 BatchMask<T, W> operator||(const BatchMask<T, W>& a, const BatchMask<T, W>& b) {
   BatchMask<T, W> r;
   if constexpr (detail::batch_simd_v<T, W>) {
-    for (int j = 0; j < detail::batch_storage<T, W>::chunks; ++j) r.m.c[j] = a.m.c[j] | b.m.c[j];
+    detail::for_each_chunk<detail::batch_storage<T, W>::chunks>([&](int j) NLID_CHUNK_LAMBDA { r.m.c[j] = a.m.c[j] | b.m.c[j]; });
   } else {
     for (int i = 0; i < W; ++i) r.m[static_cast<std::size_t>(i)] = a.m[static_cast<std::size_t>(i)] | b.m[static_cast<std::size_t>(i)];
   }
@@ -370,10 +393,10 @@ Batch<T, W> select(const BatchMask<T, W>& k, const Batch<T, W>& a, const Batch<T
   Batch<T, W> r;
   if constexpr (detail::batch_simd_v<T, W>) {
     using S = detail::batch_storage<T, W>;
-    for (int j = 0; j < S::chunks; ++j) {
+    detail::for_each_chunk<S::chunks>([&](int j) NLID_CHUNK_LAMBDA {
       r.v.c[j] = __builtin_bit_cast(typename S::vec, (__builtin_bit_cast(typename S::vbits, a.v.c[j]) & k.m.c[j]) |
                                                          (__builtin_bit_cast(typename S::vbits, b.v.c[j]) & ~k.m.c[j]));
-    }
+    });
   } else {
     for (int i = 0; i < W; ++i) {
       const auto j = static_cast<std::size_t>(i);
@@ -394,7 +417,7 @@ template <class T, int W> Batch<T, W> operator+(const Batch<T, W>& x) { return x
 template <class T, int W> Batch<T, W> operator-(const Batch<T, W>& x) {
   Batch<T, W> r;
   if constexpr (detail::batch_simd_v<T, W>) {
-    for (int j = 0; j < detail::batch_storage<T, W>::chunks; ++j) r.v.c[j] = -x.v.c[j];
+    detail::for_each_chunk<detail::batch_storage<T, W>::chunks>([&](int j) NLID_CHUNK_LAMBDA { r.v.c[j] = -x.v.c[j]; });
   } else {
     for (int i = 0; i < W; ++i) r.v[i] = -x.v[i];
   }
@@ -457,8 +480,8 @@ Batch<T, W> map_lanes(const Batch<T, W>& x, const Batch<T, W>& y, F f) {
     if constexpr (detail::batch_simd_v<T, W>) {                                                   \
       using S = detail::batch_storage<T, W>;                                                      \
       BatchMask<T, W> r;                                                                          \
-      for (int j = 0; j < S::chunks; ++j)                                                         \
-        r.m.c[j] = __builtin_bit_cast(typename S::vbits, a.v.c[j] OP b.v.c[j]);                   \
+      detail::for_each_chunk<S::chunks>(                                                          \
+          [&](int j) NLID_CHUNK_LAMBDA { r.m.c[j] = __builtin_bit_cast(typename S::vbits, a.v.c[j] OP b.v.c[j]); }); \
       return r;                                                                                   \
     } else {                                                                                      \
       return detail::compare_lanes(a, b, [](T x, T y) { return x OP y; });                        \
@@ -486,14 +509,6 @@ NLID_BATCH_COMPARISON(!=)
 
 namespace detail {
 
-// The kernels below are forced inline: called out of line (as GCC chose for W = 8) every call
-// spills the lanes to memory and back, which cost more than the arithmetic (perf, see
-// docs/performance.md).
-#if defined(__GNUC__)
-#define NLID_BATCH_INLINE [[gnu::always_inline]] inline
-#else
-#define NLID_BATCH_INLINE inline
-#endif
 
 /// Cody–Waite reduction of e^x: x = k·ln2 + r, |r| ≤ ln2/2, with ln2 split in a 32-bit-exact
 /// high part and a low part, k taken from the rounding of x/ln2 + 1.5·2⁵² without a float→int
@@ -571,14 +586,14 @@ NLID_BATCH_INLINE void exp_vector(const typename batch_storage<double, W>::type&
   // The far-argument flags are or-ed as vectors and reduced across lanes once: a lane
   // reduction costs a few extract instructions per register, measurable in a sigmoid network.
   typename L::bits outside{};
-  for (int j = 0; j < batch_storage<double, W>::chunks; ++j) {
+  for_each_chunk<batch_storage<double, W>::chunks>([&](int j) NLID_CHUNK_LAMBDA {
     typename L::type two_k, px, qx;
     exp_reduce_into<L>(x.c[j], two_k, px, qx);
     out.c[j] = (1.0 + 2.0 * (px / (qx - px))) * two_k;
     typename L::bits far;
     beyond_into<L>(x.c[j], 708.0, far);
     outside |= far;
-  }
+  });
   if (or_lanes<W>(outside) != 0) [[unlikely]] {
     const auto* xs = reinterpret_cast<const double*>(&x);
     auto* os = reinterpret_cast<double*>(&out);
@@ -593,7 +608,7 @@ NLID_BATCH_INLINE void logistic_vector(const typename batch_storage<double, W>::
                                        typename batch_storage<double, W>::type& out) {
   using L = batch_chunk<double, W>;
   typename L::bits outside{};  // reduced once (see exp_vector)
-  for (int j = 0; j < batch_storage<double, W>::chunks; ++j) {
+  for_each_chunk<batch_storage<double, W>::chunks>([&](int j) NLID_CHUNK_LAMBDA {
     typename L::type two_k, px, qx;
     const typename L::type minus_s = -s.c[j];
     exp_reduce_into<L>(minus_s, two_k, px, qx);
@@ -602,7 +617,7 @@ NLID_BATCH_INLINE void logistic_vector(const typename batch_storage<double, W>::
     typename L::bits far;
     beyond_into<L>(s.c[j], 708.0, far);
     outside |= far;
-  }
+  });
   if (or_lanes<W>(outside) != 0) [[unlikely]] {
     const auto* ss = reinterpret_cast<const double*>(&s);
     auto* os = reinterpret_cast<double*>(&out);
@@ -725,8 +740,8 @@ Batch<T, W> abs(const Batch<T, W>& x) {
     // Clearing the sign bit is std::fabs, for NaN too.
     using S = detail::batch_storage<T, W>;
     const auto magnitude = std::numeric_limits<detail::lane_bits_t<T>>::max() >> 1;
-    for (int j = 0; j < S::chunks; ++j)
-      r.v.c[j] = __builtin_bit_cast(typename S::vec, __builtin_bit_cast(typename S::vbits, x.v.c[j]) & magnitude);
+    detail::for_each_chunk<S::chunks>(
+        [&](int j) NLID_CHUNK_LAMBDA { r.v.c[j] = __builtin_bit_cast(typename S::vec, __builtin_bit_cast(typename S::vbits, x.v.c[j]) & magnitude); });
   } else {
     for (int i = 0; i < W; ++i) r.v[static_cast<std::size_t>(i)] = std::fabs(x.v[static_cast<std::size_t>(i)]);
   }
@@ -788,7 +803,7 @@ bool isfinite(const Batch<T, W>& x) {
   if constexpr (Batch<T, W>::simd) {
     using S = detail::batch_storage<T, W>;
     typename S::vbits d{};
-    for (int j = 0; j < S::chunks; ++j) d |= __builtin_bit_cast(typename S::vbits, x.v.c[j] - x.v.c[j]);
+    detail::for_each_chunk<S::chunks>([&](int j) NLID_CHUNK_LAMBDA { d |= __builtin_bit_cast(typename S::vbits, x.v.c[j] - x.v.c[j]); });
     detail::lane_bits_t<T> acc = 0;
     for (int i = 0; i < S::per_chunk; ++i) acc |= d[i];
     return acc == 0;

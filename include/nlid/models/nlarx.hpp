@@ -159,11 +159,14 @@ class Nlarx {
     RegressorVector<T> phi = make_regressor_vector<T>();
     const std::span<T> phi_span(phi.data(), static_cast<std::size_t>(phi.size()));
     const std::span<const T> phi_const(phi.data(), static_cast<std::size_t>(phi.size()));
+    constexpr double kNoLimit = std::numeric_limits<double>::infinity();
     for (Eigen::Index t = 0; t < u.rows(); ++t) {
       w.set_time(t);
       regs_.evaluate(w, phi_span);
       T yt = f_(phi_const, theta);
-      if (!detail::is_finite_scalar(yt) || std::abs(static_cast<double>(value_of(yt))) > limit) return t;
+      // The magnitude test only with a finite limit: for a Batch, static_cast<double> reduces the
+      // lanes through memory at every sample (an infinite limit is the default of simulate()).
+      if (!detail::is_finite_scalar(yt) || (limit < kNoLimit && std::abs(static_cast<double>(value_of(yt))) > limit)) return t;
       past.push(yt);
       y[static_cast<std::size_t>(t)] = std::move(yt);
     }
