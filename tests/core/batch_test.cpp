@@ -112,7 +112,7 @@ void check_lanes_like_scalars() {
     b[i] = static_cast<T>(-0.5 * (i % 5) + 1.0);
   }
   a[W - 1] = nan;
-  b[W - 2 >= 0 ? W - 2 : 0] = -0.0f;
+  b[W - 2] = -0.0f;  // W ≥ 2 here
   if (W >= 4) {
     a[W - 3] = inf;
     b[W - 4] = nan;

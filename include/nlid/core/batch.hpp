@@ -546,16 +546,9 @@ struct scalar_lanes {
   using bits = std::uint64_t;
 };
 
-/// `exp_reduce_into` for one double; returns 2^k.
-NLID_BATCH_INLINE double exp_reduce(double x, double& px, double& qx) {
-  double two_k;
-  exp_reduce_into<scalar_lanes>(x, two_k, px, qx);
-  return two_k;
-}
-
 /// 1 if |x| > limit or x is NaN, else 0 — on the bit pattern, so a loop over lanes vectorises
-/// (a floating-point compare would not, under the default -ftrapping-math). limit ≥ 0. V, U as
-/// in `exp_reduce_into`.
+/// (a floating-point compare would not, under the default -ftrapping-math). limit ≥ 0. L as in
+/// `exp_reduce_into`.
 template <class L>
 NLID_BATCH_INLINE void beyond_into(const typename L::type& x, double limit, typename L::bits& out) {
   using U = typename L::bits;
@@ -578,18 +571,46 @@ NLID_BATCH_INLINE std::uint64_t or_lanes(const typename batch_chunk<double, W>::
   return a;
 }
 
-/// e^x on the vector lanes of a Batch<double, W>: `exp_lanes` without the compiler's
-/// vectoriser in between (one lane's operations are the scalar kernel's, in its order).
-template <int W>
-NLID_BATCH_INLINE void exp_vector(const typename batch_storage<double, W>::type& x, typename batch_storage<double, W>::type& out) {
+/// e^x from the reduction's parts, for one double or one register (L as in `exp_reduce_into`).
+/// e^r = 1 + 2·P/(Q − P): the form whose rounding keeps the result within 2 ulp of libm
+/// (tests/core/batch_test.cpp). Lanes with |x| > 708 (overflow, subnormal results) or NaN are
+/// rare and are redone by `far`, so every lane gets libm's special-value behaviour.
+struct ExpKernel {
+  template <class L>
+  NLID_BATCH_INLINE static void value(const typename L::type& x, typename L::type& out) {
+    typename L::type two_k, px, qx;
+    exp_reduce_into<L>(x, two_k, px, qx);
+    out = (1.0 + 2.0 * (px / (qx - px))) * two_k;
+  }
+  NLID_BATCH_INLINE static double far(double x) { return std::exp(x); }
+};
+
+/// The logistic function σ(s) = 1/(1 + e^(−s)) with *one* division per lane: with
+/// e^(−s) = 2^k·N/D (N = qx + px, D = qx − px from `exp_reduce_into`), σ = D / (D + 2^k·N).
+/// Computing e^(−s) first and then 1/(1 + e^(−s)) costs two divisions, the slowest operation
+/// of a sigmoid network's unit. Lanes with |s| > 708 or NaN (rare) take the scalar formula.
+struct LogisticKernel {
+  template <class L>
+  NLID_BATCH_INLINE static void value(const typename L::type& s, typename L::type& out) {
+    typename L::type two_k, px, qx;
+    const typename L::type minus_s = -s;
+    exp_reduce_into<L>(minus_s, two_k, px, qx);
+    const typename L::type den = qx - px;
+    out = den / (den + two_k * (qx + px));
+  }
+  NLID_BATCH_INLINE static double far(double s) { return s >= 0 ? 1.0 / (1.0 + std::exp(-s)) : std::exp(s) / (1.0 + std::exp(s)); }
+};
+
+/// Kernel K on the vector lanes of a Batch<double, W>, register by register: the scalar
+/// kernel's operations in its order, without the compiler's vectoriser in between. The
+/// far-argument flags are or-ed as vectors and reduced across lanes once: a lane reduction costs
+/// a few extract instructions per register, measurable in a sigmoid network.
+template <class K, int W>
+NLID_BATCH_INLINE void vector_kernel(const typename batch_storage<double, W>::type& x, typename batch_storage<double, W>::type& out) {
   using L = batch_chunk<double, W>;
-  // The far-argument flags are or-ed as vectors and reduced across lanes once: a lane
-  // reduction costs a few extract instructions per register, measurable in a sigmoid network.
   typename L::bits outside{};
   for_each_chunk<batch_storage<double, W>::chunks>([&](int j) NLID_CHUNK_LAMBDA {
-    typename L::type two_k, px, qx;
-    exp_reduce_into<L>(x.c[j], two_k, px, qx);
-    out.c[j] = (1.0 + 2.0 * (px / (qx - px))) * two_k;
+    K::template value<L>(x.c[j], out.c[j]);
     typename L::bits far;
     beyond_into<L>(x.c[j], 708.0, far);
     outside |= far;
@@ -598,78 +619,35 @@ NLID_BATCH_INLINE void exp_vector(const typename batch_storage<double, W>::type&
     const auto* xs = reinterpret_cast<const double*>(&x);
     auto* os = reinterpret_cast<double*>(&out);
     for (int i = 0; i < W; ++i)
-      if (beyond(xs[i], 708.0) != 0) os[i] = std::exp(xs[i]);
+      if (beyond(xs[i], 708.0) != 0) os[i] = K::far(xs[i]);
   }
 }
 
-/// The logistic function on the vector lanes of a Batch<double, W> (see `logistic_lanes`).
-template <int W>
-NLID_BATCH_INLINE void logistic_vector(const typename batch_storage<double, W>::type& s,
-                                       typename batch_storage<double, W>::type& out) {
-  using L = batch_chunk<double, W>;
-  typename L::bits outside{};  // reduced once (see exp_vector)
-  for_each_chunk<batch_storage<double, W>::chunks>([&](int j) NLID_CHUNK_LAMBDA {
-    typename L::type two_k, px, qx;
-    const typename L::type minus_s = -s.c[j];
-    exp_reduce_into<L>(minus_s, two_k, px, qx);
-    const typename L::type den = qx - px;
-    out.c[j] = den / (den + two_k * (qx + px));
-    typename L::bits far;
-    beyond_into<L>(s.c[j], 708.0, far);
-    outside |= far;
-  });
-  if (or_lanes<W>(outside) != 0) [[unlikely]] {
-    const auto* ss = reinterpret_cast<const double*>(&s);
-    auto* os = reinterpret_cast<double*>(&out);
-    for (int i = 0; i < W; ++i) {
-      if (beyond(ss[i], 708.0) == 0) continue;
-      const double si = ss[i];
-      os[i] = si >= 0 ? 1.0 / (1.0 + std::exp(-si)) : std::exp(si) / (1.0 + std::exp(si));
-    }
-  }
-}
-
-/// e^x for W doubles in one vectorisable loop (see `exp_reduce`). Lanes with |x| > 708 (overflow,
-/// subnormal results) or NaN are rare and are recomputed by std::exp, so every lane gets libm's
-/// special-value behaviour.
-template <int W>
-NLID_BATCH_INLINE void exp_lanes(const double* x, double* out) {
-  // Branch-free body so the compiler vectorises it. e^r = 1 + 2·P/(Q − P): the form whose
-  // rounding keeps the result within 2 ulp of libm (tests/core/batch_test.cpp).
-  for (int i = 0; i < W; ++i) {
-    double px, qx;
-    const double two_k = exp_reduce(x[i], px, qx);
-    out[i] = (1.0 + 2.0 * (px / (qx - px))) * two_k;
-  }
+/// Kernel K on W doubles in one vectorisable loop (the array storage, and plain double arrays
+/// such as a sigmoid network's unit sums).
+template <class K, int W>
+NLID_BATCH_INLINE void lanes_kernel(const double* x, double* out) {
+  // Branch-free body so the compiler vectorises it (a compare in this loop would stop GCC under
+  // the default -ftrapping-math); out-of-range lanes produce garbage here and are redone below.
+  for (int i = 0; i < W; ++i) K::template value<scalar_lanes>(x[i], out[i]);
   std::uint64_t outside = 0;
   for (int i = 0; i < W; ++i) outside |= beyond(x[i], 708.0);
   if (outside != 0) {
     for (int i = 0; i < W; ++i)
-      if (beyond(x[i], 708.0) != 0) out[i] = std::exp(x[i]);
+      if (beyond(x[i], 708.0) != 0) out[i] = K::far(x[i]);
   }
 }
 
-/// The logistic function σ(s) = 1/(1 + e^(−s)) for W doubles with *one* division per lane:
-/// with e^(−s) = 2^k·N/D (N = qx + px, D = qx − px from `exp_reduce`), σ = D / (D + 2^k·N).
-/// Computing e^(−s) first and then 1/(1 + e^(−s)) costs two divisions, the slowest operation
-/// of a sigmoid network's unit. Lanes with |s| > 708 or NaN (rare) take the scalar formula.
+/// e^x for W doubles (`ExpKernel`).
+template <int W>
+NLID_BATCH_INLINE void exp_lanes(const double* x, double* out) {
+  lanes_kernel<ExpKernel, W>(x, out);
+}
+
+/// The logistic function for W doubles (`LogisticKernel`).
 template <int W>
 NLID_BATCH_INLINE void logistic_lanes(const double* s, double* out) {
-  // Branch-free (a compare in this loop would stop GCC from vectorising it under the default
-  // -ftrapping-math); out-of-range lanes produce garbage here and are redone below.
-  for (int i = 0; i < W; ++i) {
-    double px, qx;
-    const double two_k = exp_reduce(-s[i], px, qx);
-    const double den = qx - px;
-    out[i] = den / (den + two_k * (qx + px));
-  }
-  std::uint64_t outside = 0;
-  for (int i = 0; i < W; ++i) outside |= beyond(s[i], 708.0);
-  if (outside != 0) {
-    for (int i = 0; i < W; ++i) {
-      if (beyond(s[i], 708.0) != 0) out[i] = s[i] >= 0 ? 1.0 / (1.0 + std::exp(-s[i])) : std::exp(s[i]) / (1.0 + std::exp(s[i]));
-    }
-  }
+  lanes_kernel<LogisticKernel, W>(s, out);
 }
 }  // namespace detail
 
@@ -678,7 +656,7 @@ template <class T, int W>
 NLID_BATCH_INLINE Batch<T, W> exp(const Batch<T, W>& x) {
   if constexpr (std::is_same_v<T, double> && Batch<T, W>::simd) {
     Batch<T, W> r;
-    detail::exp_vector<W>(x.v, r.v);
+    detail::vector_kernel<detail::ExpKernel, W>(x.v, r.v);
     return r;
   } else if constexpr (std::is_same_v<T, double>) {
     Batch<T, W> r;
@@ -695,7 +673,7 @@ template <int W>
 NLID_BATCH_INLINE Batch<double, W> logistic(const Batch<double, W>& x) {
   Batch<double, W> r;
   if constexpr (Batch<double, W>::simd) {
-    detail::logistic_vector<W>(x.v, r.v);
+    detail::vector_kernel<detail::LogisticKernel, W>(x.v, r.v);
   } else {
     detail::logistic_lanes<W>(x.v.data(), r.v.data());
   }
