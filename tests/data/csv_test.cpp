@@ -1,12 +1,15 @@
 // CSV reading and writing: the throttle files, exact round trips, tolerated formatting, and one
 // test per user error checking that the message names the file, row and column.
 #include "nlid/data/csv.hpp"
+#include "nlid/data/dataset.hpp"
 
 #include <catch2/catch.hpp>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <limits>
 #include <random>
+#include <sstream>
 #include <string>
 
 namespace {
@@ -387,6 +390,60 @@ TEST_CASE("read_csv checks the time column", "[data][csv]") {
   CHECK_THROWS_WITH(
       nlid::read_csv(dir.file("jit.csv"), strict),
       Contains("step 1.004 from row 2 deviates by 0.2 % from the typical step 1.002"));
+}
+
+// A logger that prints time stamps with fixed decimals: no double reproduces such a column, and
+// the endpoint estimate of ts depends on which rows a file holds (for 51.2 kHz at 8 decimals,
+// 0.39 s of samples are off by 1.3e-8 relative), so two slices of one recording could not be put
+// into one Dataset. The reader takes the shortest sample time or rate that reproduces every stamp
+// to within the printing resolution.
+TEST_CASE("read_csv recovers the sample time from time stamps rounded to fixed decimals", "[data][csv]") {
+  TempDir dir;
+  // time stamp k: k / rate for rate > 0, else k · (−rate) (a sample time)
+  auto write = [&](const std::string& name, long first, long count, double rate, int decimals) {
+    std::ostringstream os;
+    os << "t,u,y\n";
+    char buf[64];
+    for (long k = first; k < first + count; ++k) {
+      const double tk = rate > 0 ? static_cast<double>(k) / rate : static_cast<double>(k) * -rate;
+      std::snprintf(buf, sizeof buf, "%.*f", decimals, tk);
+      os << buf << "," << 0.001 * static_cast<double>(k % 17) << "," << 0.5 << "\n";
+    }
+    return dir.write(name, os.str());
+  };
+  SECTION("a rate: 51.2 kHz printed with 8 decimals, two slices of one record") {
+    const nlid::Experiment a = nlid::read_csv(write("a.csv", 0, 85200, 51200.0, 8));
+    const nlid::Experiment b = nlid::read_csv(write("b.csv", 85200, 20000, 51200.0, 8));
+    CHECK(a.ts() == 1.0 / 51200.0);
+    CHECK(b.ts() == 1.0 / 51200.0);
+    CHECK(b.t0() == 1.6640625);
+    nlid::Dataset d;
+    d.add(a);
+    CHECK_NOTHROW(d.add(b));
+  }
+  SECTION("a sample time: 1.2345 ms printed with 5 decimals") {
+    const nlid::Experiment e = nlid::read_csv(write("c.csv", 3, 4000, -0.0012345, 5));
+    CHECK(e.ts() == 0.0012345);
+    CHECK(e.t0() == 0.0037);  // 3 · 1.2345 ms = 0.0037035, printed as 0.00370
+  }
+  SECTION("300 Hz printed with 6 decimals: a rate with no short decimal sample time") {
+    const nlid::Experiment e = nlid::read_csv(write("d.csv", 0, 5000, 300.0, 6));
+    CHECK(e.ts() == 1.0 / 300.0);
+  }
+  SECTION("a grid off by more than the printing resolution is not snapped") {
+    // 1000.3 Hz at 6 decimals: the stamps rule out 1 kHz (3000 samples drift by 0.9 ms); the
+    // shortest sample time they allow, 0.0009997, is 1e-7 relative from 1/1000.3
+    std::ostringstream os;
+    os << "t,u,y\n";
+    for (int k = 0; k < 3000; ++k) {
+      char buf[64];
+      std::snprintf(buf, sizeof buf, "%.6f", k / 1000.3);
+      os << buf << ",0,0\n";
+    }
+    const nlid::Experiment e = nlid::read_csv(dir.write("e.csv", os.str()));
+    CHECK(e.ts() == 0.0009997);
+    CHECK(e.ts() == Approx(1.0 / 1000.3).epsilon(2e-7));
+  }
 }
 
 TEST_CASE("write_csv refuses unreadable headers and bad paths", "[data][csv]") {

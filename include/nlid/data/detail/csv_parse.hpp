@@ -303,15 +303,30 @@ inline std::string quote_if_needed(const std::string& s, char delim) {
   return q + "\"";
 }
 
-/// The sample time whose grid t0 + k·ts reproduces `t` exactly, if there is one near the endpoint
-/// estimate (t_{N−1} − t_0)/(N−1); otherwise that estimate. Makes write → read of `ts` exact.
+/// The sample time of a time column `t` whose stamps were printed with `quantum` resolution
+/// (10^−decimals; 0 if unknown, e.g. scientific notation). In order:
+///
+/// 1. Exact grid: a ts whose grid t0 + k·ts reproduces every stamp exactly, near the endpoint
+///    estimate (t_{N−1} − t_0)/(N−1) (`exact_sample_time`). Makes write → read of `ts` exact.
+/// 2. Rounded grid: a logger that prints fixed decimals (51.2 kHz as 0.00001953, 0.00003906, …)
+///    leaves no exact grid, and the endpoint estimate is then off by up to quantum/(t_{N−1} − t_0)
+///    relative — 10⁻⁸ for 2 s of such a record, so two slices of one recording disagreed beyond
+///    the 10⁻⁹ that `Dataset` allows and could not be merged or compared. The shortest candidate
+///    with 1, 2, … significant digits, as a sample time (0.001) or as a rate (ts = 1/51200), whose
+///    grid reproduces every stamp to within one quantum (t0 is itself rounded, hence not half) is
+///    taken: it is what the stamps were printed from, as far as they can tell.
+/// 3. Otherwise (jitter, no quantum) the endpoint estimate.
+inline double snap_sample_time(const Eigen::VectorXd& t, double quantum);
+
+/// Stage 1 of `snap_sample_time`, or NaN if no double reproduces every stamp.
 ///
 /// fl(t_0 + fl(k·ts)) is monotone in ts, so the doubles that reproduce the last time stamp form an
 /// interval, found by bisection over the (ordered) bit patterns of positive doubles. Candidates in
 /// it are checked against every time stamp, shortest decimals first: when t_0 is large several
 /// doubles reproduce the column, and the shortest (0.001 rather than 0.0010000000000004686) is the
 /// one a person or a writer used.
-inline double snap_sample_time(const Eigen::VectorXd& t) {
+inline double exact_sample_time(const Eigen::VectorXd& t) {
+  constexpr double none = std::numeric_limits<double>::quiet_NaN();
   const Eigen::Index n = t.size();
   const double t0 = t(0), tl = t(n - 1);
   const double est = (tl - t0) / static_cast<double>(n - 1);
@@ -320,7 +335,7 @@ inline double snap_sample_time(const Eigen::VectorXd& t) {
   auto bits = [](double x) { return std::bit_cast<std::uint64_t>(x); };
   auto from = [](std::uint64_t b) { return std::bit_cast<double>(b); };
   std::uint64_t lo = bits(est * (1.0 - 1e-9)), hi = bits(est * (1.0 + 1e-9));
-  if (!(grid_last(from(lo)) < tl && grid_last(from(hi)) > tl)) return est;
+  if (!(grid_last(from(lo)) < tl && grid_last(from(hi)) > tl)) return none;
   // L = first double with grid_last >= tl.
   std::uint64_t a = lo, b = hi;
   while (b - a > 1) {
@@ -335,7 +350,7 @@ inline double snap_sample_time(const Eigen::VectorXd& t) {
     (grid_last(from(m)) <= tl ? a : b) = m;
   }
   const std::uint64_t final_ = a;
-  if (final_ < first) return est;
+  if (final_ < first) return none;
   auto exact = [&](double ts) {
     for (Eigen::Index k = 1; k < n; ++k) {
       if (t0 + static_cast<double>(k) * ts != t(k)) return false;
@@ -358,6 +373,39 @@ inline double snap_sample_time(const Eigen::VectorXd& t) {
   for (std::uint64_t i = 0; i <= 128; ++i) {
     if (c - first >= i && exact(from(c - i))) return from(c - i);
     if (final_ - c >= i && exact(from(c + i))) return from(c + i);
+  }
+  return none;
+}
+
+inline double snap_sample_time(const Eigen::VectorXd& t, double quantum) {
+  const Eigen::Index n = t.size();
+  const double est = (t(n - 1) - t(0)) / static_cast<double>(n - 1);
+  const double exact = exact_sample_time(t);
+  if (!std::isnan(exact)) return exact;
+  if (!(quantum > 0.0)) return est;
+  const double t0 = t(0);
+  auto reproduces = [&](double ts) {
+    if (!(ts > 0.0) || !std::isfinite(ts)) return false;
+    for (Eigen::Index k = 1; k < n; ++k) {
+      const double g = t0 + static_cast<double>(k) * ts;
+      // one quantum, plus the few ulps by which the parsed stamp and the grid may round apart
+      const double tol = quantum * (1.0 + 1e-9) + 8.0 * std::numeric_limits<double>::epsilon() * std::abs(t(k));
+      if (!(std::abs(g - t(k)) <= tol)) return false;
+    }
+    return true;
+  };
+  auto rounded = [](double x, int digits) {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "%.*e", digits - 1, x);
+    double c = 0.0;
+    std::from_chars(buf, buf + std::char_traits<char>::length(buf), c);
+    return c;
+  };
+  for (int d = 1; d <= 12; ++d) {
+    const double as_time = rounded(est, d);
+    if (reproduces(as_time)) return as_time;
+    const double as_rate = 1.0 / rounded(1.0 / est, d);
+    if (reproduces(as_rate)) return as_rate;
   }
   return est;
 }
@@ -400,6 +448,22 @@ inline void check_distinct_columns(const CsvText& t, bool has_time, std::size_t 
 
 /// Validates the time column and returns (ts, t0). `ts_override` > 0 wins over the column (a
 /// disagreement is noted); otherwise ts is inferred and every step checked against the median.
+/// Printing resolution of a time column: 10^−d for the most decimals d any stamp shows, or 0 if a
+/// stamp is in scientific notation (its resolution is then not a fixed quantum).
+inline double time_quantum(const CsvText& t, std::size_t time_col, char decimal_point) {
+  int decimals = 0;
+  for (const auto& row : t.rows) {
+    const std::string& cell = row[time_col];
+    if (cell.find_first_of("eE") != std::string::npos) return 0.0;
+    const auto dot = cell.find(decimal_point);
+    if (dot == std::string::npos) continue;
+    std::size_t end = cell.size();
+    while (end > dot + 1 && (cell[end - 1] == ' ' || cell[end - 1] == '\t' || cell[end - 1] == '\r')) --end;
+    decimals = std::max(decimals, static_cast<int>(end - dot - 1));
+  }
+  return std::pow(10.0, -decimals);
+}
+
 inline std::pair<double, double> time_axis(const CsvText& t, std::size_t time_col,
                                            char decimal_point, double ts_override, double tolerance,
                                            std::vector<std::string>& notes) {
@@ -458,7 +522,7 @@ inline std::pair<double, double> time_axis(const CsvText& t, std::size_t time_co
                   at_row(k));
     }
   }
-  return {snap_sample_time(time), t0};
+  return {snap_sample_time(time, time_quantum(t, time_col, decimal_point)), t0};
 }
 
 }  // namespace detail
