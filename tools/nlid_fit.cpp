@@ -133,10 +133,14 @@ int main(int argc, char** argv) {
     nlid::Dataset est, val;
     for (const auto& p : a.est) est.add(load(p, a));
     for (const auto& p : a.val) val.add(load(p, a));
-    if (val.size() > 0 && std::abs(val.ts() - est.ts()) > 1e-9 * est.ts())
-      throw nlid::Error("validation data have sample time " + std::to_string(val.ts()) + " s, estimation data " +
-                            std::to_string(est.ts()) + " s",
+    if (val.size() > 0 && std::abs(val.ts() - est.ts()) > nlid::dataset_ts_tolerance * est.ts()) {
+      // %.10g: std::to_string's six decimals printed 20 µs as "0.000020" for both sides
+      char buf[160];
+      std::snprintf(buf, sizeof buf, "validation data have sample time %.10g s, estimation data %.10g s (relative difference %.3g)",
+                    val.ts(), est.ts(), std::abs(val.ts() - est.ts()) / est.ts());
+      throw nlid::Error(std::string(buf) + "; resample one of them to the other's rate first",
                         nlid::at_parameter("--val"));
+    }
     double yss = 0.0;
     {
       double n = 0.0, s = 0.0;
