@@ -446,8 +446,6 @@ inline void check_distinct_columns(const CsvText& t, bool has_time, std::size_t 
   }
 }
 
-/// Validates the time column and returns (ts, t0). `ts_override` > 0 wins over the column (a
-/// disagreement is noted); otherwise ts is inferred and every step checked against the median.
 /// Printing resolution of a time column: 10^−d for the most decimals d any stamp shows, or 0 if a
 /// stamp is in scientific notation (its resolution is then not a fixed quantum).
 inline double time_quantum(const CsvText& t, std::size_t time_col, char decimal_point) {
@@ -464,6 +462,8 @@ inline double time_quantum(const CsvText& t, std::size_t time_col, char decimal_
   return std::pow(10.0, -decimals);
 }
 
+/// Validates the time column and returns (ts, t0). `ts_override` > 0 wins over the column (a
+/// disagreement is noted); otherwise ts is inferred and every step checked against the median.
 inline std::pair<double, double> time_axis(const CsvText& t, std::size_t time_col,
                                            char decimal_point, double ts_override, double tolerance,
                                            std::vector<std::string>& notes) {
