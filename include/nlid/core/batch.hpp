@@ -564,11 +564,22 @@ NLID_BATCH_INLINE std::uint64_t beyond(double x, double limit) {
 }
 
 /// Bitwise or of a chunk's lanes (0 iff every lane is 0).
-template <int W>
-NLID_BATCH_INLINE std::uint64_t or_lanes(const typename batch_chunk<double, W>::bits& u) {
-  std::uint64_t a = 0;
-  for (int i = 0; i < batch_storage<double, W>::per_chunk; ++i) a |= u[i];
+template <class T, int W>
+NLID_BATCH_INLINE lane_bits_t<T> or_lanes(const typename batch_chunk<T, W>::bits& u) {
+  lane_bits_t<T> a = 0;
+  for (int i = 0; i < batch_storage<T, W>::per_chunk; ++i) a |= u[i];
   return a;
+}
+
+/// |x| beyond which (and for NaN) the exp and logistic kernels hand a lane to libm: e^x
+/// overflows or turns subnormal there.
+inline constexpr double far_argument = 708.0;
+
+/// Redoes the lanes of x beyond `far_argument` with kernel K's scalar fallback (rare).
+template <class K, int W>
+NLID_BATCH_INLINE void redo_far_lanes(const double* x, double* out) {
+  for (int i = 0; i < W; ++i)
+    if (beyond(x[i], far_argument) != 0) out[i] = K::far(x[i]);
 }
 
 /// e^x from the reduction's parts, for one double or one register (L as in `exp_reduce_into`).
@@ -612,14 +623,11 @@ NLID_BATCH_INLINE void vector_kernel(const typename batch_storage<double, W>::ty
   for_each_chunk<batch_storage<double, W>::chunks>([&](int j) NLID_CHUNK_LAMBDA {
     K::template value<L>(x.c[j], out.c[j]);
     typename L::bits far;
-    beyond_into<L>(x.c[j], 708.0, far);
+    beyond_into<L>(x.c[j], far_argument, far);
     outside |= far;
   });
-  if (or_lanes<W>(outside) != 0) [[unlikely]] {
-    const auto* xs = reinterpret_cast<const double*>(&x);
-    auto* os = reinterpret_cast<double*>(&out);
-    for (int i = 0; i < W; ++i)
-      if (beyond(xs[i], 708.0) != 0) os[i] = K::far(xs[i]);
+  if (or_lanes<double, W>(outside) != 0) [[unlikely]] {
+    redo_far_lanes<K, W>(reinterpret_cast<const double*>(&x), reinterpret_cast<double*>(&out));
   }
 }
 
@@ -631,11 +639,8 @@ NLID_BATCH_INLINE void lanes_kernel(const double* x, double* out) {
   // the default -ftrapping-math); out-of-range lanes produce garbage here and are redone below.
   for (int i = 0; i < W; ++i) K::template value<scalar_lanes>(x[i], out[i]);
   std::uint64_t outside = 0;
-  for (int i = 0; i < W; ++i) outside |= beyond(x[i], 708.0);
-  if (outside != 0) {
-    for (int i = 0; i < W; ++i)
-      if (beyond(x[i], 708.0) != 0) out[i] = K::far(x[i]);
-  }
+  for (int i = 0; i < W; ++i) outside |= beyond(x[i], far_argument);
+  if (outside != 0) redo_far_lanes<K, W>(x, out);
 }
 
 /// e^x for W doubles (`ExpKernel`).
@@ -782,9 +787,7 @@ bool isfinite(const Batch<T, W>& x) {
     using S = detail::batch_storage<T, W>;
     typename S::vbits d{};
     detail::for_each_chunk<S::chunks>([&](int j) NLID_CHUNK_LAMBDA { d |= __builtin_bit_cast(typename S::vbits, x.v.c[j] - x.v.c[j]); });
-    detail::lane_bits_t<T> acc = 0;
-    for (int i = 0; i < S::per_chunk; ++i) acc |= d[i];
-    return acc == 0;
+    return detail::or_lanes<T, W>(d) == 0;
   }
   T acc = T(0);
   for (int i = 0; i < W; ++i) acc += x[i] - x[i];
