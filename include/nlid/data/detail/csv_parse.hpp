@@ -303,6 +303,15 @@ inline std::string quote_if_needed(const std::string& s, char delim) {
   return q + "\"";
 }
 
+/// x rounded to `digits` significant decimal digits (the double nearest the printed decimal).
+inline double round_significant(double x, int digits) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.*e", digits - 1, x);
+  double c = 0.0;
+  std::from_chars(buf, buf + std::char_traits<char>::length(buf), c);
+  return c;
+}
+
 /// The sample time of a time column `t` whose stamps were printed with `quantum` resolution
 /// (10^−decimals; 0 if unknown, e.g. scientific notation). In order:
 ///
@@ -361,10 +370,7 @@ inline double exact_sample_time(const Eigen::VectorXd& t) {
   // Shortest decimals first: round the interval's ends and middle to 1, 2, … significant digits.
   for (int d = 1; d <= 17; ++d) {
     for (double x : {fa + (fb - fa) / 2, fa, fb}) {
-      char buf[64];
-      std::snprintf(buf, sizeof buf, "%.*e", d - 1, x);
-      double c = 0.0;
-      std::from_chars(buf, buf + std::char_traits<char>::length(buf), c);
+      const double c = round_significant(x, d);
       if (c >= fa && c <= fb && exact(c)) return c;
     }
   }
@@ -394,17 +400,10 @@ inline double snap_sample_time(const Eigen::VectorXd& t, double quantum) {
     }
     return true;
   };
-  auto rounded = [](double x, int digits) {
-    char buf[64];
-    std::snprintf(buf, sizeof buf, "%.*e", digits - 1, x);
-    double c = 0.0;
-    std::from_chars(buf, buf + std::char_traits<char>::length(buf), c);
-    return c;
-  };
   for (int d = 1; d <= 12; ++d) {
-    const double as_time = rounded(est, d);
+    const double as_time = round_significant(est, d);
     if (reproduces(as_time)) return as_time;
-    const double as_rate = 1.0 / rounded(1.0 / est, d);
+    const double as_rate = 1.0 / round_significant(1.0 / est, d);
     if (reproduces(as_rate)) return as_rate;
   }
   return est;
