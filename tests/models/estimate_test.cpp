@@ -217,6 +217,36 @@ TEST_CASE("estimation refuses bad data, naming the experiment", "[models][estima
                     Catch::Contains("fixed has 2 entries; the model has 7 parameters"));
 }
 
+TEST_CASE("more free parameters than residuals is refused before initialisation", "[models][estimate]") {
+  // 20 samples, [2 2 1] lags: 18 residuals. A 3-unit network with linear term has 4 + 1 + 3·6 = 23
+  // parameters; 2 units have 17.
+  using Net3 = nlid::Nlarx<nlid::LaggedRegressors<2, 2, 1>, nlid::SigmoidNet<4, 3>>;
+  using Net2 = nlid::Nlarx<nlid::LaggedRegressors<2, 2, 1>, nlid::SigmoidNet<4, 2>>;
+  const Eigen::MatrixXd u = steps(20, -1, 1, 11);
+  Eigen::VectorXd y(20);
+  for (int t = 0; t < 20; ++t) y(t) = std::tanh(u(t, 0)) + 0.1 * t;
+  const nlid::Dataset d{nlid::Experiment(u, y, 1.0, "short")};
+  CHECK_THROWS_WITH(nlid::estimate(Net3{}, d),
+                    Catch::Contains("nonlinear ARX model has 23 free parameters but the estimation data give only "
+                                    "18 residuals (20 samples in 1 experiment, less 2 of lag history in each)"));
+  CHECK_NOTHROW(nlid::estimate(Net2{}, d));
+  // Fixed parameters are not free: holding 5 of the 23 brings the count to the 18 residuals.
+  nlid::EstimateOptions o;
+  o.solver.fixed.assign(23, false);
+  for (int k = 0; k < 5; ++k) o.solver.fixed[static_cast<std::size_t>(k)] = true;
+  CHECK_NOTHROW(nlid::estimate(Net3{}, d, o));
+  // A run-time unit count that would take hours to initialise fails at once.
+  using Net = nlid::SigmoidNet<nlid::Dynamic, nlid::Dynamic>;
+  using Dyn = nlid::Nlarx<nlid::LaggedRegressors<2, 2, 1>, Net>;
+  CHECK_THROWS_WITH(nlid::estimate(Dyn(nlid::LaggedRegressors<2, 2, 1>{}, Net(4, 100000)), d),
+                    Catch::Contains("600005 free parameters") && Catch::Contains("use more data or a smaller model"));
+  // Hammerstein-Wiener: 6 parameters on 5 samples.
+  const nlid::Dataset five{nlid::Experiment(u.topRows(5), y.head(5), 1.0, "five")};
+  CHECK_THROWS_WITH(nlid::estimate(Wiener{}, five),
+                    Catch::Contains("Hammerstein-Wiener model has 6 free parameters but the estimation data give only 5 "
+                                    "residuals (5 samples in 1 experiment)"));
+}
+
 TEST_CASE("simulation focus that cannot start says which experiment diverges", "[models][estimate]") {
   using Model = nlid::Nlarx<nlid::LaggedRegressors<1, 1, 0>, nlid::LinearMap<2>>;
   // An integrating-like system with a drift the one-step predictor fits but free run cannot follow

@@ -311,4 +311,11 @@ TEST_CASE("series rejects bad input with located messages", "[models][series]") 
   o.initial_condition = nlid::InitialCondition::measured;
   CHECK(message([&] { (void)nlid::estimate(Wh{}, nlid::Dataset(simulate_truth(gaussian_input(200, 9))), o); })
             .find("measured is not defined for a Wiener-Hammerstein model") != std::string::npos);
+  // 11 parameters on 10 samples: refused by estimate and by initialize_series alone.
+  const nlid::Dataset ten(simulate_truth(gaussian_input(10, 4)));
+  CHECK(message([&] { (void)nlid::estimate(Wh{}, ten); })
+            .find("Wiener-Hammerstein model has 11 free parameters but the estimation data give only 10 residuals") !=
+        std::string::npos);
+  Wh w;
+  CHECK(message([&] { (void)nlid::initialize_series(w, ten); }).find("11 free parameters") != std::string::npos);
 }

@@ -385,6 +385,9 @@ Nlarx<R, F> estimate(Nlarx<R, F> model, const Dataset& data, const EstimateOptio
   using M = Nlarx<R, F>;
   const auto t0 = std::chrono::steady_clock::now();
   detail::adopt_data(model, data, model.history_length(), "nonlinear ARX");
+  detail::require_enough_samples("nonlinear ARX",
+                                 model.num_parameters() - detail::count_fixed(options.solver.fixed, model.num_parameters()),
+                                 data, model.history_length());
   model.set_channel_names(data[0].input_names(), data[0].output_names().empty() ? "y1" : data[0].output_names()[0]);
   const InitialCondition ic = options.initial_condition.value_or(InitialCondition::measured);
   if (options.focus == Focus::simulation) {
@@ -586,6 +589,9 @@ HammersteinWiener<In, L, Out> estimate(HammersteinWiener<In, L, Out> model, cons
                                        const EstimateOptions& options = {}) {
   const auto t0 = std::chrono::steady_clock::now();
   detail::adopt_data(model, data, 0, "Hammerstein-Wiener");
+  detail::require_enough_samples("Hammerstein-Wiener",
+                                 model.num_parameters() - detail::count_fixed(options.solver.fixed, model.num_parameters()),
+                                 data, 0);
   model.set_channel_names(data[0].input_names().empty() ? "u1" : data[0].input_names()[0],
                           data[0].output_names().empty() ? "y1" : data[0].output_names()[0]);
   const InitialCondition ic = options.initial_condition.value_or(InitialCondition::zero);

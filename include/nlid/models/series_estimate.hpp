@@ -429,6 +429,7 @@ SeriesInitialization initialize_series(Series<B...>& model, const Dataset& data,
   using M = Series<B...>;
   constexpr std::size_t K = M::num_blocks;
   detail::adopt_data(model, data, 0, M::kind().c_str());
+  detail::require_enough_samples(M::kind(), model.num_parameters(), data, 0);
   require(options.surrogate_degree >= 1, "surrogate_degree must be >= 1", at_parameter("surrogate_degree"));
   require(options.candidates >= 1, "candidates must be >= 1", at_parameter("candidates"));
   SeriesInitialization info;
@@ -744,6 +745,9 @@ Series<B...> estimate(Series<B...> model, const Dataset& data, const SeriesEstim
   using M = Series<B...>;
   const auto t0 = std::chrono::steady_clock::now();
   detail::adopt_data(model, data, 0, M::kind().c_str());
+  detail::require_enough_samples(M::kind(),
+                                 model.num_parameters() - detail::count_fixed(options.solver.fixed, model.num_parameters()),
+                                 data, 0);
   model.set_channel_names(data[0].input_names().empty() ? "u1" : data[0].input_names()[0],
                           data[0].output_names().empty() ? "y1" : data[0].output_names()[0]);
   const InitialCondition ic = options.initial_condition.value_or(InitialCondition::zero);

@@ -3,6 +3,7 @@
 /// Shared pieces of the user-level models (Nlarx, HammersteinWiener): the estimation report,
 /// experiment checks with located messages, and helpers generic over the scalar.
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -89,6 +90,46 @@ inline void check_experiment(const Experiment& e, long index, int num_inputs, in
                 std::to_string(model_ts) + " s (resample the data or re-estimate)",
             where);
   }
+}
+
+/// Number of `true` flags in an `LmOptions::fixed` mask of a model with `num_parameters`
+/// parameters (0 when the mask is empty or sized otherwise; the solver rejects such masks).
+inline Eigen::Index count_fixed(const std::vector<bool>& fixed, Eigen::Index num_parameters) {
+  if (static_cast<Eigen::Index>(fixed.size()) != num_parameters) return 0;
+  Eigen::Index n = 0;
+  for (const bool f : fixed) n += f ? 1 : 0;
+  return n;
+}
+
+/// Throws if an estimation has more free parameters than residuals. Such data cannot determine
+/// the model: a continuum of parameter vectors reproduces them exactly (a "100 % fit" that says
+/// nothing about the system). A large enough model would also spend hours in its data-driven
+/// initialisation and then exhaust memory in the solver's normal equations, so estimators call
+/// this before anything else. `how` says how the residuals were counted.
+inline void require_enough_data(const std::string& model_kind, Eigen::Index free_parameters, Eigen::Index residuals,
+                                const std::string& how) {
+  require(free_parameters <= residuals,
+          "the " + model_kind + " model has " + std::to_string(free_parameters) +
+              " free parameters but the estimation data give only " + std::to_string(residuals) + " residuals (" +
+              how + "); the data cannot determine it - use more data or a smaller model (fewer units, "
+              "breakpoints or lags)",
+          at_parameter("data"));
+}
+
+/// `require_enough_data` for one output per sample: residuals = Σ (samples − `history`) over the
+/// experiments of `data` (a data set of `Experiment`s).
+template <class D>
+void require_enough_samples(const std::string& model_kind, Eigen::Index free_parameters, const D& data,
+                            Eigen::Index history) {
+  Eigen::Index residuals = 0, samples = 0;
+  for (std::size_t i = 0; i < data.size(); ++i) {
+    samples += data[i].size();
+    residuals += std::max<Eigen::Index>(0, data[i].size() - history);
+  }
+  std::string how = std::to_string(samples) + " samples in " + std::to_string(data.size()) + " experiment" +
+                    (data.size() == 1 ? "" : "s");
+  if (history > 0) how += ", less " + std::to_string(history) + " of lag history in each";
+  require_enough_data(model_kind, free_parameters, residuals, how);
 }
 
 /// Finite check on a scalar including a dual's derivatives (a NaN Jacobian is as bad as a
