@@ -68,12 +68,18 @@ Args parse(int argc, char** argv) {
     else if (k == "--output") a.output = v;
     else if (k == "--save") a.save = v;
     else if (k == "--decimate") a.decimate = to_int(v, k);
-    else if (k == "--iterations") a.iterations = to_int(v, k);
+    else if (k == "--iterations") {
+      a.iterations = to_int(v, k);
+      // -1 is the internal "not given"; a user's negative count is a mistake, not a request for it
+      if (a.iterations < 0) throw nlid::Error("--iterations must be >= 0, got " + v, nlid::at_parameter(k));
+    }
     else if (k == "--rows") {
       const auto c = v.find(':');
       if (c == std::string::npos) throw nlid::Error("--rows needs FIRST:LAST, got '" + v + "'", nlid::at_parameter(k));
       a.first = to_int(v.substr(0, c), k);
       a.last = to_int(v.substr(c + 1), k);
+      if (a.first < 0 || a.last <= a.first)
+        throw nlid::Error("--rows " + v + " needs 0 <= FIRST < LAST (rows FIRST..LAST-1 are kept)", nlid::at_parameter(k));
     } else {
       throw nlid::Error("unknown option '" + k + "'\n" + kUsage, nlid::at_parameter(k));
     }

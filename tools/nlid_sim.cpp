@@ -64,9 +64,14 @@ int main(int argc, char** argv) {
     o.inputs = {!column.empty() ? column : (!names.empty() && !names[0].empty() ? names[0] : std::string("u"))};
     o.outputs = {};
     const nlid::Experiment e = nlid::read_csv(input, o);
-    if (m.ts() > 0 && std::abs(e.ts() - m.ts()) > 1e-6 * m.ts())
-      throw nlid::Error("sample-time mismatch: " + input + " has ts = " + std::to_string(e.ts()) + " s but the model in " +
-                        model + " has ts = " + std::to_string(m.ts()) + " s (resample the data or re-estimate)");
+    if (m.ts() > 0 && std::abs(e.ts() - m.ts()) > 1e-6 * m.ts()) {
+      // %.10g, not std::to_string's six decimals, which print 20 µs as "0.000020" for both sides
+      char buf[192];
+      std::snprintf(buf, sizeof buf, " has sample time %.10g s but the model %.10g s (relative difference %.3g)",
+                    e.ts(), m.ts(), std::abs(e.ts() - m.ts()) / m.ts());
+      throw nlid::Error("sample-time mismatch: " + input + std::string(buf) + "; the model is " + model +
+                        " - resample the data or re-estimate the model");
+    }
     // A free run: the simulation needs no output; give it a zero column of the right size.
     const nlid::Experiment run(e.u(), Eigen::MatrixXd::Zero(e.size(), 1), e.ts());
     nlid::Experiment named = run;

@@ -155,6 +155,12 @@ TEST_CASE("nlid-fit: usage errors exit with 2", "[tools][fit]") {
   r = fit("--model linear:oe:nb=1,nf=1,nk=0 --est a.csv --save m.json --iterations many");
   CHECK(r.code == 2);
   CHECK_THAT(r.err, Catch::Contains("--iterations") && Catch::Contains("'many'"));
+  r = fit("--model linear:oe:nb=1,nf=1,nk=0 --est a.csv --save m.json --iterations -1");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("--iterations must be >= 0, got -1"));
+  r = fit("--model linear:oe:nb=1,nf=1,nk=0 --est a.csv --save m.json --rows 50:20");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("--rows 50:20 needs 0 <= FIRST < LAST"));
   r = fit("--model linear:oe:nb=1,nf=1,nk=0 --est a.csv --save m.json --wobble 1");
   CHECK(r.code == 2);
   CHECK_THAT(r.err, Catch::Contains("unknown option '--wobble'"));
@@ -170,7 +176,8 @@ TEST_CASE("nlid-sim: sample-time mismatch, missing column, bad model file", "[to
   const fs::path out = work_dir() / "sim_out.csv";
   Run r = sim("--model " + q(model) + " --input " + q(slow) + " --out " + q(out));
   CHECK(r.code == 1);
-  CHECK_THAT(r.err, Catch::Contains("sample-time mismatch") && Catch::Contains("sim_slow.csv"));
+  CHECK_THAT(r.err, Catch::Contains("sample-time mismatch") && Catch::Contains("sim_slow.csv") &&
+                        Catch::Contains("sample time 0.02 s but the model 0.01 s (relative difference 1)"));
   CHECK_FALSE(fs::exists(out));
   r = sim("--model " + q(model) + " --input " + q(est) + " --column throttle --out " + q(out));
   CHECK(r.code == 1);
