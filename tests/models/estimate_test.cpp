@@ -3,6 +3,7 @@
 #include <catch2/catch.hpp>
 
 #include <cmath>
+#include <limits>
 #include <random>
 
 #include "nlid/models/estimate.hpp"
@@ -245,6 +246,43 @@ TEST_CASE("more free parameters than residuals is refused before initialisation"
   CHECK_THROWS_WITH(nlid::estimate(Wiener{}, five),
                     Catch::Contains("Hammerstein-Wiener model has 6 free parameters but the estimation data give only 5 "
                                     "residuals (5 samples in 1 experiment)"));
+}
+
+TEST_CASE("missing samples are refused by name; a constant rest record is estimated, its fit undefined",
+          "[models][estimate]") {
+  using Net = nlid::Nlarx<nlid::LaggedRegressors<2, 2, 0>, nlid::SigmoidNet<4, 2>>;
+  const Eigen::MatrixXd u = steps(300, -1, 1, 12);
+  Eigen::VectorXd y(300);
+  double s = 0.0;
+  for (int t = 0; t < 300; ++t) y(t) = s = 0.8 * s + 0.2 * std::tanh(2.0 * u(t, 0));
+  const nlid::Experiment good(u, y, 0.01, "steps");
+  Eigen::VectorXd y_gap = y;
+  y_gap(120) = std::numeric_limits<double>::quiet_NaN();
+  const nlid::Experiment gap(u, y_gap, 0.01, "gap", nlid::NonFinitePolicy::keep);
+  try {
+    (void)nlid::estimate(Net{}, nlid::Dataset{good, gap});
+    FAIL("no throw");
+  } catch (const nlid::Error& e) {
+    // Before: "SigmoidNet: non-finite value in y [at row 118]", a row of the regression matrix.
+    CHECK_THAT(e.what(), Catch::Contains("experiment 'gap' has a missing output sample: 'y' is NaN at sample 120") &&
+                             Catch::Contains("fill_missing()"));
+    CHECK(e.where().experiment == 1);
+    CHECK(e.where().row == 121);
+  }
+  Eigen::MatrixXd u_gap = u;
+  u_gap(7, 0) = -std::numeric_limits<double>::infinity();
+  CHECK_THROWS_WITH(nlid::estimate(Wiener{}, nlid::Dataset{nlid::Experiment(u_gap, y, 0.01, "", nlid::NonFinitePolicy::keep)}),
+                    Catch::Contains("experiment 0 has a missing input sample: 'u' is -Inf at sample 7"));
+  // A rest record (constant output) next to an informative one: the estimate is kept, and the
+  // report says the rest record's fit is undefined instead of throwing after the solve.
+  const nlid::Experiment rest(Eigen::MatrixXd::Zero(100, 1), Eigen::VectorXd::Zero(100), 0.01, "rest");
+  const Net est = nlid::estimate(Net{}, nlid::Dataset{good, rest});
+  REQUIRE(est.report().fit_percent.size() == 2);
+  CHECK(est.report().fit_percent[0] > 90.0);
+  CHECK(std::isnan(est.report().fit_percent[1]));
+  CHECK_THAT(est.describe(), Catch::Contains("fit to rest (simulation): undefined (constant measured output)"));
+  const Wiener hw = nlid::estimate(Wiener{}, nlid::Dataset{good, rest});
+  CHECK(std::isnan(hw.report().fit_percent[1]));
 }
 
 TEST_CASE("simulation focus that cannot start says which experiment diverges", "[models][estimate]") {

@@ -5,6 +5,7 @@
 #include <catch2/catch.hpp>
 
 #include <cmath>
+#include <limits>
 #include <random>
 #include <string>
 
@@ -318,4 +319,10 @@ TEST_CASE("series rejects bad input with located messages", "[models][series]") 
         std::string::npos);
   Wh w;
   CHECK(message([&] { (void)nlid::initialize_series(w, ten); }).find("11 free parameters") != std::string::npos);
+  nlid::Experiment gap = simulate_truth(gaussian_input(200, 5));
+  Eigen::MatrixXd yg = gap.y();
+  yg(42, 0) = std::numeric_limits<double>::quiet_NaN();
+  const nlid::Experiment with_gap(gap.u(), yg, gap.ts(), "gap", nlid::NonFinitePolicy::keep);
+  CHECK(message([&] { (void)nlid::estimate(Wh{}, nlid::Dataset(with_gap)); })
+            .find("experiment 'gap' has a missing output sample: 'y' is NaN at sample 42") != std::string::npos);
 }

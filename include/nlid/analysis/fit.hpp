@@ -33,6 +33,14 @@ namespace nlid {
 
 namespace detail {
 
+/// True if a signal of n samples with mean `mean` and squared spread Σ(y − mean)² = `var2` is
+/// constant for the normalised fit. Relative to the signal's own size, so a constant offset
+/// (e.g. 15 degrees) with rounding noise in the last digit is still recognised as constant.
+inline bool negligible_spread(double var2, double mean, Eigen::Index n) {
+  const double scale = std::max(1.0, std::abs(mean));
+  return !(var2 > 1e-24 * scale * scale * static_cast<double>(n));
+}
+
 // One column's fit; `column` (0-based) only labels errors.
 template <class Dy, class Dh>
 double fit_percent_column(const Eigen::MatrixBase<Dy>& y, const Eigen::MatrixBase<Dh>& yhat,
@@ -65,10 +73,7 @@ double fit_percent_column(const Eigen::MatrixBase<Dy>& y, const Eigen::MatrixBas
     err2 += (v - h) * (v - h);
     var2 += (v - mean) * (v - mean);
   }
-  // Relative to the signal's own size, so a constant offset (e.g. 15 degrees) with rounding
-  // noise in the last digit is still recognised as constant.
-  const double scale = std::max(1.0, std::abs(mean));
-  require(var2 > 1e-24 * scale * scale * static_cast<double>(n),
+  require(!negligible_spread(var2, mean, n),
           "fit_percent: measured output" +
               (is_matrix ? " column " + std::to_string(column + 1) : std::string()) +
               " is constant, so the normalised fit is undefined",

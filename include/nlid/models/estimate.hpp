@@ -242,9 +242,14 @@ inline double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
-/// Fit (%) of a finite simulation, −∞ for a diverged one.
+/// Fit (%) of one estimation experiment for the report: −∞ for a diverged simulation, NaN where
+/// the normalised fit is undefined because the measured output is constant (a rest record may
+/// be part of the estimation data; the estimate must not be lost for its report line, and
+/// `describe()` prints "undefined"), else `fit_percent`.
 inline double fit_or_minus_inf(const Eigen::VectorXd& y, const Eigen::VectorXd& yhat, bool ok) {
   if (!ok) return -std::numeric_limits<double>::infinity();
+  const double mean = y.mean();
+  if (negligible_spread((y.array() - mean).square().sum(), mean, y.size())) return std::numeric_limits<double>::quiet_NaN();
   return fit_percent(y, yhat);
 }
 
@@ -369,8 +374,10 @@ template <class M>
 void adopt_data(M& model, const Dataset& data, int history, const char* kind) {
   require(data.size() > 0, "the estimation data set has no experiments", at_parameter("data"));
   if (model.ts() == 0.0) model.set_ts(data.ts());
-  for (std::size_t i = 0; i < data.size(); ++i)
+  for (std::size_t i = 0; i < data.size(); ++i) {
     check_experiment(data[i], static_cast<long>(i), model.num_inputs(), history, model.ts(), kind);
+    require_complete(data[i], static_cast<long>(i));
+  }
 }
 
 }  // namespace detail

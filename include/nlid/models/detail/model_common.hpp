@@ -31,7 +31,9 @@ struct EstimationReport {
   double seconds = 0.0;                    ///< wall-clock time of the whole estimation
   std::string status;                      ///< solver's stopping message
   std::vector<std::string> data_names;     ///< estimation experiments
-  std::vector<double> fit_percent;         ///< simulation fit (%) on each estimation experiment
+  /// Simulation fit (%) on each estimation experiment; −∞ if its simulation diverged, NaN if the
+  /// fit is undefined because that experiment's measured output is constant.
+  std::vector<double> fit_percent;
   std::vector<Eigen::VectorXd> initial_states;  ///< estimated x0 per experiment (if estimated)
   /// Multi-start estimation (`EstimateOptions::starts` > 1): cost of each start after its pilot
   /// iterations (+∞ if it could not run), and the index of the start that was continued.
@@ -90,6 +92,33 @@ inline void check_experiment(const Experiment& e, long index, int num_inputs, in
                 std::to_string(model_ts) + " s (resample the data or re-estimate)",
             where);
   }
+}
+
+/// Throws if an experiment has a missing (NaN or infinite) sample, naming the experiment, the
+/// channel and the sample. Estimation needs complete records: one missing sample poisons every
+/// later residual of a simulation, and the data-driven initialisation would otherwise report it
+/// at a row of its regression matrix, which the user cannot map back to the data.
+inline void require_complete(const Experiment& e, long index) {
+  const auto scan = [&](const Eigen::MatrixXd& m, const std::vector<std::string>& names, const char* kind) {
+    for (Eigen::Index c = 0; c < m.cols(); ++c) {
+      for (Eigen::Index k = 0; k < m.rows(); ++k) {
+        const double v = m(k, c);
+        if (std::isfinite(v)) continue;
+        const std::string name = static_cast<std::size_t>(c) < names.size() ? names[static_cast<std::size_t>(c)]
+                                                                             : std::string(kind) + std::to_string(c + 1);
+        Location where = experiment_location(index);
+        where.row = static_cast<long>(k) + 1;
+        where.column_name = name;
+        throw Error(experiment_label(e, index) + " has a missing " + kind + " sample: '" + name + "' is " +
+                        (std::isnan(v) ? "NaN" : v > 0 ? "Inf" : "-Inf") + " at sample " + std::to_string(k) +
+                        "; estimation needs complete records - Experiment::fill_missing() interpolates short "
+                        "gaps, or split the record at a long one",
+                    where);
+      }
+    }
+  };
+  scan(e.u(), e.input_names(), "input");
+  scan(e.y(), e.output_names(), "output");
 }
 
 /// Number of `true` flags in an `LmOptions::fixed` mask of a model with `num_parameters`
@@ -185,7 +214,10 @@ inline std::string describe_report(const EstimationReport& r) {
   for (std::size_t i = 0; i < r.fit_percent.size(); ++i) {
     const std::string name = i < r.data_names.size() && !r.data_names[i].empty() ? r.data_names[i]
                                                                                   : "experiment " + std::to_string(i);
-    s += "    fit to " + name + " (simulation): " + format_value(r.fit_percent[i], 4) + " %\n";
+    s += "    fit to " + name + " (simulation): " +
+         (std::isnan(r.fit_percent[i]) ? std::string("undefined (constant measured output)")
+                                       : format_value(r.fit_percent[i], 4) + " %") +
+         "\n";
   }
   return s;
 }
