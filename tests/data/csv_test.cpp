@@ -282,6 +282,30 @@ TEST_CASE("read_csv reports header errors", "[data][csv]") {
   CHECK_THAT(err.what(), Contains("unterminated quoted field"));
 }
 
+TEST_CASE("read_csv says when a file is separated by another character or has no time column", "[data][csv]") {
+  TempDir dir;
+  // A spreadsheet export with decimal commas: ';' separates, so the header is one field and the
+  // data rows split at the decimal commas.
+  auto err = error_of([&] { (void)nlid::read_csv(dir.write("eu.csv", "t;u;y\n0;1,5;2,25\n0,1;1,5;2,5\n")); });
+  CHECK_THAT(err.what(), Contains("ragged row: expected 1 fields") &&
+                             Contains("the header is a single field - is the file separated by ';'?"));
+  err = error_of([&] { (void)nlid::read_csv(dir.write("tab.csv", "t\tu\ty\n0\t1\t2\n1\t1\t2\n")); });
+  CHECK_THAT(err.what(), Contains("input column 'u' not found") && Contains("separated by tabs?"));
+  // The hint names the separator only when the wanted column is among the parts.
+  err = error_of([&] { (void)nlid::read_csv(dir.write("other.csv", "a;b\n1\n2\n")); });
+  CHECK_THAT(err.what(), Contains("input column 'u' not found") && !Contains("separated by"));
+  err = error_of([&] { (void)nlid::read_csv(dir.write("notime.csv", "u,y\n1,2\n1,3\n")); });
+  CHECK_THAT(err.what(), Contains("time column 't' not found; available columns: 'u', 'y'; a file without a time "
+                                  "column needs the sample time"));
+  // With the separator and decimal point given, the same file reads.
+  nlid::CsvReadOptions eu;
+  eu.delimiter = ';';
+  eu.decimal_point = ',';
+  const nlid::Experiment e = nlid::read_csv(dir.write("eu2.csv", "t;u;y\n0;1,5;2,25\n0,1;1,5;2,5\n"), eu);
+  CHECK(e.ts() == Approx(0.1));
+  CHECK(e.y()(1, 0) == 2.5);
+}
+
 TEST_CASE("read_csv reports cell errors with row and column", "[data][csv]") {
   TempDir dir;
   auto err = error_of(

@@ -124,6 +124,29 @@ inline void split_csv_line(std::string_view line, char delim, std::vector<std::s
   }
 }
 
+/// "; the header is a single field - is the file separated by ';'? …" when a header read as one
+/// field splits at another separator (into a part equal to `name`, if one is given): a file
+/// written with that separator (';' from a spreadsheet with decimal commas, or tabs). Else "".
+inline std::string separator_hint(const std::vector<std::string>& header, const std::string& name = {}) {
+  if (header.size() != 1) return {};
+  const std::string& h = header[0];
+  for (const char sep : {';', '\t', ',', ' ', '|'}) {
+    if (h.find(sep) == std::string::npos) continue;
+    bool found = name.empty();
+    for (std::size_t a = 0; a <= h.size() && !found;) {
+      const std::size_t b = std::min(h.find(sep, a), h.size());
+      found = h.substr(a, b - a) == name;
+      a = b + 1;
+    }
+    if (found) {
+      const std::string shown = sep == '\t' ? "tabs" : "'" + std::string(1, sep) + "'";
+      return "; the header is a single field - is the file separated by " + shown +
+             "? (CsvReadOptions::delimiter; --delimiter in the tools)";
+    }
+  }
+  return {};
+}
+
 /// Reads and tokenises `path`; checks header sanity and that every row has the header's width.
 inline CsvText tokenize_csv(const std::string& path, char delimiter) {
   if (delimiter == '"' || delimiter == '\n' || delimiter == '\r' || delimiter == '#') {
@@ -170,7 +193,7 @@ inline CsvText tokenize_csv(const std::string& path, char delimiter) {
     if (fields.size() != t.header.size()) {
       throw Error("ragged row: expected " + std::to_string(t.header.size()) +
                       " fields (as in the header on row " + std::to_string(t.header_line) +
-                      "), found " + std::to_string(fields.size()),
+                      "), found " + std::to_string(fields.size()) + separator_hint(t.header),
                   csv_at(path, line_no));
     }
     t.rows.push_back(fields);
@@ -275,8 +298,12 @@ inline std::size_t find_column(const CsvText& t, const std::string& name, const 
     if (t.header[j] == name) return j;
   }
   Location l = csv_at(t.file, t.header_line, -1, name);
+  std::string hint = separator_hint(t.header, name);
+  if (hint.empty() && std::string(role) == "time")
+    hint = "; a file without a time column needs the sample time (CsvReadOptions::ts with time_column \"\"; "
+           "--ts in the tools)";
   throw Error(std::string(role) + " column '" + name +
-                  "' not found; available columns: " + quoted_list(t.header),
+                  "' not found; available columns: " + quoted_list(t.header) + hint,
               l);
 }
 
