@@ -12,7 +12,6 @@
 #include <cstdio>
 #include <cstdlib>
 #include <exception>
-#include <fstream>
 #include <iostream>
 #include <sstream>
 #include <string>
@@ -21,12 +20,14 @@
 #include "nlid/data/csv.hpp"
 #include "nlid/diagnose.hpp"
 #include "nlid/diagnose/report.hpp"
+#include "record_options.hpp"
 
 namespace {
 
 const char* const usage =
     "usage: nlid-diagnose --baseline NAME --est FILE [--est FILE ...] --val FILE [--val FILE ...]\n"
-    "                     [--input u] [--output y] [--time t] [--ts T] [--decimate N]\n"
+    "                     [--input u] [--output y] [--time t] [--ts T] [--delimiter C] [--decimal C]\n"
+    "                     [--decimate N]\n"
     "                     [--x0 estimate|zero] [--starts N] [--max-effects N] [--effects a,b,...]\n"
     "                     [--threads N] [--json out.json] [--html report.html] [--quiet]\n"
     "\n"
@@ -37,6 +38,8 @@ const char* const usage =
     "  --input/--output  column names of the input and output (default u, y)\n"
     "  --time NAME       time column (default t); the sample time is read from it\n"
     "  --ts T            sample time in seconds (needed if the files have no time column)\n"
+    "  --delimiter C     field separator: , (default) ; tab space |\n"
+    "  --decimal C       decimal point: . (default) or , (then the separator must be another)\n"
     "  --decimate N      anti-alias filter and keep every N-th sample (noise floor at the raw rate)\n"
     "  --x0 MODE         initial states: estimate (default) or zero\n"
     "  --starts N        multi-start runs of the baseline fit (default 6)\n"
@@ -63,38 +66,12 @@ int parse_int(const std::string& opt, const std::string& v, int lo) {
   throw UsageError(opt + " needs an integer >= " + std::to_string(lo) + ", got '" + v + "'");
 }
 
-double parse_positive(const std::string& opt, const std::string& v) {
-  try {
-    std::size_t pos = 0;
-    const double x = std::stod(v, &pos);
-    if (pos == v.size() && x > 0.0 && std::isfinite(x)) return x;
-  } catch (const std::exception&) {
-  }
-  throw UsageError(opt + " needs a positive number, got '" + v + "'");
-}
-
-// True if the first line of `path` names a column `name` (the file's own errors come later,
-// from read_csv, with row and column).
-bool header_has(const std::string& path, const std::string& name) {
-  std::ifstream f(path);
-  std::string line;
-  if (!f || !std::getline(f, line)) return true;  // let read_csv report the problem
-  std::stringstream ss(line);
-  std::string cell;
-  while (std::getline(ss, cell, ',')) {
-    while (!cell.empty() && (cell.back() == '\r' || cell.back() == ' ')) cell.pop_back();
-    while (!cell.empty() && cell.front() == ' ') cell.erase(cell.begin());
-    if (cell == name) return true;
-  }
-  return false;
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
   std::vector<std::string> est_files, val_files, effects;
-  std::string baseline, input = "u", output = "y", time_col = "t", json_path, html_path;
-  double ts = 0.0;
+  std::string baseline, input = "u", output = "y", json_path, html_path;
+  nlid_tools::RecordOptions record;
   bool quiet = false;
   nlid::DiagnoseOptions opt;
   try {
@@ -118,8 +95,13 @@ int main(int argc, char** argv) {
       else if (a == "--val") val_files.push_back(v);
       else if (a == "--input") input = v;
       else if (a == "--output") output = v;
-      else if (a == "--time") time_col = v;
-      else if (a == "--ts") ts = parse_positive(a, v);
+      else if (a == "--time" || a == "--ts" || a == "--delimiter" || a == "--decimal") {
+        try {
+          nlid_tools::parse_record_option(a, v, record);
+        } catch (const nlid::Error& e) {
+          throw UsageError(e.what());
+        }
+      }
       else if (a == "--decimate") opt.decimate = parse_int(a, v, 1);
       else if (a == "--starts") opt.starts = parse_int(a, v, 1);
       else if (a == "--max-effects") opt.max_effects = parse_int(a, v, 0);
@@ -142,6 +124,11 @@ int main(int argc, char** argv) {
     if (baseline.empty()) throw UsageError("--baseline is required");
     if (est_files.empty()) throw UsageError("at least one --est file is required");
     if (val_files.empty()) throw UsageError("at least one --val file is required");
+    try {
+      nlid_tools::check_record_options(record);
+    } catch (const nlid::Error& e) {
+      throw UsageError(e.what());
+    }
   } catch (const UsageError& e) {
     std::cerr << "nlid-diagnose: error: " << e.what() << "\n\n" << usage;
     return 2;
@@ -161,18 +148,16 @@ int main(int argc, char** argv) {
     auto read = [&](const std::vector<std::string>& files) {
       nlid::Dataset d;
       for (const std::string& f : files) {
-        nlid::CsvReadOptions o;
+        nlid::CsvReadOptions o = nlid_tools::csv_read_options(record, f);
         o.inputs = {input};
         o.outputs = {output};
-        o.ts = ts;
-        o.time_column = (ts > 0.0 && !header_has(f, time_col)) ? std::string() : time_col;
         if (opt.progress) opt.progress("reading " + f);
         nlid::Experiment e = nlid::read_csv(f, o);
         if (d.size() > 0 && std::abs(e.ts() - d.ts()) > 1e-9 * d.ts()) {
           nlid::Location l;
           l.file = f;
-          throw nlid::Error("sample time " + std::to_string(e.ts()) + " s differs from the other records' " +
-                                std::to_string(d.ts()) + " s",
+          throw nlid::Error("sample time " + nlid_tools::format_seconds(e.ts()) + " differs from the other records' " +
+                                nlid_tools::format_seconds(d.ts()),
                             l);
         }
         d.add(std::move(e));
@@ -182,8 +167,8 @@ int main(int argc, char** argv) {
     const nlid::Dataset est = read(est_files);
     const nlid::Dataset val = read(val_files);
     if (est.ts() != val.ts() && std::abs(est.ts() - val.ts()) > 1e-9 * est.ts()) {
-      throw nlid::Error("estimation records are sampled at " + std::to_string(est.ts()) +
-                        " s but validation records at " + std::to_string(val.ts()) + " s");
+      throw nlid::Error("estimation records are sampled at " + nlid_tools::format_seconds(est.ts()) +
+                        " but validation records at " + nlid_tools::format_seconds(val.ts()));
     }
     // Catalogue baselines run as compile-time types (fixed-size, one-pass sensitivities).
     return nlid::with_baseline(baseline, [&](auto model) {

@@ -2,6 +2,7 @@
 // progress (stderr) and a fit summary (stdout), and save it as a versioned model file.
 //
 //   nlid-fit --model SPEC --est a.csv [--est b.csv] [--val c.csv] [--input u] [--output y]
+//            [--time t] [--ts T] [--delimiter C] [--decimal C]
 //            [--decimate N] [--iterations N] [--rows FIRST:LAST] --save model.json
 //
 // SPEC grammar: include/nlid/models/spec.hpp and docs/tools.md. Exit status 0 on success, 1 on a
@@ -20,23 +21,29 @@
 #include "nlid/data/resample.hpp"
 #include "nlid/models/any_model.hpp"
 #include "nlid/models/spec.hpp"
+#include "record_options.hpp"
 
 namespace {
 
-constexpr const char* kUsage =
+constexpr const char* kUsageHead =
     "usage: nlid-fit --model SPEC --est a.csv [--est b.csv ...] [--val c.csv ...] [--input u] [--output y]\n"
+    "                [--time t] [--ts T] [--delimiter C] [--decimal C]\n"
     "                [--decimate N] [--iterations N] [--rows FIRST:LAST] --save model.json\n"
     "  SPEC examples: linear:arx:na=2,nb=1,nk=0   linear:oe:nb=2,nf=2,nk=0\n"
     "                 nlarx:na=3,nb=3,nk=0:sigmoidnet:units=5   hw:nb=3,nf=3,nk=0:in=pwlinear:10:out=saturation\n"
     "                 wh:nb=4,nf=3,nk=0:poly1d:9:nb=4,nf=3,nk=0   hammerstein:poly1d:3:nb=2,nf=2,nk=0\n"
     "                 wiener:nb=2,nf=2,nk=1:saturation   greybox:throttle\n"
-    "  --rows FIRST:LAST keeps rows FIRST..LAST-1 (0-based data rows) of every file (e.g. a benchmark split).\n";
+    "  --rows FIRST:LAST keeps rows FIRST..LAST-1 (0-based data rows) of every file (e.g. a benchmark split).\n"
+    "Reading the CSV files:\n";
+
+std::string usage_text() { return std::string(kUsageHead) + nlid_tools::record_usage; }
 
 struct Args {
   std::string model, save, input = "u", output = "y";
   std::vector<std::string> est, val;
   int decimate = 1, iterations = -1;
   long first = 0, last = -1;
+  nlid_tools::RecordOptions record;
 };
 
 int to_int(const std::string& v, const std::string& opt) {
@@ -56,10 +63,10 @@ Args parse(int argc, char** argv) {
   for (int i = 1; i < argc; ++i) {
     const std::string k = argv[i];
     if (k == "-h" || k == "--help") {
-      std::cout << kUsage;
+      std::cout << usage_text();
       std::exit(0);
     }
-    if (i + 1 >= argc) throw nlid::Error("option " + k + " needs a value\n" + kUsage, nlid::at_parameter(k));
+    if (i + 1 >= argc) throw nlid::Error("option " + k + " needs a value\n" + usage_text(), nlid::at_parameter(k));
     const std::string v = argv[++i];
     if (k == "--model") a.model = v;
     else if (k == "--est") a.est.push_back(v);
@@ -80,19 +87,20 @@ Args parse(int argc, char** argv) {
       a.last = to_int(v.substr(c + 1), k);
       if (a.first < 0 || a.last <= a.first)
         throw nlid::Error("--rows " + v + " needs 0 <= FIRST < LAST (rows FIRST..LAST-1 are kept)", nlid::at_parameter(k));
-    } else {
-      throw nlid::Error("unknown option '" + k + "'\n" + kUsage, nlid::at_parameter(k));
+    } else if (!nlid_tools::parse_record_option(k, v, a.record)) {
+      throw nlid::Error("unknown option '" + k + "'\n" + usage_text(), nlid::at_parameter(k));
     }
   }
-  if (a.model.empty()) throw nlid::Error(std::string("--model SPEC is required\n") + kUsage, nlid::at_parameter("--model"));
-  if (a.est.empty()) throw nlid::Error(std::string("at least one --est FILE is required\n") + kUsage, nlid::at_parameter("--est"));
-  if (a.save.empty()) throw nlid::Error(std::string("--save FILE is required\n") + kUsage, nlid::at_parameter("--save"));
+  if (a.model.empty()) throw nlid::Error(std::string("--model SPEC is required\n") + usage_text(), nlid::at_parameter("--model"));
+  if (a.est.empty()) throw nlid::Error(std::string("at least one --est FILE is required\n") + usage_text(), nlid::at_parameter("--est"));
+  if (a.save.empty()) throw nlid::Error(std::string("--save FILE is required\n") + usage_text(), nlid::at_parameter("--save"));
   if (a.decimate < 1) throw nlid::Error("--decimate must be >= 1", nlid::at_parameter("--decimate"));
+  nlid_tools::check_record_options(a.record);
   return a;
 }
 
 nlid::Experiment load(const std::string& path, const Args& a) {
-  nlid::CsvReadOptions o;
+  nlid::CsvReadOptions o = nlid_tools::csv_read_options(a.record, path);
   o.inputs = {a.input};
   o.outputs = {a.output};
   nlid::Experiment e = nlid::read_csv(path, o);

@@ -1,9 +1,11 @@
 // nlid-sim: free-run simulation of a saved model on an input recording.
 //
-//   nlid-sim --model model.json --input u.csv [--x0 zero|equilibrium] [--column u] --out y.csv
+//   nlid-sim --model model.json --input u.csv [--x0 zero|equilibrium] [--column u]
+//            [--time t] [--ts T] [--delimiter C] [--decimal C] --out y.csv
 //
-// The input CSV has a time column t and the model's input column (its name from the model file,
-// or --column); other columns are ignored. The output CSV has columns t,y (the model's output
+// The input CSV has a time column t (or --ts) and the model's input column (its name from the
+// model file, or --column); other columns are ignored. --delimiter and --decimal read files
+// written with other separators (record_options.hpp). The output CSV has columns t,y (the model's output
 // name is not used so that scripts can rely on "y"). Exit status 0 on success, 1 on a user error
 // (bad file, missing column, sample-time mismatch — the message says which), 2 on bad usage.
 #include <cmath>
@@ -16,22 +18,27 @@
 #include "nlid/data/csv.hpp"
 #include "nlid/models/any_model.hpp"
 #include "nlid/models/spec.hpp"
+#include "record_options.hpp"
 
 namespace {
-constexpr const char* kUsage =
-    "usage: nlid-sim --model model.json --input u.csv [--x0 zero|equilibrium] [--column NAME] --out y.csv\n";
+constexpr const char* kUsageHead =
+    "usage: nlid-sim --model model.json --input u.csv [--x0 zero|equilibrium] [--column NAME]\n"
+    "                [--time t] [--ts T] [--delimiter C] [--decimal C] --out y.csv\n"
+    "Reading the input CSV file:\n";
+std::string usage_text() { return std::string(kUsageHead) + nlid_tools::record_usage; }
 }
 
 int main(int argc, char** argv) {
   std::string model, input, out, x0 = "zero", column;
+  nlid_tools::RecordOptions record;
   for (int i = 1; i < argc; ++i) {
     const std::string k = argv[i];
     if (k == "-h" || k == "--help") {
-      std::cout << kUsage;
+      std::cout << usage_text();
       return 0;
     }
     if (i + 1 >= argc) {
-      std::cerr << "nlid-sim: option " << k << " needs a value\n" << kUsage;
+      std::cerr << "nlid-sim: option " << k << " needs a value\n" << usage_text();
       return 2;
     }
     const std::string v = argv[++i];
@@ -40,13 +47,26 @@ int main(int argc, char** argv) {
     else if (k == "--out") out = v;
     else if (k == "--x0") x0 = v;
     else if (k == "--column") column = v;
-    else {
-      std::cerr << "nlid-sim: unknown option '" << k << "'\n" << kUsage;
+    else if (k == "--time" || k == "--ts" || k == "--delimiter" || k == "--decimal") {
+      try {
+        nlid_tools::parse_record_option(k, v, record);
+      } catch (const nlid::Error& e) {
+        std::cerr << "nlid-sim: " << e.what() << "\n";
+        return 2;
+      }
+    } else {
+      std::cerr << "nlid-sim: unknown option '" << k << "'\n" << usage_text();
       return 2;
     }
   }
   if (model.empty() || input.empty() || out.empty()) {
-    std::cerr << "nlid-sim: --model, --input and --out are required\n" << kUsage;
+    std::cerr << "nlid-sim: --model, --input and --out are required\n" << usage_text();
+    return 2;
+  }
+  try {
+    nlid_tools::check_record_options(record);
+  } catch (const nlid::Error& e) {
+    std::cerr << "nlid-sim: " << e.what() << "\n";
     return 2;
   }
   if (x0 != "zero" && x0 != "equilibrium") {
@@ -59,7 +79,7 @@ int main(int argc, char** argv) {
     if (m.num_inputs() != 1 && column.empty())
       throw nlid::Error("the model in " + model + " reads " + std::to_string(m.num_inputs()) +
                         " inputs; nlid-sim simulates single-input models");
-    nlid::CsvReadOptions o;
+    nlid::CsvReadOptions o = nlid_tools::csv_read_options(record, input);
     const auto names = m.input_names();
     o.inputs = {!column.empty() ? column : (!names.empty() && !names[0].empty() ? names[0] : std::string("u"))};
     o.outputs = {};

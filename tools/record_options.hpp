@@ -1,0 +1,115 @@
+#pragma once
+// How the command-line tools read a record: the time column, an explicit sample time, the field
+// separator and the decimal point. Shared by nlid-fit, nlid-sim and nlid-diagnose so the three
+// accept the same options with the same meaning.
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <string>
+
+#include "nlid/core/error.hpp"
+#include "nlid/data/csv.hpp"
+
+namespace nlid_tools {
+
+/// The record-reading options of a tool's command line.
+struct RecordOptions {
+  std::string time = "t";  ///< time column
+  double ts = 0.0;         ///< sample time (s); 0: from the time column
+  char delimiter = ',';    ///< field separator; ' ' = runs of blanks
+  char decimal = '.';      ///< decimal point
+};
+
+/// Usage lines of the options, for a tool's help text.
+inline constexpr const char* record_usage =
+    "  --time NAME       time column (default t); the sample time is read from it\n"
+    "  --ts T            sample time in seconds (needed if the files have no time column)\n"
+    "  --delimiter C     field separator: , (default) ; tab space |\n"
+    "  --decimal C       decimal point: . (default) or , (then the separator must be another)\n";
+
+/// Consumes option `k` with value `v` if it is one of the record options (returns false
+/// otherwise). Throws `nlid::Error` naming the option for a bad value.
+inline bool parse_record_option(const std::string& k, const std::string& v, RecordOptions& o) {
+  if (k == "--time") {
+    if (v.empty()) throw nlid::Error("--time needs a column name", nlid::at_parameter(k));
+    o.time = v;
+  } else if (k == "--ts") {
+    char* end = nullptr;
+    const double x = std::strtod(v.c_str(), &end);
+    if (v.empty() || end != v.c_str() + v.size() || !(x > 0.0) || x == HUGE_VAL)
+      throw nlid::Error("--ts needs a positive sample time in seconds, got '" + v + "'", nlid::at_parameter(k));
+    o.ts = x;
+  } else if (k == "--delimiter") {
+    if (v == "," || v == ";" || v == "|") o.delimiter = v[0];
+    else if (v == "tab" || v == "\\t" || v == "\t") o.delimiter = '\t';
+    else if (v == "space" || v == " ") o.delimiter = ' ';
+    else throw nlid::Error("--delimiter must be one of , ; tab space |, got '" + v + "'", nlid::at_parameter(k));
+  } else if (k == "--decimal") {
+    if (v != "." && v != ",") throw nlid::Error("--decimal must be . or , (got '" + v + "')", nlid::at_parameter(k));
+    o.decimal = v[0];
+  } else {
+    return false;
+  }
+  return true;
+}
+
+/// Throws if the options cannot work together (a decimal comma needs another separator).
+inline void check_record_options(const RecordOptions& o) {
+  if (o.decimal == ',' && o.delimiter == ',')
+    throw nlid::Error("--decimal , needs another field separator, e.g. --delimiter ';'", nlid::at_parameter("--decimal"));
+}
+
+/// True if the header of `path` (its first line that is neither blank nor a '#' comment) names a
+/// column `name`. Unreadable files answer true: read_csv then reports the problem with its
+/// location.
+inline bool header_has(const std::string& path, const std::string& name, char delimiter) {
+  std::ifstream f(path);
+  std::string line;
+  while (f && std::getline(f, line)) {
+    if (line.rfind("\xEF\xBB\xBF", 0) == 0) line.erase(0, 3);  // UTF-8 byte-order mark
+    const auto first = line.find_first_not_of(" \t\r");
+    if (first == std::string::npos || line[first] == '#') continue;
+    std::size_t a = 0;
+    while (a <= line.size()) {
+      std::size_t b = delimiter == ' ' ? line.find_first_of(" \t", a) : line.find(delimiter, a);
+      if (b == std::string::npos) b = line.size();
+      std::string cell = line.substr(a, b - a);
+      const auto s = cell.find_first_not_of(" \t\r\"");
+      const auto e = cell.find_last_not_of(" \t\r\"");
+      cell = s == std::string::npos ? std::string() : cell.substr(s, e - s + 1);
+      if (cell == name) return true;
+      if (delimiter == ' ') {
+        b = line.find_first_not_of(" \t", b);
+        if (b == std::string::npos) break;
+        a = b;
+      } else {
+        a = b + 1;
+      }
+    }
+    return false;
+  }
+  return true;
+}
+
+/// A sample time for messages: "%.10g s" (std::to_string's six decimals print 20 µs as
+/// "0.000020" whatever the digits after).
+inline std::string format_seconds(double s) {
+  char buf[40];
+  std::snprintf(buf, sizeof buf, "%.10g s", s);
+  return buf;
+}
+
+/// `CsvReadOptions` for reading `path` with these options: with `--ts` and no time column in the
+/// file, the file is read without one (t₀ = 0).
+inline nlid::CsvReadOptions csv_read_options(const RecordOptions& o, const std::string& path) {
+  nlid::CsvReadOptions c;
+  c.ts = o.ts;
+  c.delimiter = o.delimiter;
+  c.decimal_point = o.decimal;
+  c.time_column = (o.ts > 0.0 && !header_has(path, o.time, o.delimiter)) ? std::string() : o.time;
+  return c;
+}
+
+}  // namespace nlid_tools
