@@ -246,7 +246,7 @@ inline double seconds_since(std::chrono::steady_clock::time_point t0) {
 /// the normalised fit is undefined because the measured output is constant (a rest record may
 /// be part of the estimation data; the estimate must not be lost for its report line, and
 /// `describe()` prints "undefined"), else `fit_percent`.
-inline double fit_or_minus_inf(const Eigen::VectorXd& y, const Eigen::VectorXd& yhat, bool ok) {
+inline double estimation_fit(const Eigen::VectorXd& y, const Eigen::VectorXd& yhat, bool ok) {
   if (!ok) return -std::numeric_limits<double>::infinity();
   const double mean = y.mean();
   if (negligible_spread((y.array() - mean).square().sum(), mean, y.size())) return std::numeric_limits<double>::quiet_NaN();
@@ -579,7 +579,7 @@ Nlarx<R, F> estimate(Nlarx<R, F> model, const Dataset& data, const EstimateOptio
     Eigen::VectorXd yh;
     const bool ok = detail::simulate_segment(model, s, theta, fit_ic, yh);
     report.data_names.push_back(data[i].name());
-    report.fit_percent.push_back(detail::fit_or_minus_inf(s.y, yh, ok));
+    report.fit_percent.push_back(detail::estimation_fit(s.y, yh, ok));
     if (fit_ic == InitialCondition::estimate) report.initial_states.push_back(s.x0);
   }
   report.seconds = detail::seconds_since(t0);
@@ -706,7 +706,7 @@ HammersteinWiener<In, L, Out> estimate(HammersteinWiener<In, L, Out> model, cons
     Eigen::VectorXd yh;
     const bool ok = detail::simulate_segment(model, segs[i], theta, ic, yh);
     report.data_names.push_back(data[i].name());
-    report.fit_percent.push_back(detail::fit_or_minus_inf(segs[i].y, yh, ok));
+    report.fit_percent.push_back(detail::estimation_fit(segs[i].y, yh, ok));
     if (ic == InitialCondition::estimate) report.initial_states.push_back(segs[i].x0);
   }
   report.seconds = detail::seconds_since(t0);

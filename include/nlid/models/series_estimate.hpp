@@ -802,7 +802,7 @@ Series<B...> estimate(Series<B...> model, const Dataset& data, const SeriesEstim
     Eigen::VectorXd yh;
     const bool ok = detail::simulate_segment(model, segs[i], theta, ic, yh);
     report.data_names.push_back(data[i].name());
-    report.fit_percent.push_back(detail::fit_or_minus_inf(segs[i].y, yh, ok));
+    report.fit_percent.push_back(detail::estimation_fit(segs[i].y, yh, ok));
     if (ic == InitialCondition::estimate) report.initial_states.push_back(segs[i].x0);
   }
   report.seconds = detail::seconds_since(t0);

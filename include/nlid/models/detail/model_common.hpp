@@ -130,23 +130,12 @@ inline Eigen::Index count_fixed(const std::vector<bool>& fixed, Eigen::Index num
   return n;
 }
 
-/// Throws if an estimation has more free parameters than residuals. Such data cannot determine
+/// Throws if an estimation has more free parameters than residuals, one output per sample:
+/// residuals = Σ (samples − `history`) over the experiments of `data`. Such data cannot determine
 /// the model: a continuum of parameter vectors reproduces them exactly (a "100 % fit" that says
 /// nothing about the system). A large enough model would also spend hours in its data-driven
 /// initialisation and then exhaust memory in the solver's normal equations, so estimators call
-/// this before anything else. `how` says how the residuals were counted.
-inline void require_enough_data(const std::string& model_kind, Eigen::Index free_parameters, Eigen::Index residuals,
-                                const std::string& how) {
-  require(free_parameters <= residuals,
-          "the " + model_kind + " model has " + std::to_string(free_parameters) +
-              " free parameters but the estimation data give only " + std::to_string(residuals) + " residuals (" +
-              how + "); the data cannot determine it - use more data or a smaller model (fewer units, "
-              "breakpoints or lags)",
-          at_parameter("data"));
-}
-
-/// `require_enough_data` for one output per sample: residuals = Σ (samples − `history`) over the
-/// experiments of `data` (a data set of `Experiment`s).
+/// this before anything else.
 template <class D>
 void require_enough_samples(const std::string& model_kind, Eigen::Index free_parameters, const D& data,
                             Eigen::Index history) {
@@ -155,10 +144,15 @@ void require_enough_samples(const std::string& model_kind, Eigen::Index free_par
     samples += data[i].size();
     residuals += std::max<Eigen::Index>(0, data[i].size() - history);
   }
+  if (free_parameters <= residuals) return;
   std::string how = std::to_string(samples) + " samples in " + std::to_string(data.size()) + " experiment" +
                     (data.size() == 1 ? "" : "s");
   if (history > 0) how += ", less " + std::to_string(history) + " of lag history in each";
-  require_enough_data(model_kind, free_parameters, residuals, how);
+  throw Error("the " + model_kind + " model has " + std::to_string(free_parameters) +
+                  " free parameters but the estimation data give only " + std::to_string(residuals) +
+                  " residuals (" + how + "); the data cannot determine it - use more data or a smaller model "
+                  "(fewer units, breakpoints or lags)",
+              at_parameter("data"));
 }
 
 /// Finite check on a scalar including a dual's derivatives (a NaN Jacobian is as bad as a
