@@ -5,9 +5,10 @@
 //
 // The input CSV has a time column t (or --ts) and the model's input column (its name from the
 // model file, or --column); other columns are ignored. --delimiter and --decimal read files
-// written with other separators (record_options.hpp). The output CSV has columns t,y (the model's output
-// name is not used so that scripts can rely on "y"). Exit status 0 on success, 1 on a user error
-// (bad file, missing column, sample-time mismatch — the message says which), 2 on bad usage.
+// written with other separators (record_options.hpp). The output CSV has columns t,y (the
+// model's output name is not used so that scripts can rely on "y"). Exit status 0 on success,
+// 1 on a user error (bad file, missing column, sample-time mismatch — the message says which),
+// 2 on bad usage.
 #include <cmath>
 #include <cstdio>
 #include <iostream>
