@@ -30,6 +30,7 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdio>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -66,6 +67,14 @@ inline const char* to_string(NonFinitePolicy p) {
 /// gaps are not "missing samples" but missing stretches of the experiment; bridging them with a
 /// straight line would invent dynamics, so they are reported instead.
 inline constexpr int default_max_gap = 10;
+
+/// A missing (NaN or ±Inf) sample of an experiment: `Experiment::first_missing`.
+struct MissingSample {
+  bool output = false;       ///< false: an input channel
+  Eigen::Index channel = 0;  ///< 0-based channel (column of u() or y())
+  Eigen::Index sample = 0;   ///< 0-based sample index
+  double value = 0.0;        ///< the NaN or ±Inf found there
+};
 
 /// One uniformly sampled input-output experiment. See the file comment for notation and invariants.
 class Experiment {
@@ -189,6 +198,18 @@ class Experiment {
   /// `NonFinitePolicy::keep`, or after writing through `u()` / `y()`).
   [[nodiscard]] bool has_missing() const { return !u_.allFinite() || !y_.allFinite(); }
 
+  /// The first missing sample — inputs before outputs, channel by channel, in time order — or
+  /// nothing if the record is complete.
+  [[nodiscard]] std::optional<MissingSample> first_missing() const {
+    for (const bool output : {false, true}) {
+      const Eigen::MatrixXd& m = output ? y_ : u_;
+      for (Eigen::Index c = 0; c < m.cols(); ++c)
+        for (Eigen::Index k = 0; k < m.rows(); ++k)
+          if (!std::isfinite(m(k, c))) return MissingSample{output, c, k, m(k, c)};
+    }
+    return std::nullopt;
+  }
+
   /// Re-checks the invariants after the matrices were modified through `u()` / `y()`; throws
   /// `nlid::Error` naming the broken one. `allow_missing` accepts NaN/Inf samples.
   void validate(bool allow_missing = false) const {
@@ -214,8 +235,12 @@ class Experiment {
                   where());
     }
     if (!allow_missing) {
-      check_finite(u_, input_names_, "input");
-      check_finite(y_, output_names_, "output");
+      if (const auto m = first_missing()) {
+        throw Error(prefix() + "non-finite " + (m->output ? "output" : "input") + " sample " + number(m->value) +
+                        " at sample index " + std::to_string(m->sample) +
+                        " (use NonFinitePolicy::keep or ::interpolate for missing data)",
+                    at_sample(m->sample, m->channel, m->output ? output_names_ : input_names_));
+      }
     }
   }
 
@@ -270,20 +295,6 @@ class Experiment {
     l.column = static_cast<long>(c) + 1;
     l.column_name = names[static_cast<std::size_t>(c)];
     return l;
-  }
-
-  void check_finite(const Eigen::MatrixXd& m, const std::vector<std::string>& names,
-                    const char* kind) const {
-    for (Eigen::Index c = 0; c < m.cols(); ++c) {
-      for (Eigen::Index k = 0; k < m.rows(); ++k) {
-        if (!std::isfinite(m(k, c))) {
-          throw Error(prefix() + "non-finite " + std::string(kind) + " sample " + number(m(k, c)) +
-                          " at sample index " + std::to_string(k) +
-                          " (use NonFinitePolicy::keep or ::interpolate for missing data)",
-                      at_sample(k, c, names));
-        }
-      }
-    }
   }
 
   void fill_channels(Eigen::MatrixXd& m, const std::vector<std::string>& names, int max_gap) {

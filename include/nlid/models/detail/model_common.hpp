@@ -99,26 +99,21 @@ inline void check_experiment(const Experiment& e, long index, int num_inputs, in
 /// later residual of a simulation, and the data-driven initialisation would otherwise report it
 /// at a row of its regression matrix, which the user cannot map back to the data.
 inline void require_complete(const Experiment& e, long index) {
-  const auto scan = [&](const Eigen::MatrixXd& m, const std::vector<std::string>& names, const char* kind) {
-    for (Eigen::Index c = 0; c < m.cols(); ++c) {
-      for (Eigen::Index k = 0; k < m.rows(); ++k) {
-        const double v = m(k, c);
-        if (std::isfinite(v)) continue;
-        const std::string name = static_cast<std::size_t>(c) < names.size() ? names[static_cast<std::size_t>(c)]
-                                                                             : std::string(kind) + std::to_string(c + 1);
-        Location where = experiment_location(index);
-        where.row = static_cast<long>(k) + 1;
-        where.column_name = name;
-        throw Error(experiment_label(e, index) + " has a missing " + kind + " sample: '" + name + "' is " +
-                        (std::isnan(v) ? "NaN" : v > 0 ? "Inf" : "-Inf") + " at sample " + std::to_string(k) +
-                        "; estimation needs complete records - Experiment::fill_missing() interpolates short "
-                        "gaps, or split the record at a long one",
-                    where);
-      }
-    }
-  };
-  scan(e.u(), e.input_names(), "input");
-  scan(e.y(), e.output_names(), "output");
+  const auto m = e.first_missing();
+  if (!m) return;
+  const char* kind = m->output ? "output" : "input";
+  const auto& names = m->output ? e.output_names() : e.input_names();
+  const auto c = static_cast<std::size_t>(m->channel);
+  const std::string name = c < names.size() ? names[c] : std::string(kind) + std::to_string(c + 1);
+  Location where = experiment_location(index);
+  where.row = static_cast<long>(m->sample) + 1;
+  where.column_name = name;
+  throw Error(experiment_label(e, index) + " has a missing " + kind + " sample: '" + name + "' is " +
+                  (std::isnan(m->value) ? "NaN" : m->value > 0 ? "Inf" : "-Inf") + " at sample " +
+                  std::to_string(m->sample) +
+                  "; estimation needs complete records - Experiment::fill_missing() interpolates short gaps, "
+                  "or split the record at a long one",
+              where);
 }
 
 /// Number of `true` flags in an `LmOptions::fixed` mask of a model with `num_parameters`
