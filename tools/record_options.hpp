@@ -3,11 +3,13 @@
 // separator and the decimal point. Shared by nlid-fit, nlid-sim and nlid-diagnose so the three
 // accept the same options with the same meaning.
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <string>
+#include <vector>
 
 #include "nlid/core/error.hpp"
 #include "nlid/data/csv.hpp"
@@ -61,34 +63,24 @@ inline void check_record_options(const RecordOptions& o) {
     throw nlid::Error("--decimal , needs another field separator, e.g. --delimiter ';'", nlid::at_parameter("--decimal"));
 }
 
-/// True if the header of `path` (its first line that is neither blank nor a '#' comment) names a
-/// column `name`. Unreadable files answer true: read_csv then reports the problem with its
-/// location.
+/// True if the header of `path` (its first line that is neither blank nor a '#' comment), split
+/// as read_csv splits it, names a column `name`. Unreadable or malformed files answer true:
+/// read_csv then reports the problem with its location.
 inline bool header_has(const std::string& path, const std::string& name, char delimiter) {
   std::ifstream f(path);
   std::string line;
-  while (f && std::getline(f, line)) {
-    if (line.rfind("\xEF\xBB\xBF", 0) == 0) line.erase(0, 3);  // UTF-8 byte-order mark
-    const auto first = line.find_first_not_of(" \t\r");
+  std::vector<std::string> fields;
+  for (bool first_line = true; f && std::getline(f, line); first_line = false) {
+    if (first_line && line.rfind("\xEF\xBB\xBF", 0) == 0) line.erase(0, 3);  // UTF-8 byte-order mark
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    const auto first = line.find_first_not_of(" \t");
     if (first == std::string::npos || line[first] == '#') continue;
-    std::size_t a = 0;
-    while (a <= line.size()) {
-      std::size_t b = delimiter == ' ' ? line.find_first_of(" \t", a) : line.find(delimiter, a);
-      if (b == std::string::npos) b = line.size();
-      std::string cell = line.substr(a, b - a);
-      const auto s = cell.find_first_not_of(" \t\r\"");
-      const auto e = cell.find_last_not_of(" \t\r\"");
-      cell = s == std::string::npos ? std::string() : cell.substr(s, e - s + 1);
-      if (cell == name) return true;
-      if (delimiter == ' ') {
-        b = line.find_first_not_of(" \t", b);
-        if (b == std::string::npos) break;
-        a = b;
-      } else {
-        a = b + 1;
-      }
+    try {
+      nlid::detail::split_csv_line(line, delimiter, fields, path, 0);
+    } catch (const nlid::Error&) {
+      return true;
     }
-    return false;
+    return std::find(fields.begin(), fields.end(), name) != fields.end();
   }
   return true;
 }

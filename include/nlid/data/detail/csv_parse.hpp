@@ -130,15 +130,15 @@ inline void split_csv_line(std::string_view line, char delim, std::vector<std::s
 inline std::string separator_hint(const std::vector<std::string>& header, const std::string& name = {}) {
   if (header.size() != 1) return {};
   const std::string& h = header[0];
+  std::vector<std::string> parts;
   for (const char sep : {';', '\t', ',', ' ', '|'}) {
     if (h.find(sep) == std::string::npos) continue;
-    bool found = name.empty();
-    for (std::size_t a = 0; a <= h.size() && !found;) {
-      const std::size_t b = std::min(h.find(sep, a), h.size());
-      found = h.substr(a, b - a) == name;
-      a = b + 1;
+    try {
+      split_csv_line(h, sep, parts, {}, 0);  // as read_csv would split it with that separator
+    } catch (const Error&) {
+      continue;  // not a well-formed line at this separator either
     }
-    if (found) {
+    if (name.empty() || std::find(parts.begin(), parts.end(), name) != parts.end()) {
       const std::string shown = sep == '\t' ? "tabs" : "'" + std::string(1, sep) + "'";
       return "; the header is a single field - is the file separated by " + shown +
              "? (CsvReadOptions::delimiter; --delimiter in the tools)";
