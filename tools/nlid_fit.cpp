@@ -104,9 +104,9 @@ nlid::Experiment load(const std::string& path, const Args& a) {
   o.inputs = {a.input};
   o.outputs = {a.output};
   nlid::Experiment e = nlid::read_csv(path, o);
-  if (a.first != 0 || a.last >= 0) {
-    const long last = a.last < 0 ? static_cast<long>(e.size()) : a.last;
-    if (a.first < 0 || last > e.size() || a.first >= last)
+  if (a.last >= 0) {  // --rows given; parse() has checked 0 <= FIRST < LAST
+    const long last = a.last;
+    if (last > e.size())
       throw nlid::Error("--rows " + std::to_string(a.first) + ":" + std::to_string(last) + " is outside the " +
                             std::to_string(e.size()) + " data rows of " + path,
                         nlid::at_parameter("--rows"));
