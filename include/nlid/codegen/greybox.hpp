@@ -19,8 +19,10 @@
 /// `physics_equilibrium`, as `InitialCondition::equilibrium` does), else at zero.
 ///
 /// Limits: the adaptive Dormand–Prince method is not generated (its step sequence depends on
-/// the data); run-time physics (`GreyBox<AnyPhysics>`) cannot be traced (virtual functions on
-/// double and Dual only). Both are reported as `nlid::Error`.
+/// the data). Run-time physics (`GreyBox<AnyPhysics>`, e.g. a model loaded from a file) is
+/// traced through its `TraceScalar` overloads (`RuntimePhysics`, greybox_dynamic.hpp); a
+/// run-time physics that does not provide them, or a compile-time physics that is not templated
+/// on its scalar, is reported as `nlid::Error`.
 
 #include <span>
 #include <string>
@@ -52,8 +54,8 @@ GeneratedCode generate_c(const GreyBox<P>& model, const CodegenOptions& options)
   codegen::check_name(options.name);
   if constexpr (!codegen::detail::TraceablePhysics<P>) {
     throw Error("codegen: the physics of grey-box model '" + model.name() +
-                    "' is chosen at run time (AnyPhysics) and cannot be traced; generate code from the compile-time "
-                    "physics type (GreyBox<physics::...>)",
+                    "' cannot be traced: its derivative/output do not accept TraceScalar (write them as templates on "
+                    "the scalar, as for Dual)",
                 at_parameter("physics"));
   } else {
     require(options.ts > 0 && std::isfinite(options.ts),
@@ -150,8 +152,8 @@ GeneratedCode generate_c(const GreyBox<P>& model, const CodegenOptions& options)
     GeneratedCode g;
     g.name = name;
     g.paths = fd.paths;
-    g.header = codegen::make_header(m);
-    g.source = src;
+    g.header = codegen::ascii_text(codegen::make_header(m));
+    g.source = codegen::ascii_text(src);
     return g;
   }
 }

@@ -37,7 +37,7 @@ GeneratedCode generate_c(const HammersteinWiener<In, L, Out>& model, const Codeg
   require(m.ts > 0, "codegen: the model has no sample time; set it (set_ts) or CodegenOptions::ts", at_parameter("ts"));
   m.parameters = model.parameters();
   m.parameter_names = model.parameter_names();
-  m.state_doc = "the linear block's state s1 … s" + std::to_string(m.nx) +
+  m.state_doc = "the linear block's state s1 .. s" + std::to_string(m.nx) +
                 " (transposed direct form II: x(t) = b0*w(t) + s1(t))";
   if (options.equilibrium_input) {
     const OperatingPoint op = equilibrium(model, *options.equilibrium_input);
@@ -69,8 +69,8 @@ GeneratedCode generate_c(const HammersteinWiener<In, L, Out>& model, const Codeg
   GeneratedCode g;
   g.name = name;
   g.paths = f.paths;
-  g.header = codegen::make_header(m);
-  g.source = codegen::make_source_prelude(m, f.helpers) + codegen::discrete_step_function(m, f);
+  g.header = codegen::ascii_text(codegen::make_header(m));
+  g.source = codegen::ascii_text(codegen::make_source_prelude(m, f.helpers) + codegen::discrete_step_function(m, f));
   return g;
 }
 

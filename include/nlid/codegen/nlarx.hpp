@@ -77,8 +77,8 @@ GeneratedCode generate_c(const Nlarx<R, F>& model, const CodegenOptions& options
   GeneratedCode g;
   g.name = name;
   g.paths = f.paths;
-  g.header = codegen::make_header(m);
-  g.source = codegen::make_source_prelude(m, f.helpers) + codegen::discrete_step_function(m, f);
+  g.header = codegen::ascii_text(codegen::make_header(m));
+  g.source = codegen::ascii_text(codegen::make_source_prelude(m, f.helpers) + codegen::discrete_step_function(m, f));
   return g;
 }
 

@@ -35,8 +35,8 @@
 /// within a few ulps — the codegen test demands 1e-12 relative.
 ///
 /// Not supported (clear errors rather than wrong code): converting a traced signal to double
-/// (there is no conversion operator, so such code does not compile), and run-time physics
-/// (`AnyPhysics` evaluates through virtual functions on double and Dual only).
+/// (there is no conversion operator, so such code does not compile). Run-time physics
+/// (`AnyPhysics`) has `TraceScalar` overloads of its virtual functions for this reason.
 
 #include <cctype>
 #include <cmath>

@@ -15,7 +15,9 @@
 ///
 /// Writing a runtime physics. Derive from `RuntimePhysicsBase<Derived>` and write the equations
 /// once as member templates `compute_derivative<T>` / `compute_output<T>`; the base implements
-/// both virtual overloads from them (CRTP):
+/// the virtual overloads from them (CRTP) for T = double, RuntimeDual and TraceScalar (the code
+/// generator's tracer, so a run-time model can be exported as C) — so write them with operations
+/// on T only, never converting a T to double:
 ///
 ///     struct Augmented : RuntimePhysicsBase<Augmented> {
 ///       AnyPhysics base;                                   // e.g. make_physics("throttle")
@@ -46,6 +48,7 @@
 #include <utility>
 #include <vector>
 
+#include "nlid/codegen/trace_scalar.hpp"
 #include "nlid/core/error.hpp"
 #include "nlid/data/dataset.hpp"
 #include "nlid/models/greybox.hpp"
@@ -92,6 +95,22 @@ class RuntimePhysics {
   /// y = g(x, u, p) on RuntimeDual.
   virtual void output(const RuntimeDual* x, const RuntimeDual* u, const RuntimeDual* p,
                       RuntimeDual* y) const = 0;
+  /// f on the code generator's tracer (codegen/trace_scalar.hpp), so that a model built at run
+  /// time — loaded from a file, or composed by a diagnosis — can be exported as C like a
+  /// compile-time one. Default: this physics cannot be traced (an `nlid::Error` from codegen).
+  virtual void derivative(const TraceScalar* x, const TraceScalar* u, const TraceScalar* p, TraceScalar* dx) const {
+    (void)x, (void)u, (void)p, (void)dx;
+    throw Error("codegen: grey-box physics '" + name() + "' cannot be traced (it does not implement the TraceScalar overloads); "
+                "derive it from RuntimePhysicsBase or generate code from its compile-time type",
+                at_parameter("physics"));
+  }
+  /// g on the tracer (see `derivative`).
+  virtual void output(const TraceScalar* x, const TraceScalar* u, const TraceScalar* p, TraceScalar* y) const {
+    (void)x, (void)u, (void)p, (void)y;
+    throw Error("codegen: grey-box physics '" + name() + "' cannot be traced (it does not implement the TraceScalar overloads); "
+                "derive it from RuntimePhysicsBase or generate code from its compile-time type",
+                at_parameter("physics"));
+  }
   /// Upper bound on |eig ∂f/∂x| for the sub-step rule; negative = unknown (then the Gershgorin
   /// bound at the initial state is used), 0 = no stiffness (only the sub-step floor applies).
   [[nodiscard]] virtual double spectral_radius(const double* /*p*/) const { return -1.0; }
@@ -104,7 +123,7 @@ class RuntimePhysics {
   }
 };
 
-/// CRTP helper: implements the four evaluation overloads of `RuntimePhysics` from the member
+/// CRTP helper: implements the six evaluation overloads of `RuntimePhysics` from the member
 /// templates `Derived::compute_derivative<T>` and `Derived::compute_output<T>`.
 template <class Derived>
 class RuntimePhysicsBase : public RuntimePhysics {
@@ -125,6 +144,12 @@ class RuntimePhysicsBase : public RuntimePhysics {
   /// Forwards to `Derived::compute_output<RuntimeDual>`.
   void output(const RuntimeDual* x, const RuntimeDual* u, const RuntimeDual* p,
               RuntimeDual* y) const override {
+    self().compute_output(x, u, p, y);
+  }
+  void derivative(const TraceScalar* x, const TraceScalar* u, const TraceScalar* p, TraceScalar* dx) const override {
+    self().compute_derivative(x, u, p, dx);
+  }
+  void output(const TraceScalar* x, const TraceScalar* u, const TraceScalar* p, TraceScalar* y) const override {
     self().compute_output(x, u, p, y);
   }
 
@@ -258,13 +283,13 @@ class AnyPhysics {
   }
   /// f on double or RuntimeDual (the only scalars a virtual interface can offer).
   template <class T>
-    requires(std::same_as<T, double> || std::same_as<T, RuntimeDual>)
+    requires(std::same_as<T, double> || std::same_as<T, RuntimeDual> || std::same_as<T, TraceScalar>)
   void derivative(const T* x, const T* u, const T* p, T* dx) const {
     impl_->derivative(x, u, p, dx);
   }
   /// g on double or RuntimeDual.
   template <class T>
-    requires(std::same_as<T, double> || std::same_as<T, RuntimeDual>)
+    requires(std::same_as<T, double> || std::same_as<T, RuntimeDual> || std::same_as<T, TraceScalar>)
   void output(const T* x, const T* u, const T* p, T* y) const {
     impl_->output(x, u, p, y);
   }

@@ -288,6 +288,15 @@ class Series {
     return -1;
   }
 
+  /// One sample of the chain on any scalar: ŷ(t) for input `u` at t, advancing the stacked state
+  /// `s` (`state_dimension()` entries) to t + 1 — the operations of `simulate`'s loop body, so
+  /// generated C code (codegen/series.hpp) can trace it. Sizes are not checked here.
+  template <class T>
+  T step(std::span<T> s, T u, std::span<const T> theta) const {
+    step_all(u, theta, s, std::index_sequence_for<Blocks...>{});
+    return u;
+  }
+
   /// One-step prediction: equal to the simulation from `x0` (output-error structure).
   template <class T>
   bool predict(const Eigen::Ref<const Eigen::MatrixXd>& u, const Eigen::Ref<const Eigen::VectorXd>& /*y*/,

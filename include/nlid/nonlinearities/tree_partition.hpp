@@ -35,6 +35,8 @@
 #include <limits>
 #include <span>
 #include <string>
+#include <type_traits>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -114,12 +116,15 @@ class TreePartition {
   template <class T>
   [[nodiscard]] int leaf_of(std::span<const T> x) const {
     if (static_cast<int>(x.size()) != m_) detail::check_size(x.size(), m_, "x", "TreePartition");
+    // The split test uses the value part only (no derivative flows through the choice of leaf).
+    // V is double for double and Dual, and the tracer itself for TraceScalar, so that generated
+    // code makes the same comparison on the signal instead of freezing one leaf.
+    using V = std::remove_cvref_t<decltype(value_of(std::declval<const T&>()))>;
     int node = 0;
     for (int level = 0; level < depth_; ++level) {
-      double s = 0;
+      V s(0.0);
       for (int j = 0; j < m_; ++j) {
-        s += dir_[static_cast<std::size_t>(node * m_ + j)] *
-             static_cast<double>(value_of(norm_.z(x[static_cast<std::size_t>(j)], j)));
+        s += dir_[static_cast<std::size_t>(node * m_ + j)] * value_of(norm_.z(x[static_cast<std::size_t>(j)], j));
       }
       node = 2 * node + (s > thr_[static_cast<std::size_t>(node)] ? 2 : 1);
     }
