@@ -4,14 +4,18 @@
 /// model files: kind "series".
 ///
 ///     "structure": {"pattern": "LNL",
-///                   "blocks": [ {"linear": {"type": "transfer_function", "nb": 3, "nf": 3, "nk": 0}},
-///                               {"nonlinearity": {"type": "pwlinear", ...}},
-///                               {"linear": {...}} ]}
+///                   "blocks": [ {"type": "transfer_function", "nb": 3, "nf": 3, "nk": 0},
+///                               {"type": "pwlinear", "breakpoints": 10, ...},
+///                               {"type": "transfer_function", ...} ]}
 ///
+/// Each block is its own layout (a linear block's or a nonlinearity's, both named by "type").
 /// θ = [θ₁, …, θ_K] in chain order. Including this header registers the kind with
 /// `load_model(path)`, which rebuilds the chains N–L, L–N, L–N–L, N–L–N and N–L–N–L with
 /// `AnyNonlinearity` static blocks and `TransferFunctionBlock<Dynamic, Dynamic, Dynamic>` linear
 /// blocks; any chain loads into its compile-time type with `load_model<Series<…>>(path)`.
+/// This is the only serialiser of series chains (nlid-fit's "wh", "wiener" and "hammerstein"
+/// models use it too). Files of the first layout, which wrapped every block as
+/// {"linear": …} or {"nonlinearity": …}, are still read.
 
 #include <cstddef>
 #include <string>
@@ -40,10 +44,9 @@ struct IsTransferFunctionBlock<TransferFunctionBlock<Nb, Nf, Nk>> : std::true_ty
 template <class B>
 Json series_block_json(const B& b) {
   if constexpr (IsTransferFunctionBlock<B>::value) {
-    return Json::object({{"linear", LinearBlockSerial<Dynamic, Dynamic, Dynamic>::save(
-                                        TransferFunctionBlock<Dynamic, Dynamic, Dynamic>(b.nb(), b.nf(), b.nk()))}});
+    return LinearBlockSerial<Dynamic, Dynamic, Dynamic>::save(TransferFunctionBlock<Dynamic, Dynamic, Dynamic>(b.nb(), b.nf(), b.nk()));
   } else {
-    return Json::object({{"nonlinearity", NonlinearitySerial<B>::save(b)}});
+    return NonlinearitySerial<B>::save(b);
   }
 }
 
@@ -52,29 +55,41 @@ TransferFunctionBlock<Nb, Nf, Nk> load_tfb(const JsonView& v, TransferFunctionBl
   return LinearBlockSerial<Nb, Nf, Nk>::load(v);
 }
 
+/// The block's own layout: the value itself, or inside the first layout's wrapper key.
+inline JsonView series_block_body(const JsonView& v, bool linear) {
+  const char* key = linear ? "linear" : "nonlinearity";
+  if (v.contains(key)) {
+    v.check_keys({key});
+    return v.at(key);
+  }
+  if (v.contains(linear ? "nonlinearity" : "linear") ||
+      (linear && v.contains("type") && v.at("type").as_string() != "transfer_function") ||
+      (!linear && v.contains("type") && v.at("type").as_string() == "transfer_function")) {
+    v.fail("block " + v.path_text() + (linear ? " must be linear (type \"transfer_function\")" : " must be a static nonlinearity"));
+  }
+  return v;
+}
+
 template <class B>
 B series_block_load(const JsonView& v) {
   if constexpr (IsTransferFunctionBlock<B>::value) {
-    v.check_keys({"linear"});
-    if (!v.contains("linear")) v.fail("block " + v.path_text() + " must be linear (key 'linear')");
-    return load_tfb(v.at("linear"), static_cast<B*>(nullptr));
+    return load_tfb(series_block_body(v, true), static_cast<B*>(nullptr));
   } else {
-    v.check_keys({"nonlinearity"});
-    if (!v.contains("nonlinearity")) v.fail("block " + v.path_text() + " must be a static nonlinearity (key 'nonlinearity')");
-    return NonlinearitySerial<B>::load(v.at("nonlinearity"));
+    return NonlinearitySerial<B>::load(series_block_body(v, false));
   }
 }
 
 template <class B>
 void series_block_restore(const JsonView& v, B& b) {
   if constexpr (IsTransferFunctionBlock<B>::value) {
-    const auto l = LinearBlockSerial<Dynamic, Dynamic, Dynamic>::load(v.at("linear"));
+    const JsonView body = series_block_body(v, true);
+    const auto l = LinearBlockSerial<Dynamic, Dynamic, Dynamic>::load(body);
     if (l.nb() != b.nb() || l.nf() != b.nf() || l.nk() != b.nk()) {
       v.fail("the file's linear block at " + v.path_text() + " has orders [" + std::to_string(l.nb()) + " " +
              std::to_string(l.nf()) + " " + std::to_string(l.nk()) + "], this model's differ");
     }
   } else {
-    NonlinearitySerial<B>::restore(v.at("nonlinearity"), b);
+    NonlinearitySerial<B>::restore(series_block_body(v, false), b);
   }
 }
 }  // namespace detail

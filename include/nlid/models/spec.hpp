@@ -47,6 +47,7 @@
 #include "nlid/data/dataset.hpp"
 #include "nlid/estimation/levenberg_marquardt.hpp"
 #include "nlid/io/model_file.hpp"
+#include "nlid/io/series_serial.hpp"
 #include "nlid/linear/arx.hpp"
 #include "nlid/linear/output_error.hpp"
 #include "nlid/models/any_model.hpp"
@@ -71,102 +72,10 @@ using DynamicHammerstein = Series<AnyNonlinearity, DynamicTransferFunction>;
 /// Hammerstein–Wiener chain (N–L–N) as a series, with run-time blocks.
 using DynamicHammersteinWienerSeries = Series<AnyNonlinearity, DynamicTransferFunction, AnyNonlinearity>;
 
-namespace detail {
-
-/// Model-file layout of a run-time series: "structure": {"blocks": [block, …]} where a linear
-/// block is {"type": "transfer_function", "nb", "nf", "nk"} and a static block is the
-/// nonlinearity's own layout.
-template <class M>
-struct RuntimeSeriesSerial {
-  static constexpr const char* kind = "series";
-  static void save(Json& j, const M& m, const ModelFileInfo& info) {
-    write_common(j, m.ts(), {m.input_name()}, {m.output_name()}, info, &m.report());
-    Json blocks = Json::array();
-    [&]<std::size_t... I>(std::index_sequence<I...>) {
-      (
-          [&] {
-            if constexpr (M::template is_linear<I>) {
-              blocks.push_back(LinearBlockSerial<Dynamic, Dynamic, Dynamic>::save(m.template block<I>()));
-            } else {
-              blocks.push_back(NonlinearitySerial<AnyNonlinearity>::save(m.template block<I>()));
-            }
-          }(),
-          ...);
-    }(std::make_index_sequence<M::num_blocks>{});
-    Json s = Json::object();
-    s["pattern"] = M::pattern();
-    s["blocks"] = std::move(blocks);
-    j["structure"] = std::move(s);
-    j["parameters"] = parameters_json(m.parameter_names(), m.parameters());
-    j["report"] = report_to_json(m.report());
-  }
-  static M load(const JsonView& file, ModelFileInfo& info) {
-    expect_kind(file, kind);
-    std::vector<std::string> in, out;
-    const double ts = read_common(file, info, in, out);
-    const JsonView s = file.at("structure");
-    s.check_keys({"pattern", "blocks"});
-    const JsonView b = s.at("blocks");
-    if (s.at("pattern").as_string() != M::pattern())
-      s.at("pattern").fail("series pattern \"" + s.at("pattern").as_string() + "\" at " + s.at("pattern").path_text() +
-                           " is not " + M::pattern());
-    M m = [&]<std::size_t... I>(std::index_sequence<I...>) {
-      return M(load_block<typename M::template Block<I>>(b.at(I))..., ts);
-    }(std::make_index_sequence<M::num_blocks>{});
-    expect_channel_count(file.at("inputs"), in.size(), 1, "inputs");
-    expect_channel_count(file.at("outputs"), out.size(), 1, "outputs");
-    m.set_channel_names(in[0], out[0]);
-    m.set_parameters(read_parameters(file, m.num_parameters()));
-    m.set_report(report_from_json(file.at("report")));
-    info.report.reset();
-    return m;
-  }
-
- private:
-  template <class B>
-  static B load_block(const JsonView& v) {
-    if constexpr (std::is_same_v<B, DynamicTransferFunction>) {
-      return LinearBlockSerial<Dynamic, Dynamic, Dynamic>::load(v);
-    } else {
-      return NonlinearitySerial<AnyNonlinearity>::load(v);
-    }
-  }
-};
-
-}  // namespace detail
-
-/// Model-file serialiser of the run-time Wiener–Hammerstein series (kind "series").
-template <>
-struct ModelSerial<DynamicWienerHammerstein> : detail::RuntimeSeriesSerial<DynamicWienerHammerstein> {};
-/// Model-file serialiser of the run-time Wiener series (kind "series").
-template <>
-struct ModelSerial<DynamicWiener> : detail::RuntimeSeriesSerial<DynamicWiener> {};
-/// Model-file serialiser of the run-time Hammerstein series (kind "series").
-template <>
-struct ModelSerial<DynamicHammerstein> : detail::RuntimeSeriesSerial<DynamicHammerstein> {};
-/// Model-file serialiser of the run-time N–L–N series (kind "series").
-template <>
-struct ModelSerial<DynamicHammersteinWienerSeries> : detail::RuntimeSeriesSerial<DynamicHammersteinWienerSeries> {};
-
-/// Teaches `load_model(path)` the "series" kind (dispatching on the stored pattern). Idempotent.
-inline void register_series_model_kind() {
-  for (const auto& k : model_kinds())
-    if (k == "series") return;
-  try {
-    register_model_kind("series", [](const JsonView& file, ModelFileInfo& info) -> AnyModel {
-      const std::string p = file.at("structure").at("pattern").as_string();
-      if (p == "LNL") return AnyModel(ModelSerial<DynamicWienerHammerstein>::load(file, info), info);
-      if (p == "LN") return AnyModel(ModelSerial<DynamicWiener>::load(file, info), info);
-      if (p == "NL") return AnyModel(ModelSerial<DynamicHammerstein>::load(file, info), info);
-      if (p == "NLN") return AnyModel(ModelSerial<DynamicHammersteinWienerSeries>::load(file, info), info);
-      file.at("structure").at("pattern").fail("series pattern \"" + p + "\" at " +
-                                              file.at("structure").at("pattern").path_text() +
-                                              " is not supported by this reader (LNL, LN, NL, NLN)");
-    });
-  } catch (const Error&) {
-    // Registered concurrently by another caller: nothing left to do.
-  }
-}
+/// Teaches `load_model(path)` the "series" kind. Including io/series_serial.hpp (this header
+/// does) registers it when the program starts; this call only makes that dependency explicit
+/// for programs that load series files without fitting one. Idempotent.
+inline void register_series_model_kind() { (void)detail::series_kind_registered; }
 
 /// A static block of a spec: kind and structure options.
 struct NonlinearitySpec {
