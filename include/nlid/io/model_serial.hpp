@@ -436,8 +436,9 @@ struct ModelSerial<GreyBox<P>> {
   /// Writes the model's members.
   static void save(Json& j, const GreyBox<P>& m, const ModelFileInfo& info) {
     const EstimationReport report = info.report ? *info.report : EstimationReport{};
-    detail::write_common(j, 0.0, default_input_names(m.input_dimension()), output_names(m.output_dimension()), info,
-                         &report);
+    detail::write_common(j, 0.0,
+                         m.input_names().empty() ? default_input_names(m.input_dimension()) : m.input_names(),
+                         m.output_names().empty() ? output_names(m.output_dimension()) : m.output_names(), info, &report);
     if (!info.initial_condition && !report.estimated) j["initial_condition"] = "estimate";
     Json s = Json::object();
     s["physics"] = m.name();
@@ -484,6 +485,7 @@ struct ModelSerial<GreyBox<P>> {
     (void)detail::read_common(file, info, in, out);
     detail::expect_channel_count(file.at("inputs"), in.size(), m.input_dimension(), "inputs");
     detail::expect_channel_count(file.at("outputs"), out.size(), m.output_dimension(), "outputs");
+    m.set_channel_names(in, out);
     const JsonView s = file.at("structure");
     s.check_keys({"physics", "parameter_table", "integrator", "initial_state_window", "states"});
     if (s.at("physics").as_string() != m.name()) {
@@ -578,7 +580,8 @@ struct ModelSerial<Arx> {
   static constexpr const char* kind = "arx";
   /// Writes the model's members.
   static void save(Json& j, const Arx& m, const ModelFileInfo& info) {
-    detail::write_common(j, m.ts(), names(m), {"y1"}, info, nullptr);
+    detail::write_common(j, m.ts(), names(m), m.output_names().empty() ? std::vector<std::string>{"y1"} : m.output_names(),
+                         info, nullptr);
     Json s = Json::object();
     s["a"] = m.a();
     std::vector<Eigen::VectorXd> b;
@@ -606,7 +609,9 @@ struct ModelSerial<Arx> {
                  s.at("offset").as_number());
     });
     detail::expect_channel_count(file.at("inputs"), in.size(), m.num_inputs(), "inputs");
+    detail::expect_channel_count(file.at("outputs"), out.size(), 1, "outputs");
     m.set_input_names(in);
+    m.set_output_names(out);
     return m;
   }
   /// Replaces the prototype by the file's model.
@@ -627,7 +632,9 @@ struct ModelSerial<OutputError> {
   static constexpr const char* kind = "output_error";
   /// Writes the model's members.
   static void save(Json& j, const OutputError& m, const ModelFileInfo& info) {
-    detail::write_common(j, m.ts(), default_input_names(m.num_inputs()), {"y1"}, info, nullptr);
+    const auto in = m.input_names();
+    detail::write_common(j, m.ts(), static_cast<int>(in.size()) == m.num_inputs() ? in : default_input_names(m.num_inputs()),
+                         m.output_names().empty() ? std::vector<std::string>{"y1"} : m.output_names(), info, nullptr);
     Json s = Json::object();
     std::vector<Eigen::VectorXd> b, f;
     std::vector<int> nk;
@@ -656,6 +663,9 @@ struct ModelSerial<OutputError> {
                          s.at("nk").get<std::vector<int>>(), ts, s.at("offset").as_number());
     });
     detail::expect_channel_count(file.at("inputs"), in.size(), m.num_inputs(), "inputs");
+    detail::expect_channel_count(file.at("outputs"), out.size(), 1, "outputs");
+    m.set_input_names(in);
+    m.set_output_names(out);
     return m;
   }
   /// Replaces the prototype by the file's model.

@@ -376,6 +376,13 @@ class Arx {
             at_parameter("input_names"));
     input_names_ = std::move(names);
   }
+  /// Output channel name as a one-entry list (from the estimation data; empty if unknown).
+  [[nodiscard]] std::vector<std::string> output_names() const { return output_names_; }
+  /// Sets the output channel name (one entry, or empty for unknown).
+  void set_output_names(std::vector<std::string> names) {
+    require(names.size() <= 1, "Arx: one output name (or none) required", at_parameter("output_names"));
+    output_names_ = std::move(names);
+  }
 
   // ---- Implementation details below ----------------------------------------------------------
 
@@ -453,6 +460,7 @@ class Arx {
   Eigen::VectorXd stddev_;
   LinearEstimationReport report_;
   std::vector<std::string> input_names_;
+  std::vector<std::string> output_names_;
 };
 
 namespace detail {
@@ -579,6 +587,7 @@ inline Arx arx_estimate(const Dataset& data, const ArxOrders& o, const ArxOption
   const double sigma2 = N > d ? ssr / static_cast<double>(N - d) : 0.0;
   m.stddev_ = (sigma2 * sol.unscaled_variance.array()).sqrt().matrix();
   m.input_names_ = data[0].input_names();
+  if (data[0].output_names().size() == 1) m.output_names_ = data[0].output_names();
   LinearEstimationReport& r = m.report_;
   r.method = "linear least squares (Householder QR)";
   r.focus = "prediction";

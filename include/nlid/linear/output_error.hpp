@@ -366,6 +366,21 @@ class OutputError {
     return os.str();
   }
 
+  /// Input channel names (from the estimation data; empty or "u1", … otherwise).
+  [[nodiscard]] std::vector<std::string> input_names() const { return input_names_; }
+  /// Sets the input channel names (one per input).
+  void set_input_names(std::vector<std::string> names) {
+    require(names.size() == b_.size(), "OutputError: one input name per input required", at_parameter("input_names"));
+    input_names_ = std::move(names);
+  }
+  /// Output channel name as a one-entry list (from the estimation data; empty if unknown).
+  [[nodiscard]] std::vector<std::string> output_names() const { return output_names_; }
+  /// Sets the output channel name (one entry, or empty for unknown).
+  void set_output_names(std::vector<std::string> names) {
+    require(names.size() <= 1, "OutputError: one output name (or none) required", at_parameter("output_names"));
+    output_names_ = std::move(names);
+  }
+
   // ---- Implementation details below ----------------------------------------------------------
 
  private:
@@ -435,6 +450,7 @@ class OutputError {
   Eigen::VectorXd stddev_;
   LinearEstimationReport report_;
   std::vector<std::string> input_names_;
+  std::vector<std::string> output_names_;
 };
 
 namespace detail {
@@ -626,6 +642,7 @@ inline OutputError oe_estimate(const Dataset& data, const OeOrders& o, const OeO
   model.ts_ = data.ts();
   model.nk_ = o.nk;
   model.input_names_ = data[0].input_names();
+  if (data[0].output_names().size() == 1) model.output_names_ = data[0].output_names();
   model.b_.assign(static_cast<std::size_t>(m), Eigen::VectorXd());
   model.f_.assign(static_cast<std::size_t>(m), Eigen::VectorXd());
   for (std::size_t i = 0; i < static_cast<std::size_t>(m); ++i) {

@@ -238,8 +238,10 @@ class AnyModel {
           nk.push_back(m.nk(i));
         }
         const auto names = m.input_names();
+        const auto out_names = m.output_names();
         m = Arx(a, b, nk, m.ts(), m.has_offset() ? theta(k) : 0.0);
         if (static_cast<int>(names.size()) == m.num_inputs()) m.set_input_names(names);
+        m.set_output_names(out_names);
       } else if constexpr (std::is_same_v<M, OutputError>) {
         require(theta.size() == m.num_parameters(), "parameter vector has " + std::to_string(theta.size()) +
                     " values, the output-error model has " + std::to_string(m.num_parameters()), at_parameter("theta"));
@@ -255,7 +257,11 @@ class AnyModel {
           f.push_back(theta.segment(k, m.f(i).size()));
           k += m.f(i).size();
         }
+        const auto names = m.input_names();
+        const auto out_names = m.output_names();
         m = OutputError(b, f, nk, m.ts(), m.has_offset() ? theta(k) : 0.0);
+        if (static_cast<int>(names.size()) == m.num_inputs()) m.set_input_names(names);
+        m.set_output_names(out_names);
       } else {
         (void)theta;
         throw Error("a " + kind() + " model cannot take a parameter vector; build a new model from its matrices",
@@ -300,6 +306,10 @@ class AnyModel {
       if constexpr (requires { m.output_name(); }) {
         return {m.output_name()};
       } else {
+        if constexpr (requires { m.output_names(); }) {
+          auto n = std::vector<std::string>(m.output_names());
+          if (static_cast<int>(n.size()) == num_outputs()) return n;
+        }
         std::vector<std::string> s;
         for (int i = 0; i < num_outputs(); ++i) s.push_back("y" + std::to_string(i + 1));
         return s;

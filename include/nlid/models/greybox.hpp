@@ -289,6 +289,9 @@ class GreyBox {
     const Experiment& e0 = data[0];
     if (!e0.output_units().empty()) y_unit_ = e0.output_units()[0];
     if (!e0.input_units().empty()) u_unit_ = e0.input_units()[0];
+    // The data's channel names, so that a saved model simulates the same columns of a new file.
+    if (static_cast<int>(e0.input_names().size()) == input_dimension()) input_names_ = e0.input_names();
+    if (static_cast<int>(e0.output_names().size()) == output_dimension()) output_names_ = e0.output_names();
     if constexpr (detail::HasInitializeHook<P>) {
       std::vector<ParameterInfo> table = params_;
       physics_.initialize(data, std::span<ParameterInfo>(table));
@@ -435,6 +438,26 @@ class GreyBox {
 
   // ---- reporting -------------------------------------------------------------------------------
 
+  /// Input channel names (those of the estimation data; empty until `initialize` or
+  /// `set_channel_names`).
+  [[nodiscard]] const std::vector<std::string>& input_names() const { return input_names_; }
+  /// Output channel names (see `input_names`).
+  [[nodiscard]] const std::vector<std::string>& output_names() const { return output_names_; }
+  /// Sets the channel names (a model file's "inputs"/"outputs"). Throws `nlid::Error` naming
+  /// "input_names"/"output_names" if a non-empty list does not have one name per channel.
+  void set_channel_names(std::vector<std::string> inputs, std::vector<std::string> outputs) {
+    require(inputs.empty() || static_cast<int>(inputs.size()) == input_dimension(),
+            "grey-box model '" + name() + "' has " + std::to_string(input_dimension()) + " input(s), got " +
+                std::to_string(inputs.size()) + " names",
+            at_parameter("input_names"));
+    require(outputs.empty() || static_cast<int>(outputs.size()) == output_dimension(),
+            "grey-box model '" + name() + "' has " + std::to_string(output_dimension()) + " output(s), got " +
+                std::to_string(outputs.size()) + " names",
+            at_parameter("output_names"));
+    input_names_ = std::move(inputs);
+    output_names_ = std::move(outputs);
+  }
+
   /// Units used by `describe` for "{y}" and "{u}" (set by `initialize` from the data).
   void set_units(std::string output_unit, std::string input_unit) {
     y_unit_ = std::move(output_unit);
@@ -547,6 +570,7 @@ class GreyBox {
   IntegratorOptions integrator_;
   bool initialized_ = false;
   std::string y_unit_, u_unit_;
+  std::vector<std::string> input_names_, output_names_;
   std::vector<Eigen::VectorXd> initial_states_;
   Eigen::Index initial_state_window_ = 2000;
 };
