@@ -1,11 +1,13 @@
 // nlid-sim: free-run simulation of a saved model on an input recording.
 //
 //   nlid-sim --model model.json --input u.csv [--x0 zero|equilibrium] [--column u]
-//            [--time t] [--ts T] [--delimiter C] [--decimal C] --out y.csv
+//            [--decimate N] [--time t] [--ts T] [--delimiter C] [--decimal C] --out y.csv
 //
 // The input CSV has a time column t (or --ts) and the model's input column (its name from the
 // model file, or --column); other columns are ignored. --delimiter and --decimal read files
-// written with other separators (record_options.hpp). The output CSV has columns t,y (the
+// written with other separators (record_options.hpp). --decimate N filters and keeps every N-th
+// input sample as nlid-fit does, so a model fitted with `nlid-fit --decimate N` runs on the same
+// raw recordings. The output CSV has columns t,y (the
 // model's output name is not used so that scripts can rely on "y"). Exit status 0 on success,
 // 1 on a user error (bad file, missing column, sample-time mismatch — the message says which),
 // 2 on bad usage.
@@ -17,6 +19,7 @@
 #include "nlid/core/atomic_file.hpp"
 #include "nlid/core/error.hpp"
 #include "nlid/data/csv.hpp"
+#include "nlid/data/resample.hpp"
 #include "nlid/models/any_model.hpp"
 #include "nlid/models/spec.hpp"
 #include "record_options.hpp"
@@ -24,13 +27,15 @@
 namespace {
 constexpr const char* kUsageHead =
     "usage: nlid-sim --model model.json --input u.csv [--x0 zero|equilibrium] [--column NAME]\n"
-    "                [--time t] [--ts T] [--delimiter C] [--decimal C] --out y.csv\n"
+    "                [--decimate N] [--time t] [--ts T] [--delimiter C] [--decimal C] --out y.csv\n"
+    "  --decimate N     anti-alias filter the input and keep every N-th sample (as nlid-fit --decimate)\n"
     "Reading the input CSV file:\n";
 std::string usage_text() { return std::string(kUsageHead) + nlid_tools::record_usage; }
 }
 
 int main(int argc, char** argv) {
   std::string model, input, out, x0 = "zero", column;
+  int decimate = 1;
   nlid_tools::RecordOptions record;
   for (int i = 1; i < argc; ++i) {
     const std::string k = argv[i];
@@ -48,6 +53,20 @@ int main(int argc, char** argv) {
     else if (k == "--out") out = v;
     else if (k == "--x0") x0 = v;
     else if (k == "--column") column = v;
+    else if (k == "--decimate") {
+      std::size_t pos = 0;
+      long n = 0;
+      try {
+        n = std::stol(v, &pos);
+      } catch (...) {
+        pos = 0;
+      }
+      if (v.empty() || pos != v.size() || n < 1 || n > 1000000) {
+        std::cerr << "nlid-sim: --decimate needs an integer from 1 to 1000000, got '" << v << "'\n";
+        return 2;
+      }
+      decimate = static_cast<int>(n);
+    }
     else if (k == "--time" || k == "--ts" || k == "--delimiter" || k == "--decimal") {
       try {
         nlid_tools::parse_record_option(k, v, record);
@@ -84,14 +103,27 @@ int main(int argc, char** argv) {
     const auto names = m.input_names();
     o.inputs = {!column.empty() ? column : (!names.empty() && !names[0].empty() ? names[0] : std::string("u"))};
     o.outputs = {};
-    const nlid::Experiment e = nlid::read_csv(input, o);
+    nlid::Experiment e = nlid::read_csv(input, o);
+    if (decimate > 1) {
+      // decimate() filters every channel; the file has no output here, so give it a zero one.
+      nlid::Experiment with_y(e.u(), Eigen::MatrixXd::Zero(e.size(), 1), e.ts());
+      with_y.set_t0(e.t0());
+      with_y.set_input_names(e.input_names());
+      e = nlid::decimate(with_y, decimate);
+    }
     if (m.ts() > 0 && std::abs(e.ts() - m.ts()) > 1e-6 * m.ts()) {
       // %.10g, not std::to_string's six decimals, which print 20 µs as "0.000020" for both sides
       char buf[192];
       std::snprintf(buf, sizeof buf, " has sample time %.10g s but the model %.10g s (relative difference %.3g)",
                     e.ts(), m.ts(), std::abs(e.ts() - m.ts()) / m.ts());
-      throw nlid::Error("sample-time mismatch: " + input + std::string(buf) + "; the model is " + model +
-                        " - resample the data or re-estimate the model");
+      std::string hint = "resample the data or re-estimate the model";
+      const double ratio = m.ts() / e.ts();
+      const double whole = std::round(ratio);
+      if (whole >= 2 && std::abs(ratio - whole) < 1e-6 * ratio)
+        hint = "the model's sample time is " + std::to_string(static_cast<long>(whole) * decimate) +
+               " times the file's: use --decimate " + std::to_string(static_cast<long>(whole) * decimate);
+      throw nlid::Error("sample-time mismatch: " + input + (decimate > 1 ? " decimated by " + std::to_string(decimate) : "") +
+                        std::string(buf) + "; the model is " + model + " - " + hint);
     }
     // A free run: the simulation needs no output; give it a zero column of the right size.
     const nlid::Experiment run(e.u(), Eigen::MatrixXd::Zero(e.size(), 1), e.ts());
