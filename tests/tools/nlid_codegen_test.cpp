@@ -1,0 +1,240 @@
+// nlid-codegen end to end, as a user deploying a model: nlid-fit saves a model, nlid-codegen
+// writes C for it, the C is compiled with the system compiler (warnings are errors) and run on a
+// recording's input; its outputs must equal nlid-sim's on the same file to 1e-12 relative (the
+// generated code performs nlid's operations in nlid's order). Every model family the tool
+// generates goes through this, from the zero state and from an equilibrium; the errors it
+// promises (kinds it does not generate, a grey box without --ts, bad options) are checked.
+// Also here: the channel names and --decimate that make nlid-fit → nlid-sim work for every family.
+#include <catch2/catch.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "tool_runner.hpp"
+
+namespace fs = std::filesystem;
+using tool_test::q;
+using tool_test::Run;
+using tool_test::slurp;
+using tool_test::work_dir;
+using tool_test::write_record;
+
+namespace {
+
+Run fit(const std::string& args) { return tool_test::run_tool(NLID_FIT_EXE, args); }
+Run sim(const std::string& args) { return tool_test::run_tool(NLID_SIM_EXE, args); }
+Run codegen(const std::string& args) { return tool_test::run_tool(NLID_CODEGEN_EXE, args); }
+
+std::vector<double> csv_column(const fs::path& p, int col) {
+  std::ifstream f(p);
+  std::string line;
+  std::getline(f, line);
+  std::vector<double> v;
+  while (std::getline(f, line)) {
+    std::stringstream s(line);
+    std::string cell;
+    for (int c = 0; c <= col; ++c) std::getline(s, cell, ',');
+    v.push_back(std::stod(cell));
+  }
+  return v;
+}
+
+// Compiles DIR/NAME.c with a driver that steps the model over the inputs in u.txt (one per
+// line) from NAME_init and prints the outputs; returns them.
+std::vector<double> run_generated(const fs::path& dir, const std::string& name, const std::vector<double>& u) {
+  {
+    std::ofstream f(dir / "u.txt");
+    f.precision(17);
+    for (double v : u) f << v << "\n";
+  }
+  {
+    std::ofstream d(dir / (name + "_driver.c"));
+    d << "#include <stdio.h>\n#include \"" << name << ".h\"\n"
+      << "int main(int argc, char** argv) {\n"
+      << "  " << name << "_state s;\n  double u[1], y[1];\n  FILE* f = fopen(argv[1], \"r\");\n"
+      << "  (void)argc;\n  if (!f) return 1;\n  " << name << "_init(&s);\n"
+      << "  while (fscanf(f, \"%lf\", &u[0]) == 1) {\n    " << name << "_step(&s, u, y);\n"
+      << "    printf(\"%.17g\\n\", y[0]);\n  }\n  fclose(f);\n  return 0;\n}\n";
+  }
+  const std::string exe = (dir / (name + "_run")).string();
+  // -ffp-contract=off: the bitwise agreement needs the same roundings as nlid (docs/codegen.md).
+  const std::string cmd = "cc -std=c99 -O2 -ffp-contract=off -Wall -Wextra -pedantic -Werror -o \"" + exe + "\" \"" +
+                          (dir / (name + "_driver.c")).string() + "\" \"" + (dir / (name + ".c")).string() + "\" -lm 2>\"" +
+                          (dir / "cc.txt").string() + "\"";
+  if (std::system(cmd.c_str()) != 0) FAIL("generated code does not compile:\n" << slurp(dir / "cc.txt"));
+  REQUIRE(std::system(("\"" + exe + "\" \"" + (dir / "u.txt").string() + "\" > \"" + (dir / "y.txt").string() + "\"").c_str()) == 0);
+  std::vector<double> y;
+  std::ifstream f(dir / "y.txt");
+  for (double v; f >> v;) y.push_back(v);
+  return y;
+}
+
+double max_relative_gap(const std::vector<double>& a, const std::vector<double>& b) {
+  double gap = 0, scale = 1;
+  for (std::size_t k = 0; k < std::min(a.size(), b.size()); ++k) {
+    gap = std::max(gap, std::abs(a[k] - b[k]));
+    scale = std::max(scale, std::abs(b[k]));
+  }
+  return gap / scale;
+}
+
+bool pure_ascii(const std::string& s) {
+  return std::all_of(s.begin(), s.end(), [](char c) { return static_cast<unsigned char>(c) < 0x80; });
+}
+
+}  // namespace
+
+TEST_CASE("nlid-codegen: C from nlid-fit's model files reproduces nlid-sim for every generated family",
+          "[tools][codegen]") {
+  const fs::path est = write_record("cg_est", 1200, 71u, 1), val = write_record("cg_val", 600, 72u, 1);
+  const std::vector<double> u = csv_column(val, 1);
+  struct Case {
+    const char* name;
+    const char* spec;
+    const char* codegen_options;
+  };
+  // Small structures and few iterations: the point is the code, not the fit. treepartition
+  // branches on the regressors (its leaf choice becomes if/else on signals); the grey box is
+  // continuous and needs --ts.
+  const Case cases[] = {
+      {"cg_sigmoid", "nlarx:na=2,nb=2,nk=1:sigmoidnet:units=3", ""},
+      {"cg_tree", "nlarx:na=1,nb=1,nk=1:treepartition:depth=2", ""},
+      {"cg_hw", "hw:nb=2,nf=2,nk=1:in=pwlinear:4:out=saturation", ""},
+      {"cg_wh", "wh:nb=2,nf=1,nk=1:poly1d:3:nb=1,nf=1,nk=0", ""},
+      {"cg_grey", "greybox:first_order", "--ts 0.01"},
+  };
+  for (const Case& c : cases) {
+    DYNAMIC_SECTION(c.spec) {
+      const fs::path dir = work_dir() / c.name;
+      fs::create_directories(dir);
+      const fs::path model = dir / (std::string(c.name) + ".json");
+      const Run f = fit("--model " + std::string(c.spec) + " --est " + q(est) + " --iterations 4 --save " + q(model));
+      INFO(f.err);
+      REQUIRE(f.code == 0);
+
+      // From the zero state: nlid-sim --x0 zero.
+      const Run g = codegen("--model " + q(model) + " --out " + q(dir) + " " + c.codegen_options);
+      INFO(g.err);
+      REQUIRE(g.code == 0);
+      CHECK_THAT(g.out, Catch::Contains(std::string(c.name) + ".c"));
+      const std::string header = slurp(dir / (std::string(c.name) + ".h")), source = slurp(dir / (std::string(c.name) + ".c"));
+      CHECK(pure_ascii(header));
+      CHECK(pure_ascii(source));
+      const fs::path simulated = dir / "sim.csv";
+      const Run s = sim("--model " + q(model) + " --input " + q(val) + " --out " + q(simulated));
+      INFO(s.err);
+      REQUIRE(s.code == 0);
+      const std::vector<double> y_nlid = csv_column(simulated, 1);
+      const std::vector<double> y_c = run_generated(dir, c.name, u);
+      REQUIRE(y_c.size() == y_nlid.size());
+      CHECK(max_relative_gap(y_c, y_nlid) <= 1e-12);
+
+      // From the equilibrium of the record's first input: nlid-sim --x0 equilibrium.
+      char u0[64];
+      std::snprintf(u0, sizeof u0, "%.17g", u[0]);
+      const Run ge = codegen("--model " + q(model) + " --out " + q(dir) + " --name eq_model --x0 equilibrium --u0 " + u0 +
+                             " " + c.codegen_options);
+      INFO(ge.err);
+      REQUIRE(ge.code == 0);
+      const Run se = sim("--model " + q(model) + " --input " + q(val) + " --x0 equilibrium --out " + q(simulated));
+      INFO(se.err);
+      REQUIRE(se.code == 0);
+      const std::vector<double> ye_nlid = csv_column(simulated, 1), ye_c = run_generated(dir, "eq_model", u);
+      REQUIRE(ye_c.size() == ye_nlid.size());
+      CHECK(max_relative_gap(ye_c, ye_nlid) <= 1e-12);
+      // Started in equilibrium, the first output is the steady output, not the zero-state one.
+      CHECK(std::abs(ye_c[0] - y_c[0]) > 1e-6);
+    }
+  }
+}
+
+TEST_CASE("nlid-codegen: kinds it does not generate, a grey box without --ts and bad options are reported",
+          "[tools][codegen]") {
+  const fs::path est = write_record("cg_bad_est", 800, 73u, 1);
+  const fs::path dir = work_dir() / "cg_bad";
+  fs::create_directories(dir);
+  const fs::path oe = dir / "oe.json", grey = dir / "grey.json", nlarx = dir / "lin.json";
+  REQUIRE(fit("--model linear:oe:nb=1,nf=1,nk=1 --est " + q(est) + " --save " + q(oe)).code == 0);
+  REQUIRE(fit("--model greybox:first_order --est " + q(est) + " --iterations 2 --save " + q(grey)).code == 0);
+  REQUIRE(fit("--model nlarx:na=1,nb=1,nk=1:linear --est " + q(est) + " --save " + q(nlarx)).code == 0);
+
+  Run r = codegen("--model " + q(oe) + " --out " + q(dir));
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("models of kind 'output_error' are not generated") &&
+                        Catch::Contains("nlarx, hammerstein_wiener, series, greybox"));
+  r = codegen("--model " + q(grey) + " --out " + q(dir));
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("grey-box model is continuous") && Catch::Contains("--ts"));
+  r = codegen("--model " + q(nlarx) + " --out " + q(dir) + " --ts 0.02");
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("--ts 0.02 s differs from the model's sample time 0.01 s"));
+  r = codegen("--model " + q(nlarx) + " --out " + q(dir) + " --name 9lives");
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("name '9lives' is not a C identifier"));
+  r = codegen("--model " + q(nlarx) + " --out " + q(dir / "missing"));
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("output directory") && Catch::Contains("does not exist"));
+  r = codegen("--model " + q(nlarx) + " --out " + q(dir) + " --u0 0.5");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("--u0 sets the input of --x0 equilibrium"));
+  r = codegen("--model " + q(nlarx) + " --out " + q(dir) + " --x0 steady");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("--x0 must be zero or equilibrium"));
+  r = codegen("--model " + q(nlarx) + " --out " + q(dir) + " --substeps 0");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("--substeps needs an integer from 1"));
+  r = codegen("--model " + q(dir / "nope.json") + " --out " + q(dir));
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("nope.json"));
+  // The default name comes from the file's stem, made a C identifier.
+  fs::copy_file(nlarx, dir / "throttle-v2.json", fs::copy_options::overwrite_existing);
+  r = codegen("--model " + q(dir / "throttle-v2.json") + " --out " + q(dir));
+  CHECK(r.code == 0);
+  CHECK(fs::exists(dir / "throttle_v2.c"));
+  CHECK_THAT(slurp(dir / "throttle_v2.h"), Catch::Contains("void throttle_v2_step(throttle_v2_state* s"));
+}
+
+TEST_CASE("nlid-fit -> nlid-sim: every family keeps the data's channel names, and --decimate matches nlid-fit's",
+          "[tools][sim]") {
+  // Before, grey-box and output-error files named their channels u1/y1 whatever the data said,
+  // so nlid-sim looked for a column 'u1' that the recording does not have.
+  const fs::path est = write_record("names_est", 800, 74u, 1, true, "angle");
+  const fs::path dir = work_dir() / "names";
+  fs::create_directories(dir);
+  for (const char* spec : {"greybox:first_order", "linear:oe:nb=1,nf=1,nk=1", "linear:arx:na=1,nb=1,nk=1"}) {
+    INFO(spec);
+    const fs::path model = dir / "m.json";
+    const Run f = fit("--model " + std::string(spec) + " --est " + q(est) + " --output angle --iterations 2 --save " + q(model));
+    INFO(f.err);
+    REQUIRE(f.code == 0);
+    const std::string text = slurp(model);
+    CHECK_THAT(text, Catch::Contains("\"name\": \"u\"") && Catch::Contains("\"name\": \"angle\""));
+    const Run s = sim("--model " + q(model) + " --input " + q(est) + " --out " + q(dir / "y.csv"));
+    INFO(s.err);
+    CHECK(s.code == 0);
+  }
+
+  // A 1 kHz record fitted at 100 Hz (nlid-fit --decimate 10) runs in nlid-sim on the same raw
+  // file with --decimate 10; without it the message names the option.
+  const fs::path raw = write_record("raw_1k", 6000, 75u, 10, true, "y", 0.001);
+  const fs::path model = dir / "dec.json";
+  REQUIRE(fit("--model nlarx:na=1,nb=1,nk=1:linear --est " + q(raw) + " --decimate 10 --save " + q(model)).code == 0);
+  Run s = sim("--model " + q(model) + " --input " + q(raw) + " --out " + q(dir / "dec.csv"));
+  CHECK(s.code == 1);
+  CHECK_THAT(s.err, Catch::Contains("sample-time mismatch") && Catch::Contains("use --decimate 10"));
+  s = sim("--model " + q(model) + " --input " + q(raw) + " --decimate 10 --out " + q(dir / "dec.csv"));
+  INFO(s.err);
+  REQUIRE(s.code == 0);
+  const std::vector<double> t = csv_column(dir / "dec.csv", 0);
+  REQUIRE(t.size() == 600);
+  CHECK(t[1] - t[0] == Approx(0.01));
+  s = sim("--model " + q(model) + " --input " + q(raw) + " --decimate 0 --out " + q(dir / "dec.csv"));
+  CHECK(s.code == 2);
+  CHECK_THAT(s.err, Catch::Contains("--decimate needs an integer from 1"));
+}
