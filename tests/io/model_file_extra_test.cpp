@@ -13,6 +13,7 @@
 
 #include "nlid/io/augmented_serial.hpp"
 #include "nlid/io/series_serial.hpp"
+#include "nlid/models/spec.hpp"  // nlid-fit's specs: must coexist with the series serialiser
 #include "nlid/models/physics/catalogue.hpp"
 
 #include "../support/scratch_dir.hpp"
@@ -113,5 +114,45 @@ TEST_CASE("model file: series chains (Wiener-Hammerstein) load at run time and t
     FAIL("a chain of another pattern was accepted");
   } catch (const Error& err) {
     CHECK_THAT(err.what(), Catch::Contains("the file's chain is LNL") && Catch::Contains("this model's is LN"));
+  }
+}
+
+TEST_CASE("model file: one series layout - blocks as their own objects, the older wrapped layout still read") {
+  // Until 2026-11-25 nlid-fit (models/spec.hpp) and io/series_serial.hpp wrote kind "series" in two
+  // layouts and could not be included together; this file includes both.
+  using L = TransferFunctionBlock<Dynamic, Dynamic, Dynamic>;
+  DynamicWienerHammerstein wh(L(2, 1, 0), AnyNonlinearity(Poly1d<Dynamic>(2)), L(1, 1, 0), 0.01);
+  Eigen::VectorXd th(wh.num_parameters());
+  th << 0.5, 0.2, -0.6, 0.1, 1.0, 0.3, 0.7, -0.5;
+  wh.set_parameters(th);
+  wh.set_channel_names("u", "y");
+  const std::string p = temp_path("wh_layout.json");
+  save_model(p, wh);
+  std::string text = read_file(p);
+  CHECK_THAT(text, Catch::Contains("\"type\": \"transfer_function\""));
+  CHECK_THAT(text, !Catch::Contains("\"linear\": {"));
+  const Experiment e = steps(300, 0.01);
+  const Eigen::MatrixXd reference = wh.simulate(e, InitialCondition::zero);
+
+  // The first layout: {"linear": {...}} and {"nonlinearity": {...}} around each block.
+  Json j = Json::parse(text);
+  Json::Array wrapped;
+  const std::vector<const char*> keys{"linear", "nonlinearity", "linear"};
+  for (std::size_t k = 0; k < 3; ++k) wrapped.push_back(Json::object({{keys[k], j["structure"]["blocks"][k]}}));
+  j["structure"]["blocks"] = Json(std::move(wrapped));
+  const std::string old = temp_path("wh_wrapped.json");
+  write_file_atomically(old, j.dump());
+  CHECK(bit_equal(load_model(old).simulate(e, InitialCondition::zero), reference));
+
+  // A static block where the chain needs a linear one is named.
+  Json bad = Json::parse(text);
+  bad["structure"]["blocks"][0] = bad["structure"]["blocks"][1];
+  const std::string badp = temp_path("wh_bad.json");
+  write_file_atomically(badp, bad.dump());
+  try {
+    (void)load_model(badp);
+    FAIL("a static block in a linear position was accepted");
+  } catch (const Error& err) {
+    CHECK_THAT(err.what(), Catch::Contains("structure.blocks[0]") && Catch::Contains("must be linear"));
   }
 }
