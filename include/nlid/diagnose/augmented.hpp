@@ -132,6 +132,21 @@ class AugmentedModel {
     y_unit_ = std::move(output_unit);
     u_unit_ = std::move(input_unit);
   }
+  /// Input channel names (the data's, one per physics input; empty if unknown).
+  [[nodiscard]] const std::vector<std::string>& input_names() const { return input_names_; }
+  /// Output channel names (one; empty if unknown).
+  [[nodiscard]] const std::vector<std::string>& output_names() const { return output_names_; }
+  /// Sets the channel names (from the estimation data or a model file). Throws `nlid::Error`
+  /// naming "input_names"/"output_names" if a non-empty list has the wrong length.
+  void set_channel_names(std::vector<std::string> inputs, std::vector<std::string> outputs) {
+    require(inputs.empty() || static_cast<int>(inputs.size()) == detail::physics_inputs(phys_),
+            "augmented model: " + std::to_string(inputs.size()) + " input names for " +
+                std::to_string(detail::physics_inputs(phys_)) + " input(s)",
+            at_parameter("input_names"));
+    require(outputs.size() <= 1, "augmented model: one output name (or none)", at_parameter("output_names"));
+    input_names_ = std::move(inputs);
+    output_names_ = std::move(outputs);
+  }
   /// Output unit ("" if unknown).
   [[nodiscard]] const std::string& output_unit() const { return y_unit_; }
   /// Input unit ("" if unknown).
@@ -151,6 +166,41 @@ class AugmentedModel {
 
   /// Sub-steps per sample at parameter values `theta` (see the file comment).
   [[nodiscard]] int substeps(const double* theta, const double* x0, const double* u0) const;
+
+  // ---- one sample, piece by piece ----------------------------------------------------------
+  // `simulate` is built from these members; the C generator (codegen/augmented.hpp) traces
+  // them, so the generated step performs the same operations in the same order.
+
+  /// Whole samples m of the dead time at parameter values `theta` (0 without a dead time):
+  /// u_e(k) interpolates between u(k − m) and u(k − m − 1).
+  [[nodiscard]] int dead_time_samples(const double* theta) const;
+  /// True if the input chain has a dead time.
+  [[nodiscard]] bool has_dead_time() const {
+    return std::any_of(input_chain_.begin(), input_chain_.end(),
+                       [&](int i) { return effects_[static_cast<std::size_t>(i)].kind == EffectKind::dead_time; });
+  }
+  /// True if the actuator-lag state w follows the chain output (else w stays 0 and the physics
+  /// reads the chain output directly).
+  [[nodiscard]] bool has_actuator_lag() const { return lag_ >= 0; }
+  /// True if the Dahl friction state is carried (Coulomb friction).
+  [[nodiscard]] bool has_coulomb_friction() const { return coulomb_ >= 0; }
+  /// The input chain u_e(k) from the raw input u(k) and the delayed samples u(k − m),
+  /// u(k − m − 1) (`m = dead_time_samples`; before the record starts they are u(0)).
+  template <class T>
+  [[nodiscard]] T input_chain(const T* theta, const T& u_k, const T& u_km, const T& u_km1, int m) const;
+  /// [ẋ; ẇ] at s = [x; w] with the chain output `u_static` held and Dahl state `fric`; `uin`
+  /// is the physics' input vector (entries 1… set by the caller, entry 0 set here).
+  template <class T>
+  void augmented_derivative(const T* s, const T& u_static, const T& fric, const T* theta, T* uin, T* ds) const;
+  /// ŷ(k) at the state X = [x; w]: the physics output (entry 0) through the output chain. `play`
+  /// is the backlash state; on the `first` sample it starts at the physics output. `uin` and
+  /// `yb` are scratch of the physics' input and output sizes (uin entries 1… set by the caller).
+  template <class T>
+  [[nodiscard]] T output_at(const T* X, const T& u_static, const T* theta, T* uin, T* yb, T& play, bool first) const;
+  /// The Dahl friction state after a sub-step that moved the position by `dq` (exact update,
+  /// effects.hpp); unchanged for dq = 0.
+  template <class T>
+  [[nodiscard]] T friction_after(const T& fric, const T& dq) const;
 
   /// Core free-run simulation on scalar T (double or Dual<double, 8>): inputs `u` (N × n_u),
   /// parameters `theta` (num_parameters()), baseline initial state `x0` (n_x); writes N outputs
@@ -199,6 +249,7 @@ class AugmentedModel {
   double ts_ = 1.0;
   IntegratorOptions integ_;
   std::string y_unit_, u_unit_;
+  std::vector<std::string> input_names_, output_names_;
   // Indices into effects_ by site, in the fixed chain order.
   std::vector<int> input_chain_, mech_, output_chain_;
   std::vector<char> upper_;  // per effect: the one-sided variant is "upper" (no string compare per sample)
@@ -425,12 +476,6 @@ template <Physics P>
 template <class T>
 Eigen::Index AugmentedModel<P>::simulate(const Eigen::MatrixXd& u, const T* theta, const T* x0, T* y,
                                          T* states) const {
-  using std::abs;
-  using std::exp;
-  using std::floor;
-  using std::max;
-  using std::min;
-  using std::tanh;
   // Continuous state [x; w]: fixed-size (stack, no heap) for a static physics. The actuator
   // state w is always carried (ẇ = 0 without the lag effect) so the size never changes.
   constexpr int NC = P::num_states == Dynamic ? Eigen::Dynamic : P::num_states + 1;
@@ -439,7 +484,6 @@ Eigen::Index AugmentedModel<P>::simulate(const Eigen::MatrixXd& u, const T* thet
             ny = detail::physics_outputs(phys_);
   const Eigen::Index n = u.rows();
   if (n == 0) return 0;
-  const bool has_lag = lag_ >= 0;
   const int nc = nx + 1;
 
   // Sub-steps from the value parts (identical for double and Dual runs).
@@ -450,126 +494,168 @@ Eigen::Index AugmentedModel<P>::simulate(const Eigen::MatrixXd& u, const T* thet
   for (int j = 0; j < nu; ++j) u0v[static_cast<std::size_t>(j)] = u(0, j);
   const int sub = std::max(1, substeps(thv.data(), x0v.data(), u0v.data()));
   const double hs = ts_ / sub;
+  const int m = dead_time_samples(thv.data());
 
   // Input chain value of sample k (before the actuator lag).
-  const T* const th = theta;
   auto input_at = [&](Eigen::Index k) -> T {
-    T v = T(u(k, 0));
-    for (int i : input_chain_) {
-      const Effect& e = effects_[static_cast<std::size_t>(i)];
-      const T* q = th + offsets_[static_cast<std::size_t>(i)];
-      switch (e.kind) {
-        case EffectKind::dead_time: {
-          const T d = q[0] / T(ts_);
-          const double dv = static_cast<double>(value_of(d));
-          const auto m = static_cast<Eigen::Index>(std::floor(dv));
-          const T alpha = d - T(static_cast<double>(m));
-          const Eigen::Index k1 = std::max<Eigen::Index>(0, k - m), k2 = std::max<Eigen::Index>(0, k - m - 1);
-          v = (T(1) - alpha) * T(u(k1, 0)) + alpha * T(u(k2, 0));
-          break;
-        }
-        case EffectKind::input_offset: v = v + q[0]; break;
-        case EffectKind::input_deadzone: v = v - min(max(v, T(-q[0])), q[0]); break;
-        case EffectKind::input_saturation:
-          v = upper_[static_cast<std::size_t>(i)] ? min(v, q[0]) : max(v, q[0]);
-          break;
-        default: break;
-      }
-    }
-    return v;
+    const Eigen::Index k1 = std::max<Eigen::Index>(0, k - m), k2 = std::max<Eigen::Index>(0, k - m - 1);
+    return input_chain(theta, T(u(k, 0)), T(u(k1, 0)), T(u(k2, 0)), m);
   };
 
-  const T* p = theta;  // baseline parameters come first
   std::vector<T> uin(static_cast<std::size_t>(std::max(nu, 1)));
   std::vector<T> yb(static_cast<std::size_t>(ny));
   T u_static = T(0);   // chain output held over the interval
   T fric = T(0);       // Dahl state s ∈ [−1, 1]
   State X(nc);
   for (int i = 0; i < nx; ++i) X[i] = x0[i];
-  X[nx] = has_lag ? input_at(0) : T(0);
-  const int qi = roles_.position, vi = roles_.velocity;
+  X[nx] = has_actuator_lag() ? input_at(0) : T(0);
+  const int qi = roles_.position;
 
-  auto rhs = [&](const State& s, State& ds) {
-    // Input seen by the physics: the lag state, or the held chain output.
-    uin[0] = has_lag ? s[nx] : u_static;
-    phys_.derivative(s.data(), uin.data(), p, ds.data());
-    if (!mech_.empty()) {
-      const T& q = s[qi];
-      const T& v = s[vi];
-      T a = T(0);
-      for (int i : mech_) {
-        const Effect& e = effects_[static_cast<std::size_t>(i)];
-        const T* c = th + offsets_[static_cast<std::size_t>(i)];
-        switch (e.kind) {
-          case EffectKind::coulomb_friction: a -= c[0] * fric; break;
-          case EffectKind::viscous_friction: a -= c[0] * v; break;
-          case EffectKind::quadratic_drag: a -= c[0] * v * abs(v); break;
-          case EffectKind::cubic_stiffness: {
-            const T d = q - c[1];
-            a -= c[0] * d * d * d;
-            break;
-          }
-          case EffectKind::hard_stop:
-            if (upper_[static_cast<std::size_t>(i)]) a -= c[1] * max(q - c[0], T(0));
-            else a += c[1] * max(c[0] - q, T(0));
-            break;
-          case EffectKind::preload: a -= c[0] * tanh((q - c[1]) / T(e.width)); break;
-          default: break;
-        }
-      }
-      ds[vi] += a;
-    }
-    ds[nx] = has_lag ? T((u_static - s[nx]) / th[offsets_[static_cast<std::size_t>(lag_)]]) : T(0);
-  };
+  auto rhs = [&](const State& s, State& ds) { augmented_derivative(s.data(), u_static, fric, theta, uin.data(), ds.data()); };
 
   Rk4Stepper<State> rk4;
   T z = T(0);  // play state
-  const double delta = coulomb_ >= 0 ? effects_[static_cast<std::size_t>(coulomb_)].width : 1.0;
   for (Eigen::Index k = 0; k < n; ++k) {
     u_static = input_at(k);
     for (int j = 1; j < nu; ++j) uin[static_cast<std::size_t>(j)] = T(u(k, j));
-    uin[0] = has_lag ? X[nx] : u_static;
-    phys_.output(X.data(), uin.data(), p, yb.data());
-    T yk = yb[0];
-    for (int i : output_chain_) {
-      const Effect& e = effects_[static_cast<std::size_t>(i)];
-      const T* c = th + offsets_[static_cast<std::size_t>(i)];
-      switch (e.kind) {
-        case EffectKind::backlash: {
-          const T half = T(0.5) * c[0];
-          if (k == 0) z = yk;
-          z = min(max(z, yk - half), yk + half);
-          yk = z;
-          break;
-        }
-        case EffectKind::output_saturation:
-          yk = upper_[static_cast<std::size_t>(i)] ? min(yk, c[0]) : max(yk, c[0]);
-          break;
-        case EffectKind::output_offset: yk = yk + c[0]; break;
-        default: break;
-      }
-    }
+    const T yk = output_at(X.data(), u_static, theta, uin.data(), yb.data(), z, k == 0);
     if (!std::isfinite(static_cast<double>(value_of(yk)))) return k;
     y[k] = yk;
     if (states)
       for (int i = 0; i < nx; ++i) states[k * nx + i] = X[i];
     if (k + 1 == n) break;
     for (int s = 0; s < sub; ++s) {
-      const T q_before = coulomb_ >= 0 ? X[qi] : T(0);
+      const T q_before = has_coulomb_friction() ? X[qi] : T(0);
       rk4.step(rhs, X, hs);
-      if (coulomb_ >= 0) {
-        // Exact Dahl update over the sub-step's displacement (effects.hpp).
-        const T dq = X[qi] - q_before;
-        const double dqv = static_cast<double>(value_of(dq));
-        if (dqv != 0.0) {
-          const double sg = dqv > 0.0 ? 1.0 : -1.0;
-          fric = T(sg) + (fric - T(sg)) * exp(-abs(dq) / T(delta));
-        }
-      }
+      if (has_coulomb_friction()) fric = friction_after(fric, T(X[qi] - q_before));
     }
     if (!detail::values_finite(X)) return k + 1;
   }
   return n;
+}
+
+template <Physics P>
+int AugmentedModel<P>::dead_time_samples(const double* theta) const {
+  for (int i : input_chain_) {
+    const Effect& e = effects_[static_cast<std::size_t>(i)];
+    if (e.kind == EffectKind::dead_time)
+      return static_cast<int>(std::floor(theta[offsets_[static_cast<std::size_t>(i)]] / ts_));
+  }
+  return 0;
+}
+
+template <Physics P>
+template <class T>
+T AugmentedModel<P>::input_chain(const T* theta, const T& u_k, const T& u_km, const T& u_km1, int m) const {
+  using std::max;
+  using std::min;
+  T v = u_k;
+  for (int i : input_chain_) {
+    const Effect& e = effects_[static_cast<std::size_t>(i)];
+    const T* q = theta + offsets_[static_cast<std::size_t>(i)];
+    switch (e.kind) {
+      case EffectKind::dead_time: {
+        const T d = q[0] / T(ts_);
+        const T alpha = d - T(static_cast<double>(m));
+        v = (T(1) - alpha) * u_km + alpha * u_km1;
+        break;
+      }
+      case EffectKind::input_offset: v = v + q[0]; break;
+      case EffectKind::input_deadzone: v = v - min(max(v, T(-q[0])), q[0]); break;
+      case EffectKind::input_saturation:
+        v = upper_[static_cast<std::size_t>(i)] ? min(v, q[0]) : max(v, q[0]);
+        break;
+      default: break;
+    }
+  }
+  return v;
+}
+
+template <Physics P>
+template <class T>
+void AugmentedModel<P>::augmented_derivative(const T* s, const T& u_static, const T& fric, const T* theta, T* uin,
+                                             T* ds) const {
+  using std::abs;
+  using std::max;
+  using std::tanh;
+  const int nx = detail::physics_states(phys_);
+  const bool has_lag = lag_ >= 0;
+  // Input seen by the physics: the lag state, or the held chain output.
+  uin[0] = has_lag ? s[nx] : u_static;
+  phys_.derivative(s, uin, theta, ds);  // baseline parameters come first in θ
+  if (!mech_.empty()) {
+    const T& q = s[roles_.position];
+    const T& v = s[roles_.velocity];
+    T a = T(0);
+    for (int i : mech_) {
+      const Effect& e = effects_[static_cast<std::size_t>(i)];
+      const T* c = theta + offsets_[static_cast<std::size_t>(i)];
+      switch (e.kind) {
+        case EffectKind::coulomb_friction: a -= c[0] * fric; break;
+        case EffectKind::viscous_friction: a -= c[0] * v; break;
+        case EffectKind::quadratic_drag: a -= c[0] * v * abs(v); break;
+        case EffectKind::cubic_stiffness: {
+          const T d = q - c[1];
+          a -= c[0] * d * d * d;
+          break;
+        }
+        case EffectKind::hard_stop:
+          if (upper_[static_cast<std::size_t>(i)]) a -= c[1] * max(q - c[0], T(0));
+          else a += c[1] * max(c[0] - q, T(0));
+          break;
+        case EffectKind::preload: a -= c[0] * tanh((q - c[1]) / T(e.width)); break;
+        default: break;
+      }
+    }
+    ds[roles_.velocity] += a;
+  }
+  ds[nx] = has_lag ? T((u_static - s[nx]) / theta[offsets_[static_cast<std::size_t>(lag_)]]) : T(0);
+}
+
+template <Physics P>
+template <class T>
+T AugmentedModel<P>::output_at(const T* X, const T& u_static, const T* theta, T* uin, T* yb, T& play, bool first) const {
+  using std::max;
+  using std::min;
+  const int nx = detail::physics_states(phys_);
+  uin[0] = lag_ >= 0 ? X[nx] : u_static;
+  phys_.output(X, uin, theta, yb);
+  T yk = yb[0];
+  for (int i : output_chain_) {
+    const Effect& e = effects_[static_cast<std::size_t>(i)];
+    const T* c = theta + offsets_[static_cast<std::size_t>(i)];
+    switch (e.kind) {
+      case EffectKind::backlash: {
+        const T half = T(0.5) * c[0];
+        if (first) play = yk;
+        play = min(max(play, yk - half), yk + half);
+        yk = play;
+        break;
+      }
+      case EffectKind::output_saturation:
+        yk = upper_[static_cast<std::size_t>(i)] ? min(yk, c[0]) : max(yk, c[0]);
+        break;
+      case EffectKind::output_offset: yk = yk + c[0]; break;
+      default: break;
+    }
+  }
+  return yk;
+}
+
+template <Physics P>
+template <class T>
+T AugmentedModel<P>::friction_after(const T& fric, const T& dq) const {
+  using std::abs;
+  using std::exp;
+  const double delta = coulomb_ >= 0 ? effects_[static_cast<std::size_t>(coulomb_)].width : 1.0;
+  // Compared on the value part: for double and Dual a double, for the code generator's tracer
+  // the traced value itself, so the generated code branches on the signal.
+  const auto dqv = value_of(dq);
+  if (dqv != 0.0) {
+    const double sg = dqv > 0.0 ? 1.0 : -1.0;
+    return T(sg) + (fric - T(sg)) * exp(-abs(dq) / T(delta));
+  }
+  return fric;
 }
 
 template <Physics P>

@@ -272,6 +272,9 @@ Diagnosis<P> diagnose(GreyBox<P> baseline, const Dataset& est_in, const Dataset&
   AugmentedModel<P> base(baseline.physics(), baseline.parameter_info(), est.ts());
   base.set_units(est[0].output_units().empty() ? std::string() : est[0].output_units()[0],
                  est[0].input_units().empty() ? std::string() : est[0].input_units()[0]);
+  if (static_cast<int>(est[0].input_names().size()) == detail::physics_inputs(baseline.physics()) &&
+      est[0].output_names().size() == 1)
+    base.set_channel_names(est[0].input_names(), est[0].output_names());
   {
     // Polish in the augmented simulator so "before" and "after" share numerics and optimality.
     RefitOptions ro;

@@ -98,7 +98,10 @@ struct ModelSerial<AugmentedModel<P>> {
     if (i2.output_units.empty() && !m.output_unit().empty()) i2.output_units = {m.output_unit()};
     if (i2.input_units.empty() && !m.input_unit().empty()) i2.input_units = {m.input_unit()};
     const EstimationReport report = info.report ? *info.report : EstimationReport{};
-    detail::write_common(j, m.ts(), {"u1"}, {"y1"}, i2, &report);
+    std::vector<std::string> in = m.input_names(), out = m.output_names();
+    if (in.empty()) in = default_input_names(detail::physics_inputs(m.physics()));
+    if (out.empty()) out = {"y1"};
+    detail::write_common(j, m.ts(), in, out, i2, &report);
     if (!info.initial_condition && !report.estimated) j["initial_condition"] = "estimate";
     Json s = Json::object();
     s["physics"] = detail::physics_name_of(m.physics());
@@ -160,6 +163,9 @@ struct ModelSerial<AugmentedModel<P>> {
     });
     m.set_units(info.output_units.empty() ? std::string() : info.output_units[0],
                 info.input_units.empty() ? std::string() : info.input_units[0]);
+    detail::expect_channel_count(file.at("inputs"), in.size(), detail::physics_inputs(m.physics()), "inputs");
+    detail::expect_channel_count(file.at("outputs"), out.size(), 1, "outputs");
+    m.set_channel_names(in, out);
     info.report = report_from_json(file.at("report"));
     return m;
   }
