@@ -13,19 +13,21 @@
 /// model with the same parameters, and reproduces `load_model(path).simulate(...)` to the last
 /// bits (tested through nlid-codegen and nlid-sim).
 ///
-/// Kinds: "nlarx", "hammerstein_wiener", "series" (LNL, LN, NL, NLN, NLNL) and "greybox"
+/// Kinds: "nlarx", "hammerstein_wiener", "series" (LNL, LN, NL, NLN, NLNL), "greybox"
 /// (catalogue or registered physics; `CodegenOptions::ts` is required, the model is
-/// continuous). Linear models ("arx", "output_error", "state_space") and augmented grey-box
-/// models from a diagnosis are not generated; asking for them is an `nlid::Error` that names
-/// the kind and lists the supported ones.
+/// continuous) and "augmented_greybox" (a diagnosis' repaired model, codegen/augmented.hpp).
+/// Linear models ("arx", "output_error", "state_space") are not generated; asking for them is
+/// an `nlid::Error` that names the kind and lists the supported ones.
 
 #include <string>
 
+#include "nlid/codegen/augmented.hpp"
 #include "nlid/codegen/emitter.hpp"
 #include "nlid/codegen/greybox.hpp"
 #include "nlid/codegen/hammerstein_wiener.hpp"
 #include "nlid/codegen/nlarx.hpp"
 #include "nlid/codegen/series.hpp"
+#include "nlid/io/augmented_serial.hpp"
 #include "nlid/io/series_serial.hpp"
 #include "nlid/models/any_model.hpp"
 #include "nlid/models/greybox_dynamic.hpp"
@@ -52,8 +54,10 @@ GeneratedCode generate_c(const AnyModel& model, const CodegenOptions& options = 
     if (!(o.ts > 0) && model.ts() > 0) o.ts = model.ts();
     return generate_c(*m, o);
   }
+  if (const auto* m = model.target<AugmentedModel<AnyPhysics>>()) return generate_c(*m, options);
   throw Error("codegen: models of kind '" + model.kind() +
-                  "' are not generated (generated kinds: nlarx, hammerstein_wiener, series, greybox)",
+                  "' are not generated (generated kinds: nlarx, hammerstein_wiener, series, greybox, "
+                  "augmented_greybox)",
               at_parameter("model"));
 }
 

@@ -1,0 +1,162 @@
+// Generated C for augmented grey-box models (codegen/augmented.hpp): every effect of the
+// catalogue, in three combinations on a mass-spring-damper, is generated, compiled with the
+// system C compiler (warnings are errors) and run; the outputs must equal
+// AugmentedModel::simulate to 1e-12 relative — from the zero state and from an equilibrium.
+// Also: simulate itself, rebuilt from the per-sample members the generator traces, must be
+// unchanged (a fixed trajectory checked against values computed before the refactoring).
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "nlid/codegen/augmented.hpp"
+#include "nlid/diagnose.hpp"
+#include "nlid/models/physics/mass_spring_damper.hpp"
+#include "synth.hpp"
+#include "../support/scratch_dir.hpp"
+
+using namespace nlid;
+namespace fs = std::filesystem;
+
+namespace {
+
+AugmentedModel<physics::MassSpringDamper> msd_with(int variant) {
+  const physics::MassSpringDamper msd;
+  const double ts = 0.01;
+  const DataScales s = diag_test::unit_scales(ts, 1.1);
+  const auto info = msd.parameter_info();
+  std::vector<ParameterInfo> tab(info.begin(), info.end());
+  tab[0].value = 8;
+  tab[1].value = 100;
+  tab[2].value = 100;
+  AugmentedModel<physics::MassSpringDamper> m(msd, tab, ts);
+  if (variant == 0) {
+    m.add_effect(diag_test::effect(EffectKind::coulomb_friction, {2.0}, s));
+    m.add_effect(diag_test::effect(EffectKind::dead_time, {0.023}, s));
+    m.add_effect(diag_test::effect(EffectKind::backlash, {0.05}, s));
+    m.add_effect(diag_test::effect(EffectKind::actuator_lag, {0.02}, s));
+    m.add_effect(diag_test::effect(EffectKind::input_deadzone, {0.1}, s));
+  } else if (variant == 1) {
+    m.add_effect(diag_test::effect(EffectKind::cubic_stiffness, {30.0, 0.05}, s));
+    m.add_effect(diag_test::effect(EffectKind::quadratic_drag, {0.05}, s));
+    m.add_effect(diag_test::effect(EffectKind::preload, {5.0, 0.1}, s));
+    m.add_effect(diag_test::effect(EffectKind::output_offset, {0.1}, s));
+    m.add_effect(diag_test::effect(EffectKind::hard_stop, {0.3, 1e4}, s, "upper"));
+    m.add_effect(diag_test::effect(EffectKind::input_saturation, {0.7}, s, "upper"));
+    m.add_effect(diag_test::effect(EffectKind::output_saturation, {-0.2}, s, "lower"));
+  } else {
+    m.add_effect(diag_test::effect(EffectKind::viscous_friction, {3.0}, s));
+    m.add_effect(diag_test::effect(EffectKind::input_offset, {0.05}, s));
+    m.add_effect(diag_test::effect(EffectKind::dead_time, {0.004}, s));  // under one sample: m = 0
+    m.add_effect(diag_test::effect(EffectKind::hard_stop, {-0.4, 2e3}, s, "lower"));
+    m.add_effect(diag_test::effect(EffectKind::output_saturation, {0.6}, s, "upper"));
+  }
+  return m;
+}
+
+Eigen::VectorXd run_c(const GeneratedCode& g, const Eigen::MatrixXd& u, const std::string& tag) {
+  const fs::path dir = nlid_test::scratch_dir() / ("aug_" + tag);
+  fs::create_directories(dir);
+  g.write(dir.string());
+  const std::string n = g.name;
+  std::ofstream(dir / "driver.c") << "#include <stdio.h>\n#include \"" << n << ".h\"\n"
+                                  << "int main(int argc, char** argv) {\n  double u[1], y[1];\n  " << n << "_state s;\n"
+                                  << "  FILE* in = argc > 1 ? fopen(argv[1], \"r\") : NULL;\n  if (!in) return 2;\n  " << n
+                                  << "_init(&s);\n  while (fscanf(in, \"%lf\", &u[0]) == 1) {\n    " << n
+                                  << "_step(&s, u, y);\n    printf(\"%.17g\\n\", y[0]);\n  }\n  fclose(in);\n  return 0;\n}\n";
+  {
+    std::ofstream in(dir / "u.txt");
+    char b[40];
+    for (Eigen::Index t = 0; t < u.rows(); ++t) {
+      std::snprintf(b, sizeof b, "%.17g\n", u(t, 0));
+      in << b;
+    }
+  }
+  const std::string exe = (dir / "driver").string();
+  // -ffp-contract=off: nlid's roundings (docs/codegen.md).
+  const std::string cmd = "cc -std=c99 -O2 -ffp-contract=off -Wall -Wextra -pedantic -Werror -o " + exe + " " +
+                          (dir / "driver.c").string() + " " + (dir / (n + ".c")).string() + " -lm > " +
+                          (dir / "cc.log").string() + " 2>&1";
+  if (std::system(cmd.c_str()) != 0) {
+    std::ifstream log(dir / "cc.log");
+    std::stringstream ss;
+    ss << log.rdbuf();
+    FAIL("generated code does not compile:\n" << ss.str());
+  }
+  REQUIRE(std::system((exe + " " + (dir / "u.txt").string() + " > " + (dir / "y.txt").string()).c_str()) == 0);
+  std::ifstream out(dir / "y.txt");
+  std::vector<double> ys;
+  for (double v; out >> v;) ys.push_back(v);
+  return Eigen::Map<Eigen::VectorXd>(ys.data(), static_cast<Eigen::Index>(ys.size()));
+}
+
+double max_relative_error(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
+  return (a - b).cwiseAbs().maxCoeff() / std::max(1.0, b.cwiseAbs().maxCoeff());
+}
+
+}  // namespace
+
+TEST_CASE("codegen: augmented grey-box models (every effect) reproduce simulate to 1e-12", "[diagnose][codegen]") {
+  for (int variant = 0; variant < 3; ++variant) {
+    DYNAMIC_SECTION("effect set " << variant) {
+      const auto m = msd_with(variant);
+      const Eigen::MatrixXd u = diag_test::random_steps(1500, -1.0, 1.0, 20, 60, 3u + static_cast<unsigned>(variant));
+      const Experiment e(u, Eigen::MatrixXd::Zero(u.rows(), 1), m.ts(), "steps");
+      CodegenOptions o;
+      o.name = "aug";
+      const GeneratedCode g = generate_c(m, o);
+      CHECK(g.header.find("#define AUG_NUM_STATES") != std::string::npos);
+      const Eigen::VectorXd yc = run_c(g, u, std::to_string(variant));
+      const Eigen::VectorXd yn = m.simulate(e, InitialCondition::zero).col(0);
+      REQUIRE(yc.size() == yn.size());
+      CHECK(max_relative_error(yc, yn) <= 1e-12);
+      // The effects act: the repaired model differs from its baseline by far more than that.
+      const AugmentedModel<physics::MassSpringDamper> bare(m.physics(), m.baseline_parameters(), m.ts());
+      CHECK(max_relative_error(bare.simulate(e, InitialCondition::zero).col(0), yn) > 1e-3);
+
+      // From the equilibrium of the first input, as simulate(e, equilibrium).
+      o.name = "aug_eq";
+      o.equilibrium_input = Eigen::VectorXd::Constant(1, u(0, 0));
+      const Eigen::VectorXd yce = run_c(generate_c(m, o), u, std::to_string(variant) + "eq");
+      const Eigen::VectorXd yne = m.simulate(e, InitialCondition::equilibrium).col(0);
+      CHECK(max_relative_error(yce, yne) <= 1e-12);
+      CHECK(std::abs(yne(0) - yn(0)) > 1e-6);
+    }
+  }
+}
+
+TEST_CASE("codegen: an augmented model runs at its own sample time", "[diagnose][codegen]") {
+  const auto m = msd_with(2);
+  CodegenOptions o;
+  o.ts = 0.02;
+  try {
+    (void)generate_c(m, o);
+    FAIL("another sample time was accepted");
+  } catch (const Error& err) {
+    CHECK_THAT(err.what(), Catch::Contains("runs at its own sample time 0.01 s") && Catch::Contains("0.02"));
+  }
+  o.ts = 0.01;
+  CHECK_NOTHROW(generate_c(m, o));
+}
+
+TEST_CASE("augmented model: simulate, rebuilt from its per-sample pieces, is unchanged", "[diagnose][augmented]") {
+  // Values of the simulation before simulate() was split into input_chain / augmented_derivative /
+  // output_at / friction_after (x0 = [0.1, -0.2], 2000 samples of random steps): the pieces
+  // perform the same operations, so these are exact.
+  const double before[3] = {-0.67766245259184832, -0.10000000000000001, 0.66934490919881473};
+  for (int variant = 0; variant < 2; ++variant) {
+    const auto m = msd_with(variant);
+    const Eigen::MatrixXd u = diag_test::random_steps(2000, -1.0, 1.0, 20, 60, 3u + static_cast<unsigned>(variant));
+    const Eigen::VectorXd th = m.parameters();
+    const Eigen::Vector2d x0(0.1, -0.2);
+    Eigen::VectorXd y(2000);
+    REQUIRE(m.simulate<double>(u, th.data(), x0.data(), y.data()) == 2000);
+    CHECK(y(1999) == before[variant]);
+  }
+}
