@@ -20,6 +20,8 @@
 #include "nlid/data/csv.hpp"
 #include "nlid/diagnose.hpp"
 #include "nlid/diagnose/report.hpp"
+#include "nlid/io/augmented_serial.hpp"
+#include "nlid/io/model_file.hpp"
 #include "record_options.hpp"
 
 namespace {
@@ -29,7 +31,8 @@ const char* const usage =
     "                     [--input u] [--output y] [--time t] [--ts T] [--delimiter C] [--decimal C]\n"
     "                     [--decimate N]\n"
     "                     [--x0 estimate|zero] [--starts N] [--max-effects N] [--effects a,b,...]\n"
-    "                     [--threads N] [--json out.json] [--html report.html] [--quiet]\n"
+    "                     [--threads N] [--json out.json] [--html report.html] [--save model.json]\n"
+    "                     [--quiet]\n"
     "\n"
     "  --baseline NAME   catalogue grey-box model: first_order, mass_spring_damper, rigid_body,\n"
     "                    throttle, two_tank\n"
@@ -48,6 +51,8 @@ const char* const usage =
     "  --threads N       worker threads (default: all cores)\n"
     "  --json FILE       write the diagnosis as JSON\n"
     "  --html FILE       write a self-contained HTML report\n"
+    "  --save FILE       write the repaired model (baseline + effects found) as a model file, for\n"
+    "                    nlid-sim and nlid-codegen (kind augmented_greybox)\n"
     "  --quiet           no progress on stderr\n";
 
 struct UsageError : std::exception {
@@ -70,7 +75,7 @@ int parse_int(const std::string& opt, const std::string& v, int lo) {
 
 int main(int argc, char** argv) {
   std::vector<std::string> est_files, val_files, effects;
-  std::string baseline, input = "u", output = "y", json_path, html_path;
+  std::string baseline, input = "u", output = "y", json_path, html_path, save_path;
   nlid_tools::RecordOptions record;
   bool quiet = false;
   nlid::DiagnoseOptions opt;
@@ -108,6 +113,7 @@ int main(int argc, char** argv) {
       else if (a == "--threads") opt.threads = parse_int(a, v, 1);
       else if (a == "--json") json_path = v;
       else if (a == "--html") html_path = v;
+      else if (a == "--save") save_path = v;
       else if (a == "--x0") {
         if (v == "estimate") opt.initial_condition = nlid::InitialCondition::estimate;
         else if (v == "zero") opt.initial_condition = nlid::InitialCondition::zero;
@@ -181,6 +187,18 @@ int main(int argc, char** argv) {
       if (!html_path.empty()) {
         const std::size_t charts = nlid::write_diagnosis_html(d, html_path);
         if (opt.progress) opt.progress("wrote " + html_path + " (" + std::to_string(charts) + " charts)");
+      }
+      if (!save_path.empty()) {
+        nlid::ModelFileInfo info;
+        info.description = "nlid-diagnose --baseline " + baseline + ": the repaired model";
+        if (!d.model.effects().empty()) {
+          info.description += " (";
+          for (std::size_t i = 0; i < d.model.effects().size(); ++i)
+            info.description += (i ? ", " : "") + d.model.effects()[i].label();
+          info.description += ")";
+        }
+        nlid::save_model(save_path, d.model, info);
+        if (opt.progress) opt.progress("wrote " + save_path);
       }
       if (opt.progress) opt.progress("done");
       return 0;

@@ -20,6 +20,7 @@
 #include "nlid/core/error.hpp"
 #include "nlid/data/csv.hpp"
 #include "nlid/data/resample.hpp"
+#include "nlid/io/augmented_serial.hpp"  // repaired models from nlid-diagnose --save
 #include "nlid/models/any_model.hpp"
 #include "nlid/models/spec.hpp"
 #include "record_options.hpp"
