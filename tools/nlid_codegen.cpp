@@ -4,8 +4,8 @@
 //   nlid-codegen --model model.json --out DIR [--name NAME] [--ts T] [--substeps N]
 //                [--x0 zero|equilibrium] [--u0 V]
 //
-// Kinds: nlarx, hammerstein_wiener, series, greybox, and augmented_greybox (the repaired model
-// of nlid-diagnose --save). Writes DIR/NAME.h and DIR/NAME.c (atomically; DIR must exist): NAME_init, NAME_step,
+// Kinds: nlarx, hammerstein_wiener, series, greybox, augmented_greybox (the repaired model of
+// nlid-diagnose --save), arx and output_error. Writes DIR/NAME.h and DIR/NAME.c (atomically; DIR must exist): NAME_init, NAME_step,
 // NAME_set_state, NAME_parameters (docs/codegen.md). NAME defaults to the model file's stem made
 // a C identifier. The generated step reproduces `nlid-sim` on the same model to the last bits
 // (same operations in the same order). Grey-box models are continuous: --ts sets the sample
@@ -39,7 +39,7 @@ constexpr const char* kUsage =
     "  --x0 MODE        NAME_init state: zero (default) or equilibrium for the input --u0\n"
     "  --u0 V           constant input of the equilibrium (default 0)\n"
     "Generated kinds: nlarx, hammerstein_wiener, series (wh, wiener, hammerstein), greybox,\n"
-    "augmented_greybox (nlid-diagnose --save).\n";
+    "augmented_greybox (nlid-diagnose --save), arx, output_error.\n";
 
 struct UsageError {
   std::string message;

@@ -15,9 +15,9 @@
 ///
 /// Kinds: "nlarx", "hammerstein_wiener", "series" (LNL, LN, NL, NLN, NLNL), "greybox"
 /// (catalogue or registered physics; `CodegenOptions::ts` is required, the model is
-/// continuous) and "augmented_greybox" (a diagnosis' repaired model, codegen/augmented.hpp).
-/// Linear models ("arx", "output_error", "state_space") are not generated; asking for them is
-/// an `nlid::Error` that names the kind and lists the supported ones.
+/// continuous), "augmented_greybox" (a diagnosis' repaired model, codegen/augmented.hpp), "arx"
+/// and "output_error" (codegen/linear.hpp). State-space models are not generated; asking for
+/// them is an `nlid::Error` that names the kind and lists the supported ones.
 
 #include <string>
 
@@ -25,6 +25,7 @@
 #include "nlid/codegen/emitter.hpp"
 #include "nlid/codegen/greybox.hpp"
 #include "nlid/codegen/hammerstein_wiener.hpp"
+#include "nlid/codegen/linear.hpp"
 #include "nlid/codegen/nlarx.hpp"
 #include "nlid/codegen/series.hpp"
 #include "nlid/io/augmented_serial.hpp"
@@ -55,9 +56,11 @@ GeneratedCode generate_c(const AnyModel& model, const CodegenOptions& options = 
     return generate_c(*m, o);
   }
   if (const auto* m = model.target<AugmentedModel<AnyPhysics>>()) return generate_c(*m, options);
+  if (const auto* m = model.target<Arx>()) return generate_c(*m, options);
+  if (const auto* m = model.target<OutputError>()) return generate_c(*m, options);
   throw Error("codegen: models of kind '" + model.kind() +
                   "' are not generated (generated kinds: nlarx, hammerstein_wiener, series, greybox, "
-                  "augmented_greybox)",
+                  "augmented_greybox, arx, output_error)",
               at_parameter("model"));
 }
 

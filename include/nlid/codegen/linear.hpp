@@ -1,0 +1,205 @@
+#pragma once
+/// @file
+/// C code for the linear input/output models: ARX `Arx` and output error `OutputError`
+/// (multi-input, with or without offset) — the same NAME_init / NAME_step interface as the
+/// nonlinear models (emitter.hpp), so a linear reference model deploys the same way.
+///
+/// No tracing is needed: the step is written out term by term in the order of the models' own
+/// recursions (`Arx::run`, `OutputError::block_response`), with the coefficients read from
+/// NAME_p, so the C reproduces `simulate` to the last bits (same operations, same order).
+///
+///     ARX:  y(t) = ((c − a₁y(t−1) − … − a_na y(t−na)) + Σᵢ Σⱼ bᵢⱼ uᵢ(t−nkᵢ−j))
+///           state [y(t−1) … y(t−na), u₁(t−1) … u₁(t−L₁), u₂(t−1) …],  Lᵢ = nkᵢ + nbᵢ − 1
+///     OE:   wᵢ(t) = Σⱼ bᵢⱼ uᵢ(t−nkᵢ−j) − Σₖ fᵢₖ wᵢ(t−k),   y(t) = c + w₁(t) + w₂(t) + …
+///           state per input [uᵢ(t−1) … uᵢ(t−Lᵢ), wᵢ(t−1) … wᵢ(t−nfᵢ)]
+///
+/// With `CodegenOptions::equilibrium_input` the past samples start at the steady state for that
+/// constant input, as `simulate(e, InitialCondition::equilibrium)` (values computed at
+/// generation with nlid's own expressions); otherwise at zero.
+
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "nlid/codegen/emitter.hpp"
+#include "nlid/linear/arx.hpp"
+#include "nlid/linear/output_error.hpp"
+#include "nlid/models/detail/model_common.hpp"
+
+namespace nlid {
+
+namespace codegen::detail {
+inline std::string at(const std::string& base, int i) { return base + "[" + std::to_string(i) + "]"; }
+inline std::string shift_code(const std::string& x, int first, int count, const std::string& newest) {
+  // x[first + count − 1] ← … ← x[first] ← newest
+  std::string s;
+  for (int k = count - 1; k > 0; --k) s += "  " + at(x, first + k) + " = " + at(x, first + k - 1) + ";\n";
+  if (count > 0) s += "  " + at(x, first) + " = " + newest + ";\n";
+  return s;
+}
+inline Eigen::VectorXd equilibrium_inputs(const CodegenOptions& o, int nu) {
+  if (!o.equilibrium_input) return Eigen::VectorXd::Zero(nu);
+  require(o.equilibrium_input->size() == nu,
+          "codegen: equilibrium_input has " + std::to_string(o.equilibrium_input->size()) + " values, the model has " +
+              std::to_string(nu) + " input(s)",
+          at_parameter("equilibrium_input"));
+  return *o.equilibrium_input;
+}
+}  // namespace codegen::detail
+
+/// Generates C99 code for an ARX model (see the file comment). Throws `nlid::Error` on a bad
+/// name, a missing sample time, or an equilibrium of a model with an integrator.
+inline GeneratedCode generate_c(const Arx& model, const CodegenOptions& options = {}) {
+  using codegen::detail::at;
+  codegen::check_name(options.name);
+  const int nu = model.num_inputs(), na = model.na();
+  codegen::ModelShape m;
+  m.name = options.name;
+  m.kind = "ARX";
+  m.description = model.describe();
+  m.nu = nu;
+  m.ny = 1;
+  m.ts = options.ts > 0 ? options.ts : model.ts();
+  require(m.ts > 0, "codegen: the model has no sample time; set CodegenOptions::ts", at_parameter("ts"));
+  m.parameters = model.parameters();
+  m.parameter_names = model.parameter_names();
+  std::vector<int> lags(static_cast<std::size_t>(nu)), off(static_cast<std::size_t>(nu));
+  int nx = na;
+  for (int i = 0; i < nu; ++i) {
+    lags[static_cast<std::size_t>(i)] = std::max(0, model.nk(i) + model.nb(i) - 1);
+    off[static_cast<std::size_t>(i)] = nx;
+    nx += lags[static_cast<std::size_t>(i)];
+  }
+  m.nx = nx;
+  m.state_doc = "x = [y(t-1) .. y(t-" + std::to_string(na) + ")";
+  for (int i = 0; i < nu; ++i)
+    m.state_doc += ", u" + std::to_string(i + 1) + "(t-1) .. (t-" + std::to_string(lags[static_cast<std::size_t>(i)]) + ")";
+  m.state_doc += "]";
+  m.x0 = Eigen::VectorXd::Zero(nx);
+  const Eigen::VectorXd u0 = codegen::detail::equilibrium_inputs(options, nu);
+  if (options.equilibrium_input) {
+    // As Arx::simulate(e, InitialCondition::equilibrium).
+    const double a1 = model.a_polynomial().sum();
+    double drive = model.offset();
+    for (int i = 0; i < nu; ++i) drive += model.b(i).sum() * u0(i);
+    require(std::abs(a1) > 1e-14 || drive == 0.0, "codegen: no equilibrium: A(q) has a root at z = 1 (integrator)",
+            at_parameter("equilibrium_input"));
+    const double y_past = std::abs(a1) > 1e-14 ? drive / a1 : 0.0;
+    m.x0.head(na).setConstant(y_past);
+    for (int i = 0; i < nu; ++i) m.x0.segment(off[static_cast<std::size_t>(i)], lags[static_cast<std::size_t>(i)]).setConstant(u0(i));
+    m.x0_doc = "the steady state for u held at " + detail::format_value(u0(0), 17) + " (y = " + detail::format_value(y_past, 17) + ")";
+  } else {
+    m.x0_doc = "zero (past outputs and inputs 0)";
+  }
+  const std::string P = m.name + "_p", X = "s->x";
+  int k = 0;
+  std::string body = "  double acc = " + (model.has_offset() ? at(P, model.num_parameters() - 1) : codegen::c_literal(model.offset())) +
+                     ", drive = 0.0;\n  (void)u;\n";
+  for (int j = 1; j <= na; ++j) body += "  acc -= " + at(P, k++) + " * " + at(X, j - 1) + ";\n";
+  for (int i = 0; i < nu; ++i) {
+    for (int j = 0; j < model.nb(i); ++j) {
+      const int lag = model.nk(i) + j;
+      body += "  drive += " + at(P, k++) + " * " + (lag == 0 ? at("u", i) : at(X, off[static_cast<std::size_t>(i)] + lag - 1)) + ";\n";
+    }
+  }
+  body += "  acc += drive;\n  y[0] = acc;\n";
+  body += codegen::detail::shift_code(X, 0, na, "acc");
+  for (int i = 0; i < nu; ++i) body += codegen::detail::shift_code(X, off[static_cast<std::size_t>(i)], lags[static_cast<std::size_t>(i)], at("u", i));
+  GeneratedCode g;
+  g.name = m.name;
+  g.header = codegen::ascii_text(codegen::make_header(m));
+  g.source = codegen::ascii_text(codegen::make_source_prelude(m, {}) + "void " + m.name + "_step(" + m.name +
+                                 "_state* s, const double* u, double* y) {\n  (void)s;\n" + body + "}\n");
+  return g;
+}
+
+/// Generates C99 code for an output-error model (see the file comment). Throws `nlid::Error`
+/// on a bad name, a missing sample time, or an equilibrium of a block with F(1) = 0.
+inline GeneratedCode generate_c(const OutputError& model, const CodegenOptions& options = {}) {
+  using codegen::detail::at;
+  codegen::check_name(options.name);
+  const int nu = model.num_inputs();
+  codegen::ModelShape m;
+  m.name = options.name;
+  m.kind = "output-error";
+  m.description = model.describe();
+  m.nu = nu;
+  m.ny = 1;
+  m.ts = options.ts > 0 ? options.ts : model.ts();
+  require(m.ts > 0, "codegen: the model has no sample time; set CodegenOptions::ts", at_parameter("ts"));
+  m.parameters = model.parameters();
+  m.parameter_names = model.parameter_names();
+  std::vector<int> lags(static_cast<std::size_t>(nu)), uoff(static_cast<std::size_t>(nu)), woff(static_cast<std::size_t>(nu));
+  int nx = 0;
+  m.state_doc = "x = [";
+  for (int i = 0; i < nu; ++i) {
+    const auto ii = static_cast<std::size_t>(i);
+    lags[ii] = std::max(0, model.nk(i) + static_cast<int>(model.b(i).size()) - 1);
+    uoff[ii] = nx;
+    woff[ii] = nx + lags[ii];
+    nx += lags[ii] + static_cast<int>(model.f(i).size());
+    const std::string n = std::to_string(i + 1);
+    m.state_doc += std::string(i ? "; " : "") + "u" + n + "(t-1) .. (t-" + std::to_string(lags[ii]) + "), w" + n +
+                   "(t-1) .. (t-" + std::to_string(model.f(i).size()) + ")";
+  }
+  m.state_doc += "] (w_i: the output of input i's block B_i/F_i)";
+  m.nx = nx;
+  m.x0 = Eigen::VectorXd::Zero(nx);
+  const Eigen::VectorXd u0 = codegen::detail::equilibrium_inputs(options, nu);
+  if (options.equilibrium_input) {
+    // As OutputError::simulate(e, InitialCondition::equilibrium).
+    for (int i = 0; i < nu; ++i) {
+      const auto ii = static_cast<std::size_t>(i);
+      const double f1 = model.f_polynomial(i).sum();
+      require(std::abs(f1) > 1e-14 || model.b(i).sum() * u0(i) == 0.0,
+              "codegen: no equilibrium: F(q) of input " + std::to_string(i + 1) + " has a root at z = 1",
+              at_parameter("equilibrium_input"));
+      const double w0 = std::abs(f1) > 1e-14 ? model.b(i).sum() / f1 * u0(i) : 0.0;
+      m.x0.segment(uoff[ii], lags[ii]).setConstant(u0(i));
+      m.x0.segment(woff[ii], model.f(i).size()).setConstant(w0);
+    }
+    m.x0_doc = "the steady state for u held at " + detail::format_value(u0(0), 17);
+  } else {
+    m.x0_doc = "zero (past inputs and block outputs 0)";
+  }
+  const std::string P = m.name + "_p", X = "s->x";
+  // Parameter layout: all b, then all f, then the offset.
+  std::vector<int> pb(static_cast<std::size_t>(nu)), pf(static_cast<std::size_t>(nu));
+  int k = 0;
+  for (int i = 0; i < nu; ++i) {
+    pb[static_cast<std::size_t>(i)] = k;
+    k += static_cast<int>(model.b(i).size());
+  }
+  for (int i = 0; i < nu; ++i) {
+    pf[static_cast<std::size_t>(i)] = k;
+    k += static_cast<int>(model.f(i).size());
+  }
+  std::string body = "  double out = " + (model.has_offset() ? at(P, model.num_parameters() - 1) : codegen::c_literal(model.offset())) +
+                     ";\n  double w[" + std::to_string(std::max(nu, 1)) + "];\n  (void)u;\n";
+  for (int i = 0; i < nu; ++i) {
+    const auto ii = static_cast<std::size_t>(i);
+    const std::string wi = at("w", i);
+    body += "  " + wi + " = 0.0;\n";
+    for (int j = 0; j < static_cast<int>(model.b(i).size()); ++j) {
+      const int lag = model.nk(i) + j;
+      body += "  " + wi + " += " + at(P, pb[ii] + j) + " * " + (lag == 0 ? at("u", i) : at(X, uoff[ii] + lag - 1)) + ";\n";
+    }
+    for (int q = 1; q <= static_cast<int>(model.f(i).size()); ++q)
+      body += "  " + wi + " -= " + at(P, pf[ii] + q - 1) + " * " + at(X, woff[ii] + q - 1) + ";\n";
+    body += "  out += " + wi + ";\n";
+  }
+  body += "  y[0] = out;\n";
+  for (int i = 0; i < nu; ++i) {
+    const auto ii = static_cast<std::size_t>(i);
+    body += codegen::detail::shift_code(X, uoff[ii], lags[ii], at("u", i));
+    body += codegen::detail::shift_code(X, woff[ii], static_cast<int>(model.f(i).size()), at("w", i));
+  }
+  GeneratedCode g;
+  g.name = m.name;
+  g.header = codegen::ascii_text(codegen::make_header(m));
+  g.source = codegen::ascii_text(codegen::make_source_prelude(m, {}) + "void " + m.name + "_step(" + m.name +
+                                 "_state* s, const double* u, double* y) {\n  (void)s;\n" + body + "}\n");
+  return g;
+}
+
+}  // namespace nlid
