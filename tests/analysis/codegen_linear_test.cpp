@@ -5,60 +5,18 @@
 // (state space) is refused by name through the run-time entry point.
 #include <catch2/catch.hpp>
 
-#include <cstdio>
-#include <cstdlib>
-#include <filesystem>
-#include <fstream>
-#include <sstream>
+#include <cmath>
 #include <string>
-#include <vector>
 
 #include "nlid/codegen/any_model.hpp"
 #include "nlid/codegen/linear.hpp"
 #include "nlid/linear/state_space.hpp"
 
-#include "../support/scratch_dir.hpp"
+#include "../support/generated_c.hpp"
 
-namespace fs = std::filesystem;
 using namespace nlid;
 
 namespace {
-
-// Two inputs per line in u.txt; the driver prints y per sample.
-Eigen::VectorXd run_two_input(const GeneratedCode& g, const Eigen::MatrixXd& u, const std::string& tag) {
-  const fs::path dir = nlid_test::scratch_dir() / ("lin_" + tag);
-  fs::create_directories(dir);
-  g.write(dir.string());
-  const std::string n = g.name;
-  std::ofstream(dir / "driver.c") << "#include <stdio.h>\n#include \"" << n << ".h\"\n"
-                                  << "int main(int argc, char** argv) {\n  double u[2], y[1];\n  " << n << "_state s;\n"
-                                  << "  FILE* in = argc > 1 ? fopen(argv[1], \"r\") : NULL;\n  if (!in) return 2;\n  " << n
-                                  << "_init(&s);\n  while (fscanf(in, \"%lf %lf\", &u[0], &u[1]) == 2) {\n    " << n
-                                  << "_step(&s, u, y);\n    printf(\"%.17g\\n\", y[0]);\n  }\n  fclose(in);\n  return 0;\n}\n";
-  {
-    std::ofstream in(dir / "u.txt");
-    char b[80];
-    for (Eigen::Index t = 0; t < u.rows(); ++t) {
-      std::snprintf(b, sizeof b, "%.17g %.17g\n", u(t, 0), u(t, 1));
-      in << b;
-    }
-  }
-  const std::string exe = (dir / "driver").string();
-  const std::string cmd = "cc -std=c99 -O2 -ffp-contract=off -Wall -Wextra -pedantic -Werror -o " + exe + " " +
-                          (dir / "driver.c").string() + " " + (dir / (n + ".c")).string() + " -lm > " +
-                          (dir / "cc.log").string() + " 2>&1";
-  if (std::system(cmd.c_str()) != 0) {
-    std::ifstream log(dir / "cc.log");
-    std::stringstream ss;
-    ss << log.rdbuf();
-    FAIL("generated code does not compile:\n" << ss.str());
-  }
-  REQUIRE(std::system((exe + " " + (dir / "u.txt").string() + " > " + (dir / "y.txt").string()).c_str()) == 0);
-  std::ifstream out(dir / "y.txt");
-  std::vector<double> ys;
-  for (double v; out >> v;) ys.push_back(v);
-  return Eigen::Map<Eigen::VectorXd>(ys.data(), static_cast<Eigen::Index>(ys.size()));
-}
 
 Eigen::MatrixXd two_inputs(int n) {
   Eigen::MatrixXd u(n, 2);
@@ -69,25 +27,21 @@ Eigen::MatrixXd two_inputs(int n) {
   return u;
 }
 
-double max_relative_error(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
-  return (a - b).cwiseAbs().maxCoeff() / std::max(1.0, b.cwiseAbs().maxCoeff());
-}
-
 template <class M>
 void check_model(const M& model, const std::string& tag) {
   const Eigen::MatrixXd u = two_inputs(600);
   const Experiment e(u, Eigen::MatrixXd::Zero(u.rows(), 1), 0.05, "two");
   CodegenOptions o;
   o.name = "lin";
-  const Eigen::VectorXd yc = run_two_input(generate_c(model, o), u, tag);
+  const Eigen::VectorXd yc = nlid_test::run_generated_c(generate_c(model, o), u, tag);
   const Eigen::VectorXd yn = model.simulate(e, InitialCondition::zero).col(0);
   REQUIRE(yc.size() == yn.size());
-  CHECK(max_relative_error(yc, yn) <= 1e-12);
+  CHECK(nlid_test::max_relative_error(yc, yn) <= 1e-12);
   o.name = "lin_eq";
   o.equilibrium_input = Eigen::Vector2d(u(0, 0), u(0, 1));
-  const Eigen::VectorXd yce = run_two_input(generate_c(model, o), u, tag + "eq");
+  const Eigen::VectorXd yce = nlid_test::run_generated_c(generate_c(model, o), u, tag + "eq");
   const Eigen::VectorXd yne = model.simulate(e, InitialCondition::equilibrium).col(0);
-  CHECK(max_relative_error(yce, yne) <= 1e-12);
+  CHECK(nlid_test::max_relative_error(yce, yne) <= 1e-12);
   CHECK(std::abs(yne(0) - yn(0)) > 1e-3);  // the equilibrium start differs from rest
 }
 

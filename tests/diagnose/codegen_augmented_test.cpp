@@ -7,11 +7,6 @@
 #include <catch2/catch.hpp>
 
 #include <cmath>
-#include <cstdio>
-#include <cstdlib>
-#include <filesystem>
-#include <fstream>
-#include <sstream>
 #include <string>
 #include <vector>
 
@@ -19,10 +14,9 @@
 #include "nlid/diagnose.hpp"
 #include "nlid/models/physics/mass_spring_damper.hpp"
 #include "synth.hpp"
-#include "../support/scratch_dir.hpp"
+#include "../support/generated_c.hpp"
 
 using namespace nlid;
-namespace fs = std::filesystem;
 
 namespace {
 
@@ -60,46 +54,6 @@ AugmentedModel<physics::MassSpringDamper> msd_with(int variant) {
   return m;
 }
 
-Eigen::VectorXd run_c(const GeneratedCode& g, const Eigen::MatrixXd& u, const std::string& tag) {
-  const fs::path dir = nlid_test::scratch_dir() / ("aug_" + tag);
-  fs::create_directories(dir);
-  g.write(dir.string());
-  const std::string n = g.name;
-  std::ofstream(dir / "driver.c") << "#include <stdio.h>\n#include \"" << n << ".h\"\n"
-                                  << "int main(int argc, char** argv) {\n  double u[1], y[1];\n  " << n << "_state s;\n"
-                                  << "  FILE* in = argc > 1 ? fopen(argv[1], \"r\") : NULL;\n  if (!in) return 2;\n  " << n
-                                  << "_init(&s);\n  while (fscanf(in, \"%lf\", &u[0]) == 1) {\n    " << n
-                                  << "_step(&s, u, y);\n    printf(\"%.17g\\n\", y[0]);\n  }\n  fclose(in);\n  return 0;\n}\n";
-  {
-    std::ofstream in(dir / "u.txt");
-    char b[40];
-    for (Eigen::Index t = 0; t < u.rows(); ++t) {
-      std::snprintf(b, sizeof b, "%.17g\n", u(t, 0));
-      in << b;
-    }
-  }
-  const std::string exe = (dir / "driver").string();
-  // -ffp-contract=off: nlid's roundings (docs/codegen.md).
-  const std::string cmd = "cc -std=c99 -O2 -ffp-contract=off -Wall -Wextra -pedantic -Werror -o " + exe + " " +
-                          (dir / "driver.c").string() + " " + (dir / (n + ".c")).string() + " -lm > " +
-                          (dir / "cc.log").string() + " 2>&1";
-  if (std::system(cmd.c_str()) != 0) {
-    std::ifstream log(dir / "cc.log");
-    std::stringstream ss;
-    ss << log.rdbuf();
-    FAIL("generated code does not compile:\n" << ss.str());
-  }
-  REQUIRE(std::system((exe + " " + (dir / "u.txt").string() + " > " + (dir / "y.txt").string()).c_str()) == 0);
-  std::ifstream out(dir / "y.txt");
-  std::vector<double> ys;
-  for (double v; out >> v;) ys.push_back(v);
-  return Eigen::Map<Eigen::VectorXd>(ys.data(), static_cast<Eigen::Index>(ys.size()));
-}
-
-double max_relative_error(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
-  return (a - b).cwiseAbs().maxCoeff() / std::max(1.0, b.cwiseAbs().maxCoeff());
-}
-
 }  // namespace
 
 TEST_CASE("codegen: augmented grey-box models (every effect) reproduce simulate to 1e-12", "[diagnose][codegen]") {
@@ -112,20 +66,20 @@ TEST_CASE("codegen: augmented grey-box models (every effect) reproduce simulate 
       o.name = "aug";
       const GeneratedCode g = generate_c(m, o);
       CHECK(g.header.find("#define AUG_NUM_STATES") != std::string::npos);
-      const Eigen::VectorXd yc = run_c(g, u, std::to_string(variant));
+      const Eigen::VectorXd yc = nlid_test::run_generated_c(g, u, "aug" + std::to_string(variant));
       const Eigen::VectorXd yn = m.simulate(e, InitialCondition::zero).col(0);
       REQUIRE(yc.size() == yn.size());
-      CHECK(max_relative_error(yc, yn) <= 1e-12);
+      CHECK(nlid_test::max_relative_error(yc, yn) <= 1e-12);
       // The effects act: the repaired model differs from its baseline by far more than that.
       const AugmentedModel<physics::MassSpringDamper> bare(m.physics(), m.baseline_parameters(), m.ts());
-      CHECK(max_relative_error(bare.simulate(e, InitialCondition::zero).col(0), yn) > 1e-3);
+      CHECK(nlid_test::max_relative_error(bare.simulate(e, InitialCondition::zero).col(0), yn) > 1e-3);
 
       // From the equilibrium of the first input, as simulate(e, equilibrium).
       o.name = "aug_eq";
       o.equilibrium_input = Eigen::VectorXd::Constant(1, u(0, 0));
-      const Eigen::VectorXd yce = run_c(generate_c(m, o), u, std::to_string(variant) + "eq");
+      const Eigen::VectorXd yce = nlid_test::run_generated_c(generate_c(m, o), u, "aug" + std::to_string(variant) + "eq");
       const Eigen::VectorXd yne = m.simulate(e, InitialCondition::equilibrium).col(0);
-      CHECK(max_relative_error(yce, yne) <= 1e-12);
+      CHECK(nlid_test::max_relative_error(yce, yne) <= 1e-12);
       CHECK(std::abs(yne(0) - yn(0)) > 1e-6);
     }
   }

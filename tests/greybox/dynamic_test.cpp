@@ -9,6 +9,7 @@
 #include "nlid/models/greybox_dynamic.hpp"
 #include "nlid/models/greybox_estimate.hpp"
 #include "test_data.hpp"
+#include "../support/with_coulomb.hpp"
 
 using nlid::Dataset;
 using nlid::GreyBox;
@@ -17,44 +18,7 @@ namespace physics = nlid::physics;
 
 namespace {
 
-// A baseline chosen at run time plus viscous-to-Coulomb friction F_c·tanh(v / v_s) on the
-// velocity state x[1]: the shape of every "augmented" model of the diagnosis layer.
-class WithCoulomb final : public nlid::RuntimePhysicsBase<WithCoulomb> {
- public:
-  explicit WithCoulomb(nlid::AnyPhysics base) : base_(std::move(base)) {}
-  std::string name() const override { return base_.name() + "+coulomb_friction"; }
-  int state_dimension() const override { return base_.state_dimension(); }
-  int input_dimension() const override { return base_.input_dimension(); }
-  int output_dimension() const override { return base_.output_dimension(); }
-  int num_parameters() const override { return base_.num_parameters() + 1; }
-  std::vector<nlid::ParameterInfo> parameter_info() const override {
-    auto v = base_.parameter_info();
-    v.push_back({"Fc", "{y}/s^2", "Coulomb friction / mass", 1.0, 0.0,
-                 std::numeric_limits<double>::infinity(), 0.1, 100.0, true, false});
-    return v;
-  }
-  std::vector<nlid::StateInfo> state_info() const override { return base_.state_info(); }
-  double spectral_radius(const double* p) const override { return base_.spectral_radius(p); }
-  void initialize(const Dataset& d, std::span<nlid::ParameterInfo> p) const override {
-    base_.initialize(d, p.first(static_cast<std::size_t>(base_.num_parameters())));
-  }
-  bool initial_state(const double* y0, const double* u0, const double* p, double* x0) const override {
-    return base_.initial_state(y0, u0, p, x0);
-  }
-  template <class T>
-  void compute_derivative(const T* x, const T* u, const T* p, T* dx) const {
-    using std::tanh;
-    base_.derivative(x, u, p, dx);
-    dx[1] -= p[base_.num_parameters()] * tanh(x[1] / T(0.5));
-  }
-  template <class T>
-  void compute_output(const T* x, const T* u, const T* p, T* y) const {
-    base_.output(x, u, p, y);
-  }
-
- private:
-  nlid::AnyPhysics base_;
-};
+using nlid_test::WithCoulomb;
 
 template <class Static>
 void check_runtime_equals_static(const char* name, const Eigen::VectorXd& p, const Eigen::MatrixXd& u,
