@@ -1,16 +1,14 @@
 // Generated C for the linear input/output models (codegen/linear.hpp): a two-input ARX and a
 // two-input output-error model, with offsets and delays including nk = 0, are generated,
 // compiled with the system C compiler (warnings are errors) and run; the outputs must equal
-// `simulate` to 1e-12 relative from zero and from an equilibrium. A kind that is not generated
-// (state space) is refused by name through the run-time entry point.
+// `simulate` to 1e-12 relative from zero and from an equilibrium. (A kind that is not generated,
+// state space, is refused by name: tests/tools/nlid_codegen_test.cpp, through nlid-codegen.)
 #include <catch2/catch.hpp>
 
 #include <cmath>
 #include <string>
 
-#include "nlid/codegen/any_model.hpp"
 #include "nlid/codegen/linear.hpp"
-#include "nlid/linear/state_space.hpp"
 
 #include "../support/generated_c.hpp"
 
@@ -57,17 +55,5 @@ TEST_CASE("codegen: ARX and output-error models reproduce simulate to 1e-12", "[
     const OutputError oe({Eigen::Vector2d(0.3, 0.2), Eigen::VectorXd::Constant(1, 0.4)},
                          {Eigen::Vector2d(-1.1, 0.3), Eigen::Vector2d(-0.6, 0.08)}, {1, 0}, 0.05, -0.25);
     check_model(oe, "oe");
-  }
-}
-
-TEST_CASE("codegen: a state-space model is refused by kind", "[analysis][codegen]") {
-  const StateSpace ss(Eigen::MatrixXd::Constant(1, 1, 0.9), Eigen::MatrixXd::Constant(1, 1, 0.1),
-                      Eigen::MatrixXd::Constant(1, 1, 1.0), Eigen::MatrixXd::Zero(1, 1), 0.05);
-  try {
-    (void)generate_c(AnyModel(ss));
-    FAIL("a state-space model was generated");
-  } catch (const Error& err) {
-    CHECK_THAT(err.what(), Catch::Contains("models of kind 'state_space' are not generated") &&
-                               Catch::Contains("arx, output_error"));
   }
 }

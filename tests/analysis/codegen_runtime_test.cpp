@@ -1,8 +1,7 @@
 // Generated C for models built at run time: a user's run-time physics (derived from
 // RuntimePhysicsBase, so it evaluates on TraceScalar as on double and Dual) inside
 // GreyBox<AnyPhysics> is exported, compiled and run to 1e-12 of GreyBox::simulate; a run-time
-// physics that implements only the double/Dual overloads is refused by name; and a model that
-// went through a model file (AnyModel) gives the same code as the object it was saved from.
+// physics that implements only the double/Dual overloads is refused by name.
 #include <catch2/catch.hpp>
 
 #include <cmath>
@@ -11,7 +10,6 @@
 #include <string>
 #include <vector>
 
-#include "nlid/codegen/any_model.hpp"
 #include "nlid/codegen/greybox.hpp"
 #include "nlid/models/greybox_dynamic.hpp"
 

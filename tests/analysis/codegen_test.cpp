@@ -13,7 +13,11 @@
 #include <sstream>
 #include <string>
 
-#include "nlid/codegen.hpp"  // before the custom regressor's lambda (nlid::max on TraceScalar)
+// Before the custom regressor's lambda (nlid::max on TraceScalar). The three generators this file
+// uses, not the umbrella: it also holds the run-time, series, linear and diagnosis generators.
+#include "nlid/codegen/greybox.hpp"
+#include "nlid/codegen/hammerstein_wiener.hpp"
+#include "nlid/codegen/nlarx.hpp"
 #include "nlid/data/csv.hpp"
 #include "nlid/data/resample.hpp"
 #include "nlid/models/physics/throttle.hpp"

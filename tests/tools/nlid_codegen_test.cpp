@@ -156,7 +156,7 @@ TEST_CASE("nlid-codegen: C from nlid-fit's model files reproduces nlid-sim for e
   }
 }
 
-TEST_CASE("nlid-codegen: a grey box without --ts, another sample time and bad options are reported",
+TEST_CASE("nlid-codegen: a kind it does not generate, a grey box without --ts, another sample time and bad options are reported",
           "[tools][codegen]") {
   const fs::path est = write_record("cg_bad_est", 800, 73u, 1);
   const fs::path dir = work_dir() / "cg_bad";
@@ -164,9 +164,20 @@ TEST_CASE("nlid-codegen: a grey box without --ts, another sample time and bad op
   const fs::path grey = dir / "grey.json", nlarx = dir / "lin.json";
   REQUIRE(fit("--model greybox:first_order --est " + q(est) + " --iterations 2 --save " + q(grey)).code == 0);
   REQUIRE(fit("--model nlarx:na=1,nb=1,nk=1:linear --est " + q(est) + " --save " + q(nlarx)).code == 0);
-  // (A kind that is not generated, state space, is refused by name: tests/analysis/codegen_linear_test.cpp.)
-
-  Run r = codegen("--model " + q(grey) + " --out " + q(dir));
+  // A kind that is not generated: a state-space model file (nlid-fit does not write one).
+  const fs::path ss = dir / "ss.json";
+  std::ofstream(ss) << R"json({"format": "nlid-model", "version": 1, "kind": "state_space", "ts": 0.01,
+ "initial_condition": "zero", "created": "2026-11-25T00:00:00Z", "generator": "test", "description": "",
+ "inputs": [{"name": "u", "unit": ""}], "outputs": [{"name": "y", "unit": ""}],
+ "structure": {"A": [[0.9]], "B": [[0.1]], "C": [[1.0]], "D": [[0.0]], "offset": [0.0]},
+ "parameters": {"names": ["A(1,1)", "B(1,1)", "C(1,1)", "D(1,1)"], "values": [0.9, 0.1, 1.0, 0.0]},
+ "report": {"method": "", "focus": "", "num_experiments": 0, "num_samples": 0, "num_parameters": 4, "loss": 0,
+            "fit_percent": 0, "iterations": 0, "solver_message": ""}})json";
+  Run r = codegen("--model " + q(ss) + " --out " + q(dir));
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("models of kind 'state_space' are not generated") &&
+                        Catch::Contains("arx, output_error"));
+  r = codegen("--model " + q(grey) + " --out " + q(dir));
   CHECK(r.code == 1);
   CHECK_THAT(r.err, Catch::Contains("grey-box model is continuous") && Catch::Contains("--ts"));
   r = codegen("--model " + q(nlarx) + " --out " + q(dir) + " --ts 0.02");
