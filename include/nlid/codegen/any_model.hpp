@@ -19,6 +19,7 @@
 /// and "output_error" (codegen/linear.hpp). State-space models are not generated; asking for
 /// them is an `nlid::Error` that names the kind and lists the supported ones.
 
+#include <concepts>
 #include <string>
 
 #include "nlid/codegen/augmented.hpp"
@@ -38,26 +39,29 @@ namespace nlid {
 /// Generates C99 code for the model held by `model` (see the file comment). Throws
 /// `nlid::Error` for an empty handle, a kind that is not generated (naming it), a grey box
 /// without `options.ts`, and everything the typed `generate_c` overloads throw.
-/// (A template only so that it is compiled where it is called: it instantiates the tracer for
-/// every run-time model family.)
-template <int = 0>
-GeneratedCode generate_c(const AnyModel& model, const CodegenOptions& options = {}) {
+/// (A template on the handle's type, which must be `AnyModel`, so that every expression below is
+/// dependent and compiled only where the function is called: it instantiates the tracer for every
+/// run-time model family — about 30 s of g++ time that `nlid/nlid.hpp` paid in every program
+/// while this was a `template <int = 0>` with non-dependent calls.)
+template <class Handle>
+  requires std::same_as<Handle, AnyModel>
+GeneratedCode generate_c(const Handle& model, const CodegenOptions& options = {}) {
   require(!model.empty(), "codegen: the model handle is empty", at_parameter("model"));
-  if (const auto* m = model.target<DynamicNlarx>()) return generate_c(*m, options);
-  if (const auto* m = model.target<DynamicHammersteinWiener>()) return generate_c(*m, options);
-  if (const auto* m = model.target<DynamicWienerHammerstein>()) return generate_c(*m, options);
-  if (const auto* m = model.target<DynamicWienerSeries>()) return generate_c(*m, options);
-  if (const auto* m = model.target<DynamicHammersteinSeries>()) return generate_c(*m, options);
-  if (const auto* m = model.target<DynamicHammersteinWienerSeries>()) return generate_c(*m, options);
-  if (const auto* m = model.target<DynamicNLNLSeries>()) return generate_c(*m, options);
-  if (const auto* m = model.target<DynamicGreyBox>()) {
+  if (const auto* m = model.template target<DynamicNlarx>()) return generate_c(*m, options);
+  if (const auto* m = model.template target<DynamicHammersteinWiener>()) return generate_c(*m, options);
+  if (const auto* m = model.template target<DynamicWienerHammerstein>()) return generate_c(*m, options);
+  if (const auto* m = model.template target<DynamicWienerSeries>()) return generate_c(*m, options);
+  if (const auto* m = model.template target<DynamicHammersteinSeries>()) return generate_c(*m, options);
+  if (const auto* m = model.template target<DynamicHammersteinWienerSeries>()) return generate_c(*m, options);
+  if (const auto* m = model.template target<DynamicNLNLSeries>()) return generate_c(*m, options);
+  if (const auto* m = model.template target<DynamicGreyBox>()) {
     CodegenOptions o = options;
     if (!(o.ts > 0) && model.ts() > 0) o.ts = model.ts();
     return generate_c(*m, o);
   }
-  if (const auto* m = model.target<AugmentedModel<AnyPhysics>>()) return generate_c(*m, options);
-  if (const auto* m = model.target<Arx>()) return generate_c(*m, options);
-  if (const auto* m = model.target<OutputError>()) return generate_c(*m, options);
+  if (const auto* m = model.template target<AugmentedModel<AnyPhysics>>()) return generate_c(*m, options);
+  if (const auto* m = model.template target<Arx>()) return generate_c(*m, options);
+  if (const auto* m = model.template target<OutputError>()) return generate_c(*m, options);
   throw Error("codegen: models of kind '" + model.kind() +
                   "' are not generated (generated kinds: nlarx, hammerstein_wiener, series, greybox, "
                   "augmented_greybox, arx, output_error)",
