@@ -4,7 +4,11 @@
 //   Fixed    the all-static nlid type (stack storage, compile-time sizes)
 //   Dynamic  the Dynamic twin (orders/units/physics chosen at run time)
 //   Hand     a plain hand-written loop of the same model — the one-trajectory limit
-//   Batch<W> W parameter sets at once on nlid::Batch<double, W> (core/batch.hpp)
+//   Batch<W> W parameter sets at once on nlid::Batch (core/batch.hpp), on the widest vector
+//            registers of the CPU (run-time dispatch: AVX-512 code in the portable build too);
+//            nlarx5 through nlid::simulate_batched, the call a user makes
+//   BatchOwnIsa<W>  the same on the translation unit's own registers (no dispatch; 16 bytes in
+//            the portable build), for comparison
 //
 // on 2000 samples of throttle input (data1 at 100 Hz). Counter samples/s counts simulated
 // samples of all trajectories. The ratio table at the end checks the targets:
@@ -13,6 +17,7 @@
 // Results, machine and command: docs/performance.md.
 #include <benchmark/benchmark.h>
 
+#include <array>
 #include <span>
 #include <vector>
 
@@ -66,22 +71,31 @@ void Nlarx5_Hand(benchmark::State& state) {
   count(state, static_cast<double>(u.rows()));
 }
 
-// W parameter sets (the estimate perturbed, as in a Monte-Carlo study) in one Batch.
+// W parameter sets (the estimate perturbed, as in a Monte-Carlo study) in one batch, through
+// nlid::simulate_batched (packing the parameter sets and unpacking the outputs included), on
+// registers of `register_bytes` (0: the widest the CPU has).
 template <int W>
-void Nlarx5_Batch(benchmark::State& state) {
-  using B = nlid::Batch<double, W>;
+void run_nlarx5_batch(benchmark::State& state, std::size_t register_bytes) {
   const Eigen::MatrixXd& u = input();
   const perf::Nlarx5 m = perf::make_nlarx5();
   const Eigen::VectorXd th = m.parameters();
-  std::vector<B> tb(static_cast<std::size_t>(th.size())), y(static_cast<std::size_t>(u.rows()));
-  for (Eigen::Index j = 0; j < th.size(); ++j)
-    for (int w = 0; w < W; ++w) tb[static_cast<std::size_t>(j)][w] = th(j) * (1.0 + 1e-3 * w);
+  Eigen::MatrixXd thetas(th.size(), W);
+  for (int w = 0; w < W; ++w) thetas.col(w) = th * (1.0 + 1e-3 * w);
   for (auto _ : state) {
-    const bool ok = m.simulate(u, std::span<const B>(tb), std::span<const B>(), std::span<B>(y));
-    benchmark::DoNotOptimize(ok);
+    const Eigen::MatrixXd y = nlid::simulate_batched<W>(m, u, thetas, Eigen::MatrixXd(), register_bytes);
     benchmark::DoNotOptimize(y.data());
   }
   count(state, static_cast<double>(u.rows()) * W);
+  state.counters["reg_bytes"] =
+      static_cast<double>(register_bytes == 0 ? nlid::cpu_register_bytes() : register_bytes);
+}
+template <int W>
+void Nlarx5_Batch(benchmark::State& state) {
+  run_nlarx5_batch<W>(state, 0);
+}
+template <int W>
+void Nlarx5_BatchOwnIsa(benchmark::State& state) {
+  run_nlarx5_batch<W>(state, nlid::default_register_bytes);
 }
 
 // ---- nlhw2 ----------------------------------------------------------------------------------------
@@ -141,25 +155,41 @@ void Throttle_Hand(benchmark::State& state) {
   count(state, static_cast<double>(u.rows()));
 }
 
+// W parameter sets of the physics in one batch: simulate_physics on Batch<double, W, R> with R
+// from nlid::with_register_bytes (0: the widest registers of the CPU), as a user would write it.
 template <int W>
-void Throttle_Batch(benchmark::State& state) {
-  using B = nlid::Batch<double, W>;
+void run_throttle_batch(benchmark::State& state, std::size_t register_bytes) {
   const Eigen::MatrixXd& u = input();
   const auto p = perf::throttle_theta();
   const int sub = throttle_substeps();
   const nlid::IntegratorOptions opt;
-  std::array<B, 4> pb;
-  for (int j = 0; j < 4; ++j)
-    for (int w = 0; w < W; ++w) pb[static_cast<std::size_t>(j)][w] = p[static_cast<std::size_t>(j)] * (1.0 + 1e-3 * w);
-  std::vector<B> y(static_cast<std::size_t>(u.rows()));
-  for (auto _ : state) {
-    B x[2] = {B(15.0), B(0.0)};
-    const auto n = nlid::simulate_physics<B>(perf::StudyThrottle{}, opt, sub, u, kTs, pb.data(), x,
-                                             [&](Eigen::Index k, const B* v) { y[static_cast<std::size_t>(k)] = v[0]; });
-    benchmark::DoNotOptimize(n);
-    benchmark::DoNotOptimize(y.data());
-  }
+  nlid::with_register_bytes(
+      [&]<std::size_t R>() {
+        using B = nlid::Batch<double, W, R>;
+        std::array<B, 4> pb;
+        for (int j = 0; j < 4; ++j)
+          for (int w = 0; w < W; ++w) pb[static_cast<std::size_t>(j)][w] = p[static_cast<std::size_t>(j)] * (1.0 + 1e-3 * w);
+        std::vector<B> y(static_cast<std::size_t>(u.rows()));
+        for (auto _ : state) {
+          B x[2] = {B(15.0), B(0.0)};
+          const auto n = nlid::simulate_physics<B>(perf::StudyThrottle{}, opt, sub, u, kTs, pb.data(), x,
+                                                   [&](Eigen::Index k, const B* v) { y[static_cast<std::size_t>(k)] = v[0]; });
+          benchmark::DoNotOptimize(n);
+          benchmark::DoNotOptimize(y.data());
+        }
+      },
+      register_bytes);
   count(state, static_cast<double>(u.rows()) * W);
+  state.counters["reg_bytes"] =
+      static_cast<double>(register_bytes == 0 ? nlid::cpu_register_bytes() : register_bytes);
+}
+template <int W>
+void Throttle_Batch(benchmark::State& state) {
+  run_throttle_batch<W>(state, 0);
+}
+template <int W>
+void Throttle_BatchOwnIsa(benchmark::State& state) {
+  run_throttle_batch<W>(state, nlid::default_register_bytes);
 }
 
 }  // namespace
@@ -170,6 +200,7 @@ BENCHMARK(Nlarx5_Hand);
 BENCHMARK_TEMPLATE(Nlarx5_Batch, 4);
 BENCHMARK_TEMPLATE(Nlarx5_Batch, 8);
 BENCHMARK_TEMPLATE(Nlarx5_Batch, 16);
+BENCHMARK_TEMPLATE(Nlarx5_BatchOwnIsa, 8);
 BENCHMARK(Nlhw2_Fixed);
 BENCHMARK(Nlhw2_Dynamic);
 BENCHMARK(Nlhw2_Hand);
@@ -179,6 +210,7 @@ BENCHMARK(Throttle_Hand);
 BENCHMARK_TEMPLATE(Throttle_Batch, 4);
 BENCHMARK_TEMPLATE(Throttle_Batch, 8);
 BENCHMARK_TEMPLATE(Throttle_Batch, 16);
+BENCHMARK_TEMPLATE(Throttle_BatchOwnIsa, 8);
 
 int main(int argc, char** argv) {
   return perf::run_with_ratios(
@@ -190,6 +222,7 @@ int main(int argc, char** argv) {
           {"nlarx5: Batch<double,8> / single fixed", "Nlarx5_Batch<8>", "Nlarx5_Fixed", 4.0},
           {"nlarx5: Batch<double,16> / single fixed", "Nlarx5_Batch<16>", "Nlarx5_Fixed", 0.0},
           {"nlarx5: Batch<double,8> / hand-written loop", "Nlarx5_Batch<8>", "Nlarx5_Hand", 0.0},
+          {"nlarx5: Batch<double,8>, own ISA / single fixed", "Nlarx5_BatchOwnIsa<8>", "Nlarx5_Fixed", 0.0},
           {"nlhw2: nlid fixed / hand-written loop", "Nlhw2_Fixed", "Nlhw2_Hand", 0.0},
           {"nlhw2: nlid fixed / Dynamic twin", "Nlhw2_Fixed", "Nlhw2_Dynamic", 0.0},
           {"throttle RK4: nlid fixed / hand-written loop", "Throttle_Fixed", "Throttle_Hand", 0.0},
@@ -197,5 +230,6 @@ int main(int argc, char** argv) {
           {"throttle RK4: Batch<double,4> / single fixed", "Throttle_Batch<4>", "Throttle_Fixed", 0.0},
           {"throttle RK4: Batch<double,8> / single fixed", "Throttle_Batch<8>", "Throttle_Fixed", 4.0},
           {"throttle RK4: Batch<double,16> / single fixed", "Throttle_Batch<16>", "Throttle_Fixed", 0.0},
+          {"throttle RK4: Batch<double,8>, own ISA / single fixed", "Throttle_BatchOwnIsa<8>", "Throttle_Fixed", 0.0},
       });
 }

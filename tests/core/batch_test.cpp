@@ -3,9 +3,12 @@
 // parameter sets equals W single simulations (nlarx5-like sigmoid network, grey-box throttle).
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <array>
 #include <bit>
 #include <cmath>
+#include <cstddef>
+#include <cstdint>
 #include <limits>
 #include <random>
 #include <span>
@@ -65,6 +68,15 @@ Eigen::Index throttle_lane(const std::array<nlid::Batch<double, W>, 4>& pb, int 
   double p[4], x[2] = {20.0, 0.0};
   for (int j = 0; j < 4; ++j) p[j] = pb[j][w];
   return nlid::simulate_physics<double>(StudyThrottle{}, opt, sub, u, ts, p, x, on_sample);
+}
+
+// Register widths this machine can run Batches on: 16 always, 32 and 64 where the CPU has them
+// (nlid::cpu_register_bytes; run-time dispatch where they exceed the build's own width).
+std::vector<std::size_t> register_widths() {
+  std::vector<std::size_t> r;
+  for (std::size_t b : {std::size_t{16}, std::size_t{32}, std::size_t{64}})
+    if (b <= nlid::cpu_register_bytes()) r.push_back(b);
+  return r;
 }
 
 }  // namespace
@@ -175,6 +187,94 @@ TEST_CASE("Batch acts like W scalars for every lane storage (array, one or sever
   check_lanes_like_scalars<double, 32>();
   check_lanes_like_scalars<float, 4>();
   check_lanes_like_scalars<float, 16>();
+}
+
+TEST_CASE("Batch on every register width the CPU offers acts like its lanes alone", "[core][batch]") {
+  // nlid::with_register_bytes compiles its callable for registers of R bytes (AVX2, AVX-512)
+  // and picks R at run time, also in a build for baseline x86-64. The lanes must not notice:
+  // each operation below is computed inside the dispatched call on Batch<double, 8, R> and
+  // compared, lane by lane and bit for bit, with the same operation on plain doubles. Special
+  // values sit in the last lanes, as in the test above; exp and logistic (whose kernels may
+  // use fused multiply-adds in the wider code) are compared within their ulp bounds.
+  constexpr int W = 8;
+  using Lanes = std::array<double, W>;
+  const double inf = std::numeric_limits<double>::infinity(), nan = std::numeric_limits<double>::quiet_NaN();
+  Lanes a{}, b{};
+  for (int i = 0; i < W; ++i) {
+    a[i] = 0.75 * (i - W / 2) + 0.125;
+    b[i] = -0.5 * (i % 5) + 1.0;
+  }
+  a[W - 1] = nan;
+  a[W - 3] = inf;
+  b[W - 2] = -0.0;
+  b[W - 4] = nan;
+  Lanes x{};  // exp/logistic arguments: ordinary ones and far ones in the last register's lanes
+  for (int i = 0; i < W; ++i) x[i] = 0.37 * i - 1.1;
+  x[W - 1] = 710.0;
+  x[W - 2] = -745.5;
+  const auto same = [](double p, double q) { return std::bit_cast<std::uint64_t>(p) == std::bit_cast<std::uint64_t>(q); };
+  for (std::size_t r : register_widths()) {
+    INFO("registers of " << r << " bytes");
+    std::array<Lanes, 12> out{};
+    std::size_t seen_r = 0, seen_align = 0;
+    bool a_finite = true, fin_finite = false;
+    double a_largest = 0.0;
+    nlid::with_register_bytes(
+        [&]<std::size_t R>() {
+          using B = nlid::Batch<double, W, R>;
+          seen_r = R;
+          seen_align = alignof(B);
+          const B ba = B::load(a.data()), bb = B::load(b.data()), bx = B::load(x.data());
+          const B res[12] = {ba + bb, ba - bb, ba * bb, ba / bb, -ba, max(ba, bb), min(ba, bb), abs(bb),
+                             select(ba < bb, ba, bb), B(-0.0), exp(bx), nlid::logistic(-bx)};
+          for (int k = 0; k < 12; ++k) res[k].store(out[static_cast<std::size_t>(k)].data());
+          a_finite = nlid::isfinite(ba);
+          fin_finite = nlid::isfinite(B(1.5));
+          a_largest = static_cast<double>(ba);
+        },
+        r);
+    CHECK(seen_r == r);
+    CHECK(seen_align == std::min<std::size_t>(r, 64));
+    for (int i = 0; i < W; ++i) {
+      INFO("lane " << i);
+      const auto o = [&](int k) { return out[static_cast<std::size_t>(k)][static_cast<std::size_t>(i)]; };
+      CHECK(same(o(0), a[i] + b[i]));
+      CHECK(same(o(1), a[i] - b[i]));
+      CHECK(same(o(2), a[i] * b[i]));
+      CHECK(same(o(3), a[i] / b[i]));
+      CHECK(same(o(4), -a[i]));
+      CHECK(same(o(5), std::max(a[i], b[i])));
+      CHECK(same(o(6), std::min(a[i], b[i])));
+      CHECK(same(o(7), std::fabs(b[i])));
+      CHECK(same(o(8), a[i] < b[i] ? a[i] : b[i]));
+      CHECK(same(o(9), -0.0));  // the broadcast keeps −0's sign
+      if (i < W - 2) {
+        CHECK(ulps(o(10), std::exp(x[i])) <= 2.0);
+        CHECK(ulps(o(11), nlid::detail::logistic(-x[i])) <= 4.0);
+      }
+    }
+    CHECK(out[10][W - 1] == std::exp(710.0));
+    CHECK(out[10][W - 2] == std::exp(-745.5));
+    CHECK(out[11][W - 1] >= 0.0);
+    CHECK(out[11][W - 1] < 1e-300);
+    CHECK_FALSE(a_finite);
+    CHECK(fin_finite);
+    CHECK(std::isnan(a_largest));
+  }
+}
+
+TEST_CASE("A register width the CPU or the build cannot use is refused by name", "[core][batch]") {
+  const auto never = []<std::size_t R>() {};
+  CHECK_THROWS_WITH(nlid::with_register_bytes(never, 24),
+                    Catch::Contains("register width 24 bytes: use 16, 32 or 64") && Catch::Contains("register_bytes"));
+  CHECK_THROWS_WITH(nlid::with_register_bytes(never, 128), Catch::Contains("use 16, 32 or 64"));
+  if (nlid::cpu_register_bytes() < 64) {
+    CHECK_THROWS_WITH(nlid::with_register_bytes(never, 64), Catch::Contains("this CPU offers at most"));
+  }
+  std::size_t widest = 0;
+  nlid::with_register_bytes([&]<std::size_t R>() { widest = R; });  // 0: the widest
+  CHECK(widest == nlid::cpu_register_bytes());
+  CHECK(widest >= nlid::default_register_bytes);
 }
 
 TEST_CASE("Batch lives in any storage: members, std::vector, Eigen's heap", "[core][batch]") {
@@ -334,19 +434,27 @@ TEST_CASE("Batched nlarx5-like simulation equals W single simulations", "[core][
     for (int i = 0; i < P; ++i) thetas(i, k) = base(i) + 0.02 * nd(rng);
     for (int i = 0; i < x0s.rows(); ++i) x0s(i, k) = 0.5 * nd(rng);
   }
-  const Eigen::MatrixXd yb = nlid::simulate_batched<W>(model, u, thetas, x0s);
-  REQUIRE(yb.rows() == n);
-  REQUIRE(yb.cols() == runs);
-  double worst = 0.0, scale = 0.0;
+  // Single runs, the reference.
+  Eigen::MatrixXd ys(n, runs);
+  double scale = 0.0;
   for (int k = 0; k < runs; ++k) {
     Eigen::VectorXd th = thetas.col(k), x0 = x0s.col(k), y(n);
     REQUIRE(model.simulate(u, std::span<const double>(th.data(), P), std::span<const double>(x0.data(), x0.size()),
                            std::span<double>(y.data(), n)));
-    worst = std::max(worst, (y - yb.col(k)).cwiseAbs().maxCoeff());
+    ys.col(k) = y;
     scale = std::max(scale, y.cwiseAbs().maxCoeff());
   }
   CHECK(scale > 0.5);  // the runs do something
-  CHECK(worst <= 1e-12 * scale);
+  // The default (the CPU's widest registers) and every width explicitly.
+  std::vector<std::size_t> widths = register_widths();
+  widths.insert(widths.begin(), 0);
+  for (std::size_t r : widths) {
+    INFO("register_bytes " << r);
+    const Eigen::MatrixXd yb = nlid::simulate_batched<W>(model, u, thetas, x0s, r);
+    REQUIRE(yb.rows() == n);
+    REQUIRE(yb.cols() == runs);
+    CHECK((ys - yb).cwiseAbs().maxCoeff() <= 1e-12 * scale);
+  }
   // Without x0s every run starts from the zero state.
   const Eigen::MatrixXd y0 = nlid::simulate_batched<4>(model, u, thetas.leftCols(3));
   Eigen::VectorXd th = thetas.col(2), y(n);
@@ -354,6 +462,29 @@ TEST_CASE("Batched nlarx5-like simulation equals W single simulations", "[core][
   CHECK((y - y0.col(2)).cwiseAbs().maxCoeff() <= 1e-12 * scale);
   CHECK_THROWS_WITH(nlid::simulate_batched<4>(model, u, thetas, x0s.leftCols(2)),
                     Catch::Contains("x0s has 2 columns for 11 parameter sets"));
+  CHECK_THROWS_WITH(nlid::simulate_batched<4>(model, u, thetas, x0s, 48), Catch::Contains("use 16, 32 or 64"));
+}
+
+TEST_CASE("A batched model with run-time sizes stays on the build's own registers", "[core][batch][models]") {
+  // Its values live in Eigen's heap blocks, aligned for the build's registers only, so wider
+  // (dispatched) registers are refused for it rather than risked; the default just works.
+  nlid::Nlarx<nlid::LaggedRegressors<nlid::Dynamic, nlid::Dynamic, nlid::Dynamic>, nlid::SigmoidNet<nlid::Dynamic, nlid::Dynamic>> model(
+      nlid::LaggedRegressors<nlid::Dynamic, nlid::Dynamic, nlid::Dynamic>(2, 2, 0), nlid::SigmoidNet<nlid::Dynamic, nlid::Dynamic>(4, 3));
+  const int P = model.num_parameters();
+  const int n = 300;
+  Eigen::MatrixXd u(n, 1);
+  for (int t = 0; t < n; ++t) u(t, 0) = std::sin(0.03 * t);
+  Eigen::MatrixXd thetas = Eigen::MatrixXd::Constant(P, 3, 0.05);
+  thetas(0, 0) = 0.5;
+  const Eigen::MatrixXd yb = nlid::simulate_batched<4>(model, u, thetas);
+  Eigen::VectorXd th = thetas.col(0), y(n);
+  REQUIRE(model.simulate(u, std::span<const double>(th.data(), static_cast<std::size_t>(P)), std::span<const double>(),
+                         std::span<double>(y.data(), n)));
+  CHECK((y - yb.col(0)).cwiseAbs().maxCoeff() <= 1e-12 * (1.0 + y.cwiseAbs().maxCoeff()));
+  if (nlid::cpu_register_bytes() > nlid::default_register_bytes) {
+    CHECK_THROWS_WITH(nlid::simulate_batched<4>(model, u, thetas, Eigen::MatrixXd(), nlid::cpu_register_bytes()),
+                      Catch::Contains("a model with run-time sizes runs on this program's own"));
+  }
 }
 
 TEST_CASE("Batched grey-box throttle (RK4) equals W single simulations", "[core][batch][greybox]") {
@@ -366,25 +497,49 @@ TEST_CASE("Batched grey-box throttle (RK4) equals W single simulations", "[core]
   const Eigen::MatrixXd u = throttle_square_wave(n, 150);  // drives into both stops
   const double p0[4] = {22.0, 110.0, 1.2e4, 9000.0};
   std::array<B, 4> pb;
-  std::array<B, 2> xb{B(20.0), B(0.0)};
   for (int j = 0; j < 4; ++j)
     for (int w = 0; w < W; ++w) pb[j][w] = p0[j] * (1.0 + 0.05 * w * (j % 2 == 0 ? 1 : -1));
-  std::vector<B> yb(n);
   const int sub = 10;
-  REQUIRE(nlid::simulate_physics<B>(phys, opt, sub, u, ts, pb.data(), xb.data(),
-                                    [&](Eigen::Index k, const B* y) { yb[static_cast<std::size_t>(k)] = y[0]; }) == n);
-  double hit_upper = 0, worst = 0;
+  std::vector<std::vector<double>> single(W, std::vector<double>(n));
+  double hit_upper = 0;
   for (int w = 0; w < W; ++w) {
-    std::vector<double> y(n);
+    std::vector<double>& y = single[static_cast<std::size_t>(w)];
     REQUIRE(throttle_lane<W>(pb, w, opt, u, ts, sub,
                              [&](Eigen::Index k, const double* v) { y[static_cast<std::size_t>(k)] = v[0]; }) == n);
-    for (int t = 0; t < n; ++t) {
-      worst = std::max(worst, std::abs(y[static_cast<std::size_t>(t)] - yb[static_cast<std::size_t>(t)][w]));
-      hit_upper = std::max(hit_upper, y[static_cast<std::size_t>(t)]);
-    }
+    for (double v : y) hit_upper = std::max(hit_upper, v);
   }
   CHECK(hit_upper > 90.0);  // the contact term is exercised
-  CHECK(worst <= 1e-12 * 100.0);
+  // On the build's registers, then on every width the CPU has (with_register_bytes).
+  std::vector<std::array<double, W>> yb(n);
+  std::array<B, 2> xb{B(20.0), B(0.0)};
+  REQUIRE(nlid::simulate_physics<B>(phys, opt, sub, u, ts, pb.data(), xb.data(),
+                                    [&](Eigen::Index k, const B* y) { y[0].store(yb[static_cast<std::size_t>(k)].data()); }) == n);
+  const auto worst_against_single = [&] {
+    double worst = 0;
+    for (int w = 0; w < W; ++w)
+      for (int t = 0; t < n; ++t)
+        worst = std::max(worst, std::abs(single[static_cast<std::size_t>(w)][static_cast<std::size_t>(t)] -
+                                         yb[static_cast<std::size_t>(t)][static_cast<std::size_t>(w)]));
+    return worst;
+  };
+  CHECK(worst_against_single() <= 1e-12 * 100.0);
+  for (std::size_t r : register_widths()) {
+    INFO("registers of " << r << " bytes");
+    Eigen::Index steps = 0;
+    nlid::with_register_bytes(
+        [&]<std::size_t R>() {
+          using BR = nlid::Batch<double, W, R>;
+          std::array<BR, 4> p;
+          for (int j = 0; j < 4; ++j) p[static_cast<std::size_t>(j)] = BR::load(&pb[static_cast<std::size_t>(j)][0]);
+          std::array<BR, 2> x{BR(20.0), BR(0.0)};
+          steps = nlid::simulate_physics<BR>(phys, opt, sub, u, ts, p.data(), x.data(), [&](Eigen::Index k, const BR* y) {
+            y[0].store(yb[static_cast<std::size_t>(k)].data());
+          });
+        },
+        r);
+    REQUIRE(steps == n);
+    CHECK(worst_against_single() <= 1e-12 * 100.0);
+  }
 }
 
 TEST_CASE("A batched RK4 simulation stops where its first lane diverges, as that lane alone does",
@@ -412,4 +567,18 @@ TEST_CASE("A batched RK4 simulation stops where its first lane diverges, as that
   const Eigen::Index got =
       nlid::simulate_physics<B>(phys, opt, sub, u, ts, pb.data(), xb.data(), [](Eigen::Index, const B*) {});
   CHECK(got == bad);
+  for (std::size_t r : register_widths()) {  // the same on every register width
+    INFO("registers of " << r << " bytes");
+    Eigen::Index got_r = -1;
+    nlid::with_register_bytes(
+        [&]<std::size_t R>() {
+          using BR = nlid::Batch<double, W, R>;
+          std::array<BR, 4> p;
+          for (int j = 0; j < 4; ++j) p[static_cast<std::size_t>(j)] = BR::load(&pb[static_cast<std::size_t>(j)][0]);
+          std::array<BR, 2> x{BR(20.0), BR(0.0)};
+          got_r = nlid::simulate_physics<BR>(phys, opt, sub, u, ts, p.data(), x.data(), [](Eigen::Index, const BR*) {});
+        },
+        r);
+    CHECK(got_r == bad);
+  }
 }

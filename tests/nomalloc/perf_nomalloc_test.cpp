@@ -67,6 +67,33 @@ TEST_CASE("batched nlarx5 simulation allocates nothing", "[nomalloc][batch]") {
   CHECK(std::isfinite(static_cast<double>(y.back())));
 }
 
+TEST_CASE("batched nlarx5 simulation on the CPU's widest registers allocates nothing", "[nomalloc][batch]") {
+  // The run-time dispatch of core/batch.hpp (AVX2/AVX-512 code in a baseline build) needs the
+  // model to keep no Batch in Eigen's heap blocks, which are aligned for the build's registers
+  // only: this is the proof for the fixed-size nlarx5 that simulate_batched relies on.
+  nlid::Nlarx<nlid::LaggedRegressors<3, 3, 0>, nlid::SigmoidNet<6, 5>> m;
+  constexpr int P = nlid::SigmoidNet<6, 5>::num_params;
+  const Eigen::MatrixXd u = input(400);
+  bool ok = false, finite = false;
+  std::size_t used = 0;
+  nlid::with_register_bytes([&]<std::size_t R>() {
+    using B = nlid::Batch<double, 8, R>;
+    std::array<B, P> th;
+    for (int i = 0; i < P; ++i)
+      for (int w = 0; w < 8; ++w) th[static_cast<std::size_t>(i)][w] = (i < 3 ? 0.3 : 0.01) * (1.0 + 0.01 * w);
+    std::vector<B> y(400);
+    {
+      EigenHeapOff guard;
+      ok = m.simulate(u, std::span<const B>(th), std::span<const B>(), std::span<B>(y));
+    }
+    finite = nlid::isfinite(y.back());
+    used = R;
+  });
+  REQUIRE(ok);
+  CHECK(finite);
+  CHECK(used == nlid::cpu_register_bytes());
+}
+
 TEST_CASE("batched grey-box throttle simulation (RK4) allocates nothing", "[nomalloc][batch]") {
   using B = nlid::Batch<double, 4>;
   const Eigen::MatrixXd u = input(300);

@@ -39,8 +39,17 @@
 /// would decide; otherwise a std::array. Either way a Batch has the size of T[W]; with vectors
 /// its alignment is that of one register (at most Eigen's EIGEN_MAX_ALIGN_BYTES, so Eigen's,
 /// std::vector's and `new`'s allocations of Batch scalars are aligned).
-/// (So the register width is a property of the translation unit, as it is for Eigen: link
-/// translation units compiled for different instruction sets only across non-inline boundaries.)
+/// (So the default register width is a property of the translation unit, as it is for Eigen:
+/// link translation units compiled for different instruction sets only across non-inline
+/// boundaries.)
+///
+/// Wider registers at run time. `Batch<T, W, R>` names the register width R (bytes) explicitly;
+/// `with_register_bytes(f)` calls `f.template operator()<R>()` with R the widest width of the CPU
+/// running the program (`cpu_register_bytes()`), inside a function compiled for that
+/// instruction set (`target("avx512f…")` / `target("avx2,fma")`, with `flatten` so the model
+/// code below it is compiled there too). A program built for baseline x86-64 thus runs its
+/// batches on AVX-512 registers where the machine has them; `simulate_batched` does this for
+/// models of static size. docs/models.md ("Registers chosen at run time") has the rules.
 ///
 /// Eigen glue (`NumTraits`, `ScalarBinaryOpTraits` with T) lets a Batch be the scalar of Eigen
 /// matrices (integrator states, regressor vectors).
@@ -118,8 +127,11 @@ inline constexpr std::size_t isa_bytes =
 inline constexpr std::size_t simd_bytes =
     std::max(std::size_t{16}, std::min(isa_bytes, static_cast<std::size_t>(EIGEN_MAX_ALIGN_BYTES)));
 
-/// Lane storage: `type` for the values, `bits` for masks of the same width.
-template <class T, int W, bool Simd = batch_simd_v<T, W>>
+/// True for a register width a Batch can be built on: a power of two of at least 16 bytes.
+inline constexpr bool valid_register_bytes(std::size_t r) { return r >= 16 && (r & (r - 1)) == 0; }
+
+/// Lane storage: `type` for the values, `bits` for masks of the same width; R bytes per register.
+template <class T, int W, std::size_t R, bool Simd = batch_simd_v<T, W>>
 struct batch_storage {
   using type = std::array<T, static_cast<std::size_t>(W)>;
   using bits = std::array<lane_bits_t<T>, static_cast<std::size_t>(W)>;
@@ -137,18 +149,21 @@ struct batch_storage {
 // alignment: a typedef that lowers it (aligned(alignof(T))) is not honoured by Clang in every
 // templated expression — Clang -O1 emitted an aligned SSE load of a Batch at an 8-byte offset,
 // a crash (tests/core/batch_test.cpp).
-template <class T, int W>
-struct batch_storage<T, W, true> {
+template <class T, int W, std::size_t R>
+struct batch_storage<T, W, R, true> {
   /// Bytes per chunk: the register width, or all W lanes if they fit in less.
-  static constexpr std::size_t bytes = sizeof(T) * W < simd_bytes ? sizeof(T) * W : simd_bytes;
+  static constexpr std::size_t bytes = sizeof(T) * W < R ? sizeof(T) * W : R;
   /// Number of chunks.
   static constexpr int chunks = static_cast<int>(sizeof(T) * W / bytes);
   /// Lanes per chunk.
   static constexpr int per_chunk = static_cast<int>(bytes / sizeof(T));
-  /// One register of lanes.
-  typedef T vec __attribute__((vector_size(bytes)));
+  /// One register of lanes. Aligned to its size explicitly: GCC caps a vector type's natural
+  /// alignment at the translation unit's widest register (16 bytes on baseline x86-64), yet code
+  /// compiled for AVX (run-time dispatch, `with_register_bytes`) loads a 32-byte vector with
+  /// aligned instructions — a crash on memory the standard allocator aligned to 16.
+  typedef T vec __attribute__((vector_size(bytes), aligned(bytes)));
   /// One register of lane masks.
-  typedef lane_bits_t<T> vbits __attribute__((vector_size(bytes)));
+  typedef lane_bits_t<T> vbits __attribute__((vector_size(bytes), aligned(bytes)));
   /// The values.
   struct type {
     vec c[chunks];
@@ -162,16 +177,18 @@ struct batch_storage<T, W, true> {
 /// One chunk's lane types: the `L` of the math kernels, which also take `scalar_lanes` (one
 /// double), so scalar and vector lanes run one source. Declared for every compiler so that the
 /// vector branches of the operations parse; instantiated only where `batch_simd_v` holds.
-template <class T, int W>
+template <class T, int W, std::size_t R>
 struct batch_chunk {
-  using type = typename batch_storage<T, W>::vec;
-  using bits = typename batch_storage<T, W>::vbits;
+  using type = typename batch_storage<T, W, R>::vec;
+  using bits = typename batch_storage<T, W, R>::vbits;
 };
 }  // namespace detail
 
-/// W lanes of T, operated on lane-wise (see file comment). Invariant: W ≥ 1.
-template <class T, int W>
-  requires(std::is_floating_point_v<T> && W >= 1)
+/// W lanes of T, operated on lane-wise (see file comment). Invariant: W ≥ 1. R is the width of
+/// the registers the lanes are stored in (bytes): by default the translation unit's; only
+/// `simulate_batched`'s run-time dispatch names a wider one (see there).
+template <class T, int W, std::size_t R = detail::simd_bytes>
+  requires(std::is_floating_point_v<T> && W >= 1 && detail::valid_register_bytes(R))
 struct Batch {
   /// Number of lanes.
   static constexpr int lanes = W;
@@ -181,7 +198,7 @@ struct Batch {
   static constexpr bool simd = detail::batch_simd_v<T, W>;
   /// The lanes' storage: register-wide GNU vectors `v.c[k]` (GCC, Clang; W a power of two) or
   /// a std::array. Either way W consecutive T in memory; `operator[]` reads or writes lane i.
-  using storage = typename detail::batch_storage<T, W>::type;
+  using storage = typename detail::batch_storage<T, W, R>::type;
 
   /// The lanes (public, like Dual's `a` and `v`: a plain value type).
   storage v{};
@@ -201,8 +218,22 @@ struct Batch {
   /// Broadcast: every lane equals x (implicit, as a constant enters an expression).
   constexpr Batch(T x) {  // NOLINT(google-explicit-constructor)
     if constexpr (simd) {
-      // x − (+0) is x for every x, −0 and NaN included: a broadcast.
-      detail::for_each_chunk<detail::batch_storage<T, W>::chunks>([&](int k) NLID_CHUNK_LAMBDA { v.c[k] = x - typename detail::batch_storage<T, W>::vec{}; });
+      using S = detail::batch_storage<T, W, R>;
+      if constexpr (R <= detail::isa_bytes) {
+        // x − (+0) is x for every x, −0 and NaN included: a broadcast.
+        detail::for_each_chunk<S::chunks>([&](int k) NLID_CHUNK_LAMBDA { v.c[k] = x - typename S::vec{}; });
+      } else {
+        // Registers wider than the translation unit's (code dispatched at run time, see
+        // `with_register_bytes`): there GCC expands x − (+0) into one masked insert per lane,
+        // 8 per AVX-512 register (the batched nlarx5 ran at 146 instead of 183 M samples/s);
+        // lane by lane it emits one broadcast. In the translation unit's own width the lane
+        // form is the slower one (portable nlarx5 batch 76 → 61–69 M samples/s), hence both.
+        detail::for_each_chunk<S::chunks>([&](int k) NLID_CHUNK_LAMBDA {
+          typename S::vec c{};
+          for (int i = 0; i < S::per_chunk; ++i) c[i] = x;
+          v.c[k] = c;
+        });
+      }
     } else {
       v.fill(x);
     }
@@ -259,7 +290,7 @@ struct Batch {
   /// Lane-wise compound arithmetic.
   Batch& operator+=(const Batch& o) {
     if constexpr (simd) {
-      detail::for_each_chunk<detail::batch_storage<T, W>::chunks>([&](int k) NLID_CHUNK_LAMBDA { v.c[k] += o.v.c[k]; });
+      detail::for_each_chunk<detail::batch_storage<T, W, R>::chunks>([&](int k) NLID_CHUNK_LAMBDA { v.c[k] += o.v.c[k]; });
     } else {
       for (int i = 0; i < W; ++i) v[i] += o.v[i];
     }
@@ -268,7 +299,7 @@ struct Batch {
   /// Lane-wise difference.
   Batch& operator-=(const Batch& o) {
     if constexpr (simd) {
-      detail::for_each_chunk<detail::batch_storage<T, W>::chunks>([&](int k) NLID_CHUNK_LAMBDA { v.c[k] -= o.v.c[k]; });
+      detail::for_each_chunk<detail::batch_storage<T, W, R>::chunks>([&](int k) NLID_CHUNK_LAMBDA { v.c[k] -= o.v.c[k]; });
     } else {
       for (int i = 0; i < W; ++i) v[i] -= o.v[i];
     }
@@ -277,7 +308,7 @@ struct Batch {
   /// Lane-wise product.
   Batch& operator*=(const Batch& o) {
     if constexpr (simd) {
-      detail::for_each_chunk<detail::batch_storage<T, W>::chunks>([&](int k) NLID_CHUNK_LAMBDA { v.c[k] *= o.v.c[k]; });
+      detail::for_each_chunk<detail::batch_storage<T, W, R>::chunks>([&](int k) NLID_CHUNK_LAMBDA { v.c[k] *= o.v.c[k]; });
     } else {
       for (int i = 0; i < W; ++i) v[i] *= o.v[i];
     }
@@ -286,7 +317,7 @@ struct Batch {
   /// Lane-wise quotient.
   Batch& operator/=(const Batch& o) {
     if constexpr (simd) {
-      detail::for_each_chunk<detail::batch_storage<T, W>::chunks>([&](int k) NLID_CHUNK_LAMBDA { v.c[k] /= o.v.c[k]; });
+      detail::for_each_chunk<detail::batch_storage<T, W, R>::chunks>([&](int k) NLID_CHUNK_LAMBDA { v.c[k] /= o.v.c[k]; });
     } else {
       for (int i = 0; i < W; ++i) v[i] /= o.v[i];
     }
@@ -296,7 +327,7 @@ struct Batch {
  private:
   constexpr void copy_from(const Batch& o) {
     if constexpr (simd) {
-      detail::for_each_chunk<detail::batch_storage<T, W>::chunks>([&](int k) NLID_CHUNK_LAMBDA { v.c[k] = o.v.c[k]; });
+      detail::for_each_chunk<detail::batch_storage<T, W, R>::chunks>([&](int k) NLID_CHUNK_LAMBDA { v.c[k] = o.v.c[k]; });
     } else {
       for (int i = 0; i < W; ++i) v[static_cast<std::size_t>(i)] = o.v[static_cast<std::size_t>(i)];
     }
@@ -305,10 +336,10 @@ struct Batch {
 
 /// Result of comparing batches: per lane all bits set (true) or clear (false), the form SIMD
 /// compare instructions produce. No conversion to bool (file comment).
-template <class T, int W>
+template <class T, int W, std::size_t R = detail::simd_bytes>
 struct BatchMask {
   /// Lane flags as bit masks (register-wide vectors `m.c[k]` where the batch's lanes are).
-  typename detail::batch_storage<T, W>::bits m{};
+  typename detail::batch_storage<T, W, R>::bits m{};
   /// The bits of lane i.
   detail::lane_bits_t<T> bits(int i) const {
     if constexpr (detail::batch_simd_v<T, W>) {
@@ -321,65 +352,65 @@ struct BatchMask {
   bool operator[](int i) const { return bits(i) != 0; }
 };
 
-/// True for `Batch<T, W>` (cv/ref-qualified too).
+/// True for `Batch<T, W, R>` (cv/ref-qualified too).
 template <class X>
 struct is_batch : std::false_type {};
-/// Specialisation recognising `Batch<T, W>`.
-template <class T, int W>
-struct is_batch<Batch<T, W>> : std::true_type {};
-/// True for any (cv/ref-qualified) `Batch<T, W>`.
+/// Specialisation recognising `Batch<T, W, R>`.
+template <class T, int W, std::size_t R>
+struct is_batch<Batch<T, W, R>> : std::true_type {};
+/// True for any (cv/ref-qualified) `Batch<T, W, R>`.
 template <class X>
 inline constexpr bool is_batch_v = is_batch<std::remove_cvref_t<X>>::value;
 
 /// A lane-parallel scalar.
-/// Satisfied by `Batch<T, W>` for floating-point T.
+/// Satisfied by `Batch<T, W, R>` for floating-point T.
 template <class X>
 concept BatchScalar = is_batch_v<X>;
 
 // ---- masks -------------------------------------------------------------------------------------
 
 /// True if every lane is set.
-template <class T, int W>
-bool all(const BatchMask<T, W>& k) {
+template <class T, int W, std::size_t R>
+bool all(const BatchMask<T, W, R>& k) {
   detail::lane_bits_t<T> a = ~detail::lane_bits_t<T>(0);
   for (int i = 0; i < W; ++i) a &= k.bits(i);
   return a != 0;
 }
 /// True if some lane is set.
-template <class T, int W>
-bool any(const BatchMask<T, W>& k) {
+template <class T, int W, std::size_t R>
+bool any(const BatchMask<T, W, R>& k) {
   detail::lane_bits_t<T> a = 0;
   for (int i = 0; i < W; ++i) a |= k.bits(i);
   return a != 0;
 }
 /// Lane-wise not.
-template <class T, int W>
-BatchMask<T, W> operator!(const BatchMask<T, W>& k) {
-  BatchMask<T, W> r;
+template <class T, int W, std::size_t R>
+BatchMask<T, W, R> operator!(const BatchMask<T, W, R>& k) {
+  BatchMask<T, W, R> r;
   if constexpr (detail::batch_simd_v<T, W>) {
-    detail::for_each_chunk<detail::batch_storage<T, W>::chunks>([&](int j) NLID_CHUNK_LAMBDA { r.m.c[j] = ~k.m.c[j]; });
+    detail::for_each_chunk<detail::batch_storage<T, W, R>::chunks>([&](int j) NLID_CHUNK_LAMBDA { r.m.c[j] = ~k.m.c[j]; });
   } else {
     for (int i = 0; i < W; ++i) r.m[static_cast<std::size_t>(i)] = ~k.m[static_cast<std::size_t>(i)];
   }
   return r;
 }
 /// Lane-wise and.
-template <class T, int W>
-BatchMask<T, W> operator&&(const BatchMask<T, W>& a, const BatchMask<T, W>& b) {
-  BatchMask<T, W> r;
+template <class T, int W, std::size_t R>
+BatchMask<T, W, R> operator&&(const BatchMask<T, W, R>& a, const BatchMask<T, W, R>& b) {
+  BatchMask<T, W, R> r;
   if constexpr (detail::batch_simd_v<T, W>) {
-    detail::for_each_chunk<detail::batch_storage<T, W>::chunks>([&](int j) NLID_CHUNK_LAMBDA { r.m.c[j] = a.m.c[j] & b.m.c[j]; });
+    detail::for_each_chunk<detail::batch_storage<T, W, R>::chunks>([&](int j) NLID_CHUNK_LAMBDA { r.m.c[j] = a.m.c[j] & b.m.c[j]; });
   } else {
     for (int i = 0; i < W; ++i) r.m[static_cast<std::size_t>(i)] = a.m[static_cast<std::size_t>(i)] & b.m[static_cast<std::size_t>(i)];
   }
   return r;
 }
 /// Lane-wise or.
-template <class T, int W>
-BatchMask<T, W> operator||(const BatchMask<T, W>& a, const BatchMask<T, W>& b) {
-  BatchMask<T, W> r;
+template <class T, int W, std::size_t R>
+BatchMask<T, W, R> operator||(const BatchMask<T, W, R>& a, const BatchMask<T, W, R>& b) {
+  BatchMask<T, W, R> r;
   if constexpr (detail::batch_simd_v<T, W>) {
-    detail::for_each_chunk<detail::batch_storage<T, W>::chunks>([&](int j) NLID_CHUNK_LAMBDA { r.m.c[j] = a.m.c[j] | b.m.c[j]; });
+    detail::for_each_chunk<detail::batch_storage<T, W, R>::chunks>([&](int j) NLID_CHUNK_LAMBDA { r.m.c[j] = a.m.c[j] | b.m.c[j]; });
   } else {
     for (int i = 0; i < W; ++i) r.m[static_cast<std::size_t>(i)] = a.m[static_cast<std::size_t>(i)] | b.m[static_cast<std::size_t>(i)];
   }
@@ -387,12 +418,12 @@ BatchMask<T, W> operator||(const BatchMask<T, W>& a, const BatchMask<T, W>& b) {
 }
 /// Per lane: a where the mask is set, b elsewhere — the batched `k ? a : b` (bitwise blend,
 /// so it vectorises and passes NaN and infinities through unchanged).
-template <class T, int W>
-Batch<T, W> select(const BatchMask<T, W>& k, const Batch<T, W>& a, const Batch<T, W>& b) {
+template <class T, int W, std::size_t R>
+Batch<T, W, R> select(const BatchMask<T, W, R>& k, const Batch<T, W, R>& a, const Batch<T, W, R>& b) {
   using U = detail::lane_bits_t<T>;
-  Batch<T, W> r;
+  Batch<T, W, R> r;
   if constexpr (detail::batch_simd_v<T, W>) {
-    using S = detail::batch_storage<T, W>;
+    using S = detail::batch_storage<T, W, R>;
     detail::for_each_chunk<S::chunks>([&](int j) NLID_CHUNK_LAMBDA {
       r.v.c[j] = __builtin_bit_cast(typename S::vec, (__builtin_bit_cast(typename S::vbits, a.v.c[j]) & k.m.c[j]) |
                                                          (__builtin_bit_cast(typename S::vbits, b.v.c[j]) & ~k.m.c[j]));
@@ -412,61 +443,61 @@ Batch<T, W> select(const BatchMask<T, W>& k, const Batch<T, W>& a, const Batch<T
 // int or float constant converts instead of failing deduction.
 
 /// Unary plus.
-template <class T, int W> Batch<T, W> operator+(const Batch<T, W>& x) { return x; }
+template <class T, int W, std::size_t R> Batch<T, W, R> operator+(const Batch<T, W, R>& x) { return x; }
 /// Lane-wise negation.
-template <class T, int W> Batch<T, W> operator-(const Batch<T, W>& x) {
-  Batch<T, W> r;
+template <class T, int W, std::size_t R> Batch<T, W, R> operator-(const Batch<T, W, R>& x) {
+  Batch<T, W, R> r;
   if constexpr (detail::batch_simd_v<T, W>) {
-    detail::for_each_chunk<detail::batch_storage<T, W>::chunks>([&](int j) NLID_CHUNK_LAMBDA { r.v.c[j] = -x.v.c[j]; });
+    detail::for_each_chunk<detail::batch_storage<T, W, R>::chunks>([&](int j) NLID_CHUNK_LAMBDA { r.v.c[j] = -x.v.c[j]; });
   } else {
     for (int i = 0; i < W; ++i) r.v[i] = -x.v[i];
   }
   return r;
 }
 /// Lane-wise sum.
-template <class T, int W> Batch<T, W> operator+(Batch<T, W> x, const Batch<T, W>& y) { return x += y; }
+template <class T, int W, std::size_t R> Batch<T, W, R> operator+(Batch<T, W, R> x, const Batch<T, W, R>& y) { return x += y; }
 /// Sum with a constant.
-template <class T, int W> Batch<T, W> operator+(Batch<T, W> x, std::type_identity_t<T> c) { return x += Batch<T, W>(c); }
+template <class T, int W, std::size_t R> Batch<T, W, R> operator+(Batch<T, W, R> x, std::type_identity_t<T> c) { return x += Batch<T, W, R>(c); }
 /// Constant plus batch.
-template <class T, int W> Batch<T, W> operator+(std::type_identity_t<T> c, Batch<T, W> x) { return x += Batch<T, W>(c); }
+template <class T, int W, std::size_t R> Batch<T, W, R> operator+(std::type_identity_t<T> c, Batch<T, W, R> x) { return x += Batch<T, W, R>(c); }
 /// Lane-wise difference.
-template <class T, int W> Batch<T, W> operator-(Batch<T, W> x, const Batch<T, W>& y) { return x -= y; }
+template <class T, int W, std::size_t R> Batch<T, W, R> operator-(Batch<T, W, R> x, const Batch<T, W, R>& y) { return x -= y; }
 /// Difference with a constant.
-template <class T, int W> Batch<T, W> operator-(Batch<T, W> x, std::type_identity_t<T> c) { return x -= Batch<T, W>(c); }
+template <class T, int W, std::size_t R> Batch<T, W, R> operator-(Batch<T, W, R> x, std::type_identity_t<T> c) { return x -= Batch<T, W, R>(c); }
 /// Constant minus batch.
-template <class T, int W> Batch<T, W> operator-(std::type_identity_t<T> c, const Batch<T, W>& x) { return Batch<T, W>(c) -= x; }
+template <class T, int W, std::size_t R> Batch<T, W, R> operator-(std::type_identity_t<T> c, const Batch<T, W, R>& x) { return Batch<T, W, R>(c) -= x; }
 /// Lane-wise product.
-template <class T, int W> Batch<T, W> operator*(Batch<T, W> x, const Batch<T, W>& y) { return x *= y; }
+template <class T, int W, std::size_t R> Batch<T, W, R> operator*(Batch<T, W, R> x, const Batch<T, W, R>& y) { return x *= y; }
 /// Product with a constant.
-template <class T, int W> Batch<T, W> operator*(Batch<T, W> x, std::type_identity_t<T> c) { return x *= Batch<T, W>(c); }
+template <class T, int W, std::size_t R> Batch<T, W, R> operator*(Batch<T, W, R> x, std::type_identity_t<T> c) { return x *= Batch<T, W, R>(c); }
 /// Constant times batch.
-template <class T, int W> Batch<T, W> operator*(std::type_identity_t<T> c, Batch<T, W> x) { return x *= Batch<T, W>(c); }
+template <class T, int W, std::size_t R> Batch<T, W, R> operator*(std::type_identity_t<T> c, Batch<T, W, R> x) { return x *= Batch<T, W, R>(c); }
 /// Lane-wise quotient.
-template <class T, int W> Batch<T, W> operator/(Batch<T, W> x, const Batch<T, W>& y) { return x /= y; }
+template <class T, int W, std::size_t R> Batch<T, W, R> operator/(Batch<T, W, R> x, const Batch<T, W, R>& y) { return x /= y; }
 /// Quotient by a constant.
-template <class T, int W> Batch<T, W> operator/(Batch<T, W> x, std::type_identity_t<T> c) { return x /= Batch<T, W>(c); }
+template <class T, int W, std::size_t R> Batch<T, W, R> operator/(Batch<T, W, R> x, std::type_identity_t<T> c) { return x /= Batch<T, W, R>(c); }
 /// Constant over batch.
-template <class T, int W> Batch<T, W> operator/(std::type_identity_t<T> c, const Batch<T, W>& x) { return Batch<T, W>(c) /= x; }
+template <class T, int W, std::size_t R> Batch<T, W, R> operator/(std::type_identity_t<T> c, const Batch<T, W, R>& x) { return Batch<T, W, R>(c) /= x; }
 
 namespace detail {
-template <class T, int W, class Op>
-BatchMask<T, W> compare_lanes(const Batch<T, W>& a, const Batch<T, W>& b, Op op) {
-  BatchMask<T, W> r;
+template <class T, int W, std::size_t R, class Op>
+BatchMask<T, W, R> compare_lanes(const Batch<T, W, R>& a, const Batch<T, W, R>& b, Op op) {
+  BatchMask<T, W, R> r;
   for (int i = 0; i < W; ++i) {
     const auto j = static_cast<std::size_t>(i);
     r.m[j] = op(a.v[j], b.v[j]) ? ~lane_bits_t<T>(0) : lane_bits_t<T>(0);
   }
   return r;
 }
-template <class T, int W, class F>
-Batch<T, W> map_lanes(const Batch<T, W>& x, F f) {
-  Batch<T, W> r;
+template <class T, int W, std::size_t R, class F>
+Batch<T, W, R> map_lanes(const Batch<T, W, R>& x, F f) {
+  Batch<T, W, R> r;
   for (int i = 0; i < W; ++i) r[i] = f(x[i]);
   return r;
 }
-template <class T, int W, class F>
-Batch<T, W> map_lanes(const Batch<T, W>& x, const Batch<T, W>& y, F f) {
-  Batch<T, W> r;
+template <class T, int W, std::size_t R, class F>
+Batch<T, W, R> map_lanes(const Batch<T, W, R>& x, const Batch<T, W, R>& y, F f) {
+  Batch<T, W, R> r;
   for (int i = 0; i < W; ++i) r[i] = f(x[i], y[i]);
   return r;
 }
@@ -475,11 +506,11 @@ Batch<T, W> map_lanes(const Batch<T, W>& x, const Batch<T, W>& y, F f) {
 // Comparisons (batch–batch and batch–constant) give masks.
 #define NLID_BATCH_COMPARISON(OP)                                                                  \
   /** Lane-wise comparison (a mask). */                                                           \
-  template <class T, int W>                                                                       \
-  BatchMask<T, W> operator OP(const Batch<T, W>& a, const Batch<T, W>& b) {                          \
+  template <class T, int W, std::size_t R>                                                         \
+  BatchMask<T, W, R> operator OP(const Batch<T, W, R>& a, const Batch<T, W, R>& b) {               \
     if constexpr (detail::batch_simd_v<T, W>) {                                                   \
-      using S = detail::batch_storage<T, W>;                                                      \
-      BatchMask<T, W> r;                                                                          \
+      using S = detail::batch_storage<T, W, R>;                                                    \
+      BatchMask<T, W, R> r;                                                                        \
       detail::for_each_chunk<S::chunks>(                                                          \
           [&](int j) NLID_CHUNK_LAMBDA { r.m.c[j] = __builtin_bit_cast(typename S::vbits, a.v.c[j] OP b.v.c[j]); }); \
       return r;                                                                                   \
@@ -488,14 +519,14 @@ Batch<T, W> map_lanes(const Batch<T, W>& x, const Batch<T, W>& y, F f) {
     }                                                                                             \
   }                                                                                               \
   /** Comparison with a constant. */                                                              \
-  template <class T, int W>                                                                       \
-  BatchMask<T, W> operator OP(const Batch<T, W>& a, std::type_identity_t<T> c) {                     \
-    return a OP Batch<T, W>(c);                                                                   \
+  template <class T, int W, std::size_t R>                                                         \
+  BatchMask<T, W, R> operator OP(const Batch<T, W, R>& a, std::type_identity_t<T> c) {             \
+    return a OP Batch<T, W, R>(c);                                                                 \
   }                                                                                               \
   /** Constant compared with a batch. */                                                          \
-  template <class T, int W>                                                                       \
-  BatchMask<T, W> operator OP(std::type_identity_t<T> c, const Batch<T, W>& b) {                     \
-    return Batch<T, W>(c) OP b;                                                                   \
+  template <class T, int W, std::size_t R>                                                         \
+  BatchMask<T, W, R> operator OP(std::type_identity_t<T> c, const Batch<T, W, R>& b) {             \
+    return Batch<T, W, R>(c) OP b;                                                                 \
   }
 NLID_BATCH_COMPARISON(<)
 NLID_BATCH_COMPARISON(<=)
@@ -515,7 +546,7 @@ namespace detail {
 /// instruction (SSE2 lacks one for packed doubles). Sets two_k = 2^k, px = r·P(r²) and
 /// qx = Q(r²) of Cephes' rational form e^r = (qx + px)/(qx − px), relative error below
 /// 2.2·10⁻¹⁶. Valid for x in [−708, 709]; outside, the exponent bits wrap (unsigned: defined
-/// behaviour). L names the lane types: `scalar_lanes` (one double) or `batch_chunk<double, W>`
+/// behaviour). L names the lane types: `scalar_lanes` (one double) or `batch_chunk<double, W, R>`
 /// (a GNU vector of doubles, `bits` its 64-bit unsigned twin): the same operations in the same
 /// order, so a vector lane and a scalar call give the same bits.
 /// Vectors go by reference: passed or returned by value they are a -Wpsabi warning.
@@ -564,10 +595,10 @@ NLID_BATCH_INLINE std::uint64_t beyond(double x, double limit) {
 }
 
 /// Bitwise or of a chunk's lanes (0 iff every lane is 0).
-template <class T, int W>
-NLID_BATCH_INLINE lane_bits_t<T> or_lanes(const typename batch_chunk<T, W>::bits& u) {
+template <class T, int W, std::size_t R>
+NLID_BATCH_INLINE lane_bits_t<T> or_lanes(const typename batch_chunk<T, W, R>::bits& u) {
   lane_bits_t<T> a = 0;
-  for (int i = 0; i < batch_storage<T, W>::per_chunk; ++i) a |= u[i];
+  for (int i = 0; i < batch_storage<T, W, R>::per_chunk; ++i) a |= u[i];
   return a;
 }
 
@@ -616,17 +647,17 @@ struct LogisticKernel {
 /// kernel's operations in its order, without the compiler's vectoriser in between. The
 /// far-argument flags are or-ed as vectors and reduced across lanes once: a lane reduction costs
 /// a few extract instructions per register, measurable in a sigmoid network.
-template <class K, int W>
-NLID_BATCH_INLINE void vector_kernel(const typename batch_storage<double, W>::type& x, typename batch_storage<double, W>::type& out) {
-  using L = batch_chunk<double, W>;
+template <class K, int W, std::size_t R>
+NLID_BATCH_INLINE void vector_kernel(const typename batch_storage<double, W, R>::type& x, typename batch_storage<double, W, R>::type& out) {
+  using L = batch_chunk<double, W, R>;
   typename L::bits outside{};
-  for_each_chunk<batch_storage<double, W>::chunks>([&](int j) NLID_CHUNK_LAMBDA {
+  for_each_chunk<batch_storage<double, W, R>::chunks>([&](int j) NLID_CHUNK_LAMBDA {
     K::template value<L>(x.c[j], out.c[j]);
     typename L::bits far;
     beyond_into<L>(x.c[j], far_argument, far);
     outside |= far;
   });
-  if (or_lanes<double, W>(outside) != 0) [[unlikely]] {
+  if (or_lanes<double, W, R>(outside) != 0) [[unlikely]] {
     redo_far_lanes<K, W>(reinterpret_cast<const double*>(&x), reinterpret_cast<double*>(&out));
   }
 }
@@ -657,14 +688,14 @@ NLID_BATCH_INLINE void logistic_lanes(const double* s, double* out) {
 }  // namespace detail
 
 /// Lane-wise e^x (vectorised kernel for double; std::exp per lane otherwise).
-template <class T, int W>
-NLID_BATCH_INLINE Batch<T, W> exp(const Batch<T, W>& x) {
-  if constexpr (std::is_same_v<T, double> && Batch<T, W>::simd) {
-    Batch<T, W> r;
-    detail::vector_kernel<detail::ExpKernel, W>(x.v, r.v);
+template <class T, int W, std::size_t R>
+NLID_BATCH_INLINE Batch<T, W, R> exp(const Batch<T, W, R>& x) {
+  if constexpr (std::is_same_v<T, double> && Batch<T, W, R>::simd) {
+    Batch<T, W, R> r;
+    detail::vector_kernel<detail::ExpKernel, W, R>(x.v, r.v);
     return r;
   } else if constexpr (std::is_same_v<T, double>) {
-    Batch<T, W> r;
+    Batch<T, W, R> r;
     detail::exp_lanes<W>(x.v.data(), r.v.data());
     return r;
   } else {
@@ -674,11 +705,11 @@ NLID_BATCH_INLINE Batch<T, W> exp(const Batch<T, W>& x) {
 
 /// Lane-wise logistic 1/(1 + e^(−x)) for double lanes (one division per lane; see
 /// `detail::logistic_lanes`), used by the sigmoid networks.
-template <int W>
-NLID_BATCH_INLINE Batch<double, W> logistic(const Batch<double, W>& x) {
-  Batch<double, W> r;
-  if constexpr (Batch<double, W>::simd) {
-    detail::vector_kernel<detail::LogisticKernel, W>(x.v, r.v);
+template <int W, std::size_t R>
+NLID_BATCH_INLINE Batch<double, W, R> logistic(const Batch<double, W, R>& x) {
+  Batch<double, W, R> r;
+  if constexpr (Batch<double, W, R>::simd) {
+    detail::vector_kernel<detail::LogisticKernel, W, R>(x.v, r.v);
   } else {
     detail::logistic_lanes<W>(x.v.data(), r.v.data());
   }
@@ -687,8 +718,8 @@ NLID_BATCH_INLINE Batch<double, W> logistic(const Batch<double, W>& x) {
 
 #define NLID_BATCH_UNARY(NAME)                                                                  \
   /** Lane-wise std::NAME. */                                                                   \
-  template <class T, int W>                                                                     \
-  Batch<T, W> NAME(const Batch<T, W>& x) {                                                      \
+  template <class T, int W, std::size_t R>                                                         \
+  Batch<T, W, R> NAME(const Batch<T, W, R>& x) {                                                   \
     return detail::map_lanes(x, [](T a) { return std::NAME(a); });                              \
   }
 NLID_BATCH_UNARY(sqrt)
@@ -716,12 +747,12 @@ NLID_BATCH_UNARY(trunc)
 #undef NLID_BATCH_UNARY
 
 /// Lane-wise |x|.
-template <class T, int W>
-Batch<T, W> abs(const Batch<T, W>& x) {
-  Batch<T, W> r;
-  if constexpr (Batch<T, W>::simd) {
+template <class T, int W, std::size_t R>
+Batch<T, W, R> abs(const Batch<T, W, R>& x) {
+  Batch<T, W, R> r;
+  if constexpr (Batch<T, W, R>::simd) {
     // Clearing the sign bit is std::fabs, for NaN too.
-    using S = detail::batch_storage<T, W>;
+    using S = detail::batch_storage<T, W, R>;
     const auto magnitude = std::numeric_limits<detail::lane_bits_t<T>>::max() >> 1;
     detail::for_each_chunk<S::chunks>(
         [&](int j) NLID_CHUNK_LAMBDA { r.v.c[j] = __builtin_bit_cast(typename S::vec, __builtin_bit_cast(typename S::vbits, x.v.c[j]) & magnitude); });
@@ -731,104 +762,197 @@ Batch<T, W> abs(const Batch<T, W>& x) {
   return r;
 }
 /// Lane-wise |x| (alias used by Eigen's norms).
-template <class T, int W>
-Batch<T, W> fabs(const Batch<T, W>& x) {
+template <class T, int W, std::size_t R>
+Batch<T, W, R> fabs(const Batch<T, W, R>& x) {
   return abs(x);
 }
 /// Lane-wise x².
-template <class T, int W>
-Batch<T, W> square(const Batch<T, W>& x) {
+template <class T, int W, std::size_t R>
+Batch<T, W, R> square(const Batch<T, W, R>& x) {
   return x * x;
 }
 /// Lane-wise std::atan2.
-template <class T, int W>
-Batch<T, W> atan2(const Batch<T, W>& y, const Batch<T, W>& x) {
+template <class T, int W, std::size_t R>
+Batch<T, W, R> atan2(const Batch<T, W, R>& y, const Batch<T, W, R>& x) {
   return detail::map_lanes(y, x, [](T a, T b) { return std::atan2(a, b); });
 }
 /// Lane-wise std::hypot.
-template <class T, int W>
-Batch<T, W> hypot(const Batch<T, W>& x, const Batch<T, W>& y) {
+template <class T, int W, std::size_t R>
+Batch<T, W, R> hypot(const Batch<T, W, R>& x, const Batch<T, W, R>& y) {
   return detail::map_lanes(x, y, [](T a, T b) { return std::hypot(a, b); });
 }
 /// Lane-wise std::pow.
-template <class T, int W>
-Batch<T, W> pow(const Batch<T, W>& x, const Batch<T, W>& y) {
+template <class T, int W, std::size_t R>
+Batch<T, W, R> pow(const Batch<T, W, R>& x, const Batch<T, W, R>& y) {
   return detail::map_lanes(x, y, [](T a, T b) { return std::pow(a, b); });
 }
 /// Lane-wise x^c for a constant exponent.
-template <class T, int W>
-Batch<T, W> pow(const Batch<T, W>& x, std::type_identity_t<T> c) {
+template <class T, int W, std::size_t R>
+Batch<T, W, R> pow(const Batch<T, W, R>& x, std::type_identity_t<T> c) {
   return detail::map_lanes(x, [c](T a) { return std::pow(a, c); });
 }
 /// Lane-wise maximum (the larger lane; max(NaN, y) = y as std::fmax would not promise, so
 /// the plain comparison form of std::max is kept for identical results with double code).
-template <class T, int W>
-Batch<T, W> max(const Batch<T, W>& x, const Batch<T, W>& y) {
-  if constexpr (Batch<T, W>::simd) {
+template <class T, int W, std::size_t R>
+Batch<T, W, R> max(const Batch<T, W, R>& x, const Batch<T, W, R>& y) {
+  if constexpr (Batch<T, W, R>::simd) {
     return select(x < y, y, x);  // std::max(a, b) is (a < b) ? b : a
   } else {
     return detail::map_lanes(x, y, [](T a, T b) { return std::max(a, b); });
   }
 }
 /// Lane-wise minimum (std::min per lane).
-template <class T, int W>
-Batch<T, W> min(const Batch<T, W>& x, const Batch<T, W>& y) {
-  if constexpr (Batch<T, W>::simd) {
+template <class T, int W, std::size_t R>
+Batch<T, W, R> min(const Batch<T, W, R>& x, const Batch<T, W, R>& y) {
+  if constexpr (Batch<T, W, R>::simd) {
     return select(y < x, y, x);  // std::min(a, b) is (b < a) ? b : a
   } else {
     return detail::map_lanes(x, y, [](T a, T b) { return std::min(a, b); });
   }
 }
 /// True if every lane is finite.
-template <class T, int W>
-bool isfinite(const Batch<T, W>& x) {
+template <class T, int W, std::size_t R>
+bool isfinite(const Batch<T, W, R>& x) {
   // x − x is +0 for finite lanes and NaN for ±∞ and NaN: one vectorisable pass, no branches.
-  if constexpr (Batch<T, W>::simd) {
-    using S = detail::batch_storage<T, W>;
+  if constexpr (Batch<T, W, R>::simd) {
+    using S = detail::batch_storage<T, W, R>;
     typename S::vbits d{};
     detail::for_each_chunk<S::chunks>([&](int j) NLID_CHUNK_LAMBDA { d |= __builtin_bit_cast(typename S::vbits, x.v.c[j] - x.v.c[j]); });
-    return detail::or_lanes<T, W>(d) == 0;
+    return detail::or_lanes<T, W, R>(d) == 0;
   }
   T acc = T(0);
   for (int i = 0; i < W; ++i) acc += x[i] - x[i];
   return acc == T(0);
 }
 /// True if some lane is NaN.
-template <class T, int W>
-bool isnan(const Batch<T, W>& x) {
+template <class T, int W, std::size_t R>
+bool isnan(const Batch<T, W, R>& x) {
   bool bad = false;
   for (int i = 0; i < W; ++i) bad |= std::isnan(x[i]);
   return bad;
 }
 /// True if some lane is infinite.
-template <class T, int W>
-bool isinf(const Batch<T, W>& x) {
+template <class T, int W, std::size_t R>
+bool isinf(const Batch<T, W, R>& x) {
   bool bad = false;
   for (int i = 0; i < W; ++i) bad |= std::isinf(x[i]);
   return bad;
 }
 
+// ---- the register width, chosen at run time ------------------------------------------------------
+
+namespace detail {
+// Run-time dispatch exists where GCC's and Clang's x86 function multiversioning does: a function
+// with `target("avx512f…")` is compiled for that instruction set inside a translation unit built
+// for baseline x86-64, and `flatten` inlines the whole call tree below it, so the model's code
+// runs there on registers of that width. NLID_NO_BATCH_DISPATCH switches it off.
+#if defined(__GNUC__) && defined(__x86_64__) && !defined(NLID_NO_BATCH_DISPATCH)
+#define NLID_BATCH_DISPATCH 1
+/// f.template operator()<64>() compiled for AVX-512 (F, DQ, VL) with FMA.
+template <class F>
+[[gnu::target("avx512f,avx512dq,avx512vl,avx2,fma"), gnu::flatten]] void call_with_avx512(F& f) {
+  f.template operator()<std::size_t{64}>();
+}
+/// f.template operator()<32>() compiled for AVX2 with FMA.
+template <class F>
+[[gnu::target("avx2,fma"), gnu::flatten]] void call_with_avx2(F& f) {
+  f.template operator()<std::size_t{32}>();
+}
+#else
+#define NLID_BATCH_DISPATCH 0
+#endif
+}  // namespace detail
+
+/// Bytes of the registers a `Batch<T, W>` is stored in by default: the translation unit's widest
+/// (16 on baseline x86-64 and ARM, 32 with AVX, 64 with AVX-512), capped at Eigen's
+/// EIGEN_MAX_ALIGN_BYTES.
+inline constexpr std::size_t default_register_bytes = detail::simd_bytes;
+
+/// Bytes of the widest vector registers a `Batch` can use on the CPU running the program: 64
+/// with AVX-512 (F, DQ, VL), 32 with AVX2 and FMA, else the translation unit's own width
+/// (`detail::simd_bytes`, 16 on baseline x86-64 and ARM). Never less than the translation
+/// unit's width: a program built with -march=native answers for the machine it was built for.
+inline std::size_t cpu_register_bytes() {
+#if NLID_BATCH_DISPATCH
+  static const std::size_t bytes = [] {
+    __builtin_cpu_init();
+    std::size_t b = 16;
+    if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma")) b = 32;
+    if (b == 32 && __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512dq") &&
+        __builtin_cpu_supports("avx512vl"))
+      b = 64;
+    return std::max(b, detail::simd_bytes);
+  }();
+  return bytes;
+#else
+  return detail::simd_bytes;
+#endif
+}
+
+/// Calls `f.template operator()<R>()` with R = `register_bytes` (0: `cpu_register_bytes()`), as
+/// a compile-time constant: the caller then works on `Batch<double, W, R>`. Where R is wider
+/// than the translation unit's registers, the call is compiled for the instruction set that has
+/// them (AVX2, AVX-512) and chosen at run time — a program built for baseline x86-64 still fills
+/// the AVX-512 registers of the machine it runs on.
+///
+/// Requirement on f for R wider than the translation unit's: no `Batch<T, W, R>` in memory that
+/// Eigen allocates (a dynamic-size Eigen matrix of them): Eigen aligns its heap blocks to
+/// EIGEN_MAX_ALIGN_BYTES of the translation unit, less than such a Batch needs. Fixed-size Eigen
+/// objects, locals and std::vector are aligned by the compiler and the standard allocator.
+/// Throws `nlid::Error` if `register_bytes` is not 0, 16, 32 or 64, or wider than the CPU has.
+template <class F>
+void with_register_bytes(F&& f, std::size_t register_bytes = 0) {
+  const std::size_t cpu = cpu_register_bytes();
+  const std::size_t r = register_bytes == 0 ? cpu : register_bytes;
+  require(r == 16 || r == 32 || r == 64,
+          "register width " + std::to_string(register_bytes) + " bytes: use 16, 32 or 64 (or 0 for the widest)",
+          at_parameter("register_bytes"));
+  require(r <= cpu,
+          "register width " + std::to_string(r) + " bytes: this CPU offers at most " + std::to_string(cpu),
+          at_parameter("register_bytes"));
+  if (r == 16) {
+    f.template operator()<std::size_t{16}>();
+  } else if (r == 32) {
+    if constexpr (detail::simd_bytes >= 32 || !NLID_BATCH_DISPATCH) {
+      f.template operator()<std::size_t{32}>();
+    } else {
+#if NLID_BATCH_DISPATCH
+      detail::call_with_avx2(f);
+#endif
+    }
+  } else {
+    if constexpr (detail::simd_bytes >= 64 || !NLID_BATCH_DISPATCH) {
+      f.template operator()<std::size_t{64}>();
+    } else {
+#if NLID_BATCH_DISPATCH
+      detail::call_with_avx512(f);
+#endif
+    }
+  }
+}
+
 // ---- many trajectories -----------------------------------------------------------------------------
 
-/// Free-run simulation of K parameter sets of one model on a shared input record, W at a time.
-///
-/// `model` is any model with the scalar-generic core
-/// `template <class S> bool simulate(u, std::span<const S> theta, std::span<const S> x0, std::span<S> y) const`
-/// (Nlarx, HammersteinWiener with branch-free blocks, and compositions of such). `thetas` is
-/// p × K (column k = parameter set k), `x0s` is n_x × K or empty (every run from the zero state).
-/// Returns the N × K outputs; a run that diverges has NaN from the sample where its batch
-/// stopped. A last incomplete batch is padded with copies of its first run.
-/// Throws `nlid::Error` if `x0s` has columns but not K of them.
-template <int W, class Model>
-Eigen::MatrixXd simulate_batched(const Model& model, const Eigen::Ref<const Eigen::MatrixXd>& u,
-                                 const Eigen::Ref<const Eigen::MatrixXd>& thetas,
-                                 const Eigen::Ref<const Eigen::MatrixXd>& x0s = Eigen::MatrixXd()) {
-  using B = Batch<double, W>;
+namespace detail {
+/// True if `Model` declares a static parameter count: nlid's fixed-size models keep every value
+/// of a simulation on the stack (tests/nomalloc), so they may run on registers wider than the
+/// translation unit's (see `with_register_bytes`).
+template <class Model>
+inline constexpr bool static_size_model_v = [] {
+  if constexpr (requires { Model::num_params; }) {
+    return Model::num_params >= 0;
+  } else {
+    return false;
+  }
+}();
+
+/// `simulate_batched` on `Batch<double, W, R>`; `out` is N × K.
+template <int W, std::size_t R, class Model>
+void simulate_batched_into(const Model& model, const Eigen::Ref<const Eigen::MatrixXd>& u,
+                           const Eigen::Ref<const Eigen::MatrixXd>& thetas, const Eigen::Ref<const Eigen::MatrixXd>& x0s,
+                           Eigen::MatrixXd& out) {
+  using B = Batch<double, W, R>;
   const Eigen::Index k_runs = thetas.cols(), p = thetas.rows(), n = u.rows(), nx = x0s.rows();
-  require(x0s.cols() == 0 || x0s.cols() == k_runs,
-          "x0s has " + std::to_string(x0s.cols()) + " columns for " + std::to_string(k_runs) + " parameter sets",
-          at_parameter("x0s"));
-  Eigen::MatrixXd out(n, k_runs);
   std::vector<B> th(static_cast<std::size_t>(p)), x0(x0s.cols() > 0 ? static_cast<std::size_t>(nx) : 0),
       y(static_cast<std::size_t>(n));
   for (Eigen::Index k0 = 0; k0 < k_runs; k0 += W) {
@@ -842,6 +966,47 @@ Eigen::MatrixXd simulate_batched(const Model& model, const Eigen::Ref<const Eige
       for (Eigen::Index t = 0; t < n; ++t)
         out(t, k0 + w) = ok ? y[static_cast<std::size_t>(t)][w] : std::numeric_limits<double>::quiet_NaN();
   }
+}
+}  // namespace detail
+
+/// Free-run simulation of K parameter sets of one model on a shared input record, W at a time.
+///
+/// `model` is any model with the scalar-generic core
+/// `template <class S> bool simulate(u, std::span<const S> theta, std::span<const S> x0, std::span<S> y) const`
+/// (Nlarx, HammersteinWiener with branch-free blocks, and compositions of such). `thetas` is
+/// p × K (column k = parameter set k), `x0s` is n_x × K or empty (every run from the zero state).
+/// Returns the N × K outputs; a run that diverges has NaN from the sample where its batch
+/// stopped. A last incomplete batch is padded with copies of its first run.
+///
+/// Registers: a model of static size runs on the widest vector registers of the CPU
+/// (`cpu_register_bytes()`, chosen at run time: AVX-512 or AVX2 code inside a program built for
+/// baseline x86-64), or on `register_bytes` if given; a model with run-time sizes keeps its
+/// values in Eigen's heap blocks and runs on the translation unit's registers. The lanes then
+/// may use fused multiply-adds where a single `simulate` does not, so they agree with single runs
+/// to rounding (about 1e-15 relative per sample), not bit for bit.
+/// Throws `nlid::Error` if `x0s` has columns but not K of them, or for a `register_bytes` that
+/// is not 16, 32 or 64, wider than the CPU offers, or wider than the translation unit's for a
+/// model with run-time sizes.
+template <int W, class Model>
+Eigen::MatrixXd simulate_batched(const Model& model, const Eigen::Ref<const Eigen::MatrixXd>& u,
+                                 const Eigen::Ref<const Eigen::MatrixXd>& thetas,
+                                 const Eigen::Ref<const Eigen::MatrixXd>& x0s = Eigen::MatrixXd(),
+                                 std::size_t register_bytes = 0) {
+  const Eigen::Index k_runs = thetas.cols();
+  require(x0s.cols() == 0 || x0s.cols() == k_runs,
+          "x0s has " + std::to_string(x0s.cols()) + " columns for " + std::to_string(k_runs) + " parameter sets",
+          at_parameter("x0s"));
+  Eigen::MatrixXd out(u.rows(), k_runs);
+  if constexpr (detail::static_size_model_v<Model>) {
+    with_register_bytes([&]<std::size_t R>() { detail::simulate_batched_into<W, R>(model, u, thetas, x0s, out); },
+                        register_bytes);
+  } else {
+    require(register_bytes == 0 || register_bytes == detail::simd_bytes,
+            "register width " + std::to_string(register_bytes) +
+                " bytes: a model with run-time sizes runs on this program's own " + std::to_string(detail::simd_bytes),
+            at_parameter("register_bytes"));
+    detail::simulate_batched_into<W, detail::simd_bytes>(model, u, thetas, x0s, out);
+  }
   return out;
 }
 
@@ -851,12 +1016,12 @@ Eigen::MatrixXd simulate_batched(const Model& model, const Eigen::Ref<const Eige
 namespace Eigen {
 
 /// Eigen scalar traits of a batch: precision of T, costs W times those of T.
-template <class T, int W>
-struct NumTraits<nlid::Batch<T, W>> : NumTraits<T> {
-  using Real = nlid::Batch<T, W>;
-  using NonInteger = nlid::Batch<T, W>;
-  using Nested = nlid::Batch<T, W>;
-  using Literal = nlid::Batch<T, W>;
+template <class T, int W, std::size_t R>
+struct NumTraits<nlid::Batch<T, W, R>> : NumTraits<T> {
+  using Real = nlid::Batch<T, W, R>;
+  using NonInteger = nlid::Batch<T, W, R>;
+  using Nested = nlid::Batch<T, W, R>;
+  using Literal = nlid::Batch<T, W, R>;
   enum {
     IsComplex = 0,
     IsInteger = 0,
@@ -876,15 +1041,36 @@ struct NumTraits<nlid::Batch<T, W>> : NumTraits<T> {
   static inline int digits() { return NumTraits<T>::digits(); }
 };
 
+namespace internal {
+/// Eigen's fixed-size storage aligns its array to EIGEN_MAX_STATIC_ALIGN_BYTES (16 on baseline
+/// x86-64). A Batch on wider registers (run-time dispatch, `nlid::with_register_bytes`) is
+/// aligned to its register already, and Clang rejects an alignas below a type's own alignment:
+/// such storage takes the Batch's alignment alone. Narrower Batches keep Eigen's default.
+template <class T, int W, std::size_t R, int Size>
+struct compute_default_alignment<nlid::Batch<T, W, R>, Size> {
+  enum {
+    value = alignof(nlid::Batch<T, W, R>) > EIGEN_MAX_STATIC_ALIGN_BYTES
+                ? 0
+                : compute_default_alignment_helper<Size * static_cast<int>(sizeof(nlid::Batch<T, W, R>)),
+                                                   EIGEN_MAX_STATIC_ALIGN_BYTES>::value
+  };
+};
+/// The same for dynamic sizes (disambiguates Eigen's own specialisation for them).
+template <class T, int W, std::size_t R>
+struct compute_default_alignment<nlid::Batch<T, W, R>, Dynamic> {
+  enum { value = alignof(nlid::Batch<T, W, R>) > EIGEN_MAX_STATIC_ALIGN_BYTES ? 0 : EIGEN_MAX_ALIGN_BYTES };
+};
+}  // namespace internal
+
 /// Batch/plain-scalar expressions (`double * Matrix<Batch>`) yield Batch.
-template <class T, int W, class BinaryOp>
-struct ScalarBinaryOpTraits<nlid::Batch<T, W>, T, BinaryOp> {
-  using ReturnType = nlid::Batch<T, W>;
+template <class T, int W, std::size_t R, class BinaryOp>
+struct ScalarBinaryOpTraits<nlid::Batch<T, W, R>, T, BinaryOp> {
+  using ReturnType = nlid::Batch<T, W, R>;
 };
 /// Plain-scalar/Batch expressions yield Batch.
-template <class T, int W, class BinaryOp>
-struct ScalarBinaryOpTraits<T, nlid::Batch<T, W>, BinaryOp> {
-  using ReturnType = nlid::Batch<T, W>;
+template <class T, int W, std::size_t R, class BinaryOp>
+struct ScalarBinaryOpTraits<T, nlid::Batch<T, W, R>, BinaryOp> {
+  using ReturnType = nlid::Batch<T, W, R>;
 };
 
 }  // namespace Eigen
