@@ -2,11 +2,12 @@
 /// @file
 /// Umbrella header of the model layer: nonlinear ARX (`Nlarx`), Hammerstein–Wiener
 /// (`HammersteinWiener` with `TransferFunctionBlock`), their estimation (`estimate`), and the
-/// grey-box models (`GreyBox`, integrators, physics catalogue).
+/// grey-box models (`GreyBox`, integrators, physics catalogue, batched runs of many parameter sets).
 
 #include "nlid/models/concepts.hpp"
 #include "nlid/models/estimate.hpp"
 #include "nlid/models/greybox.hpp"
+#include "nlid/models/greybox_batched.hpp"
 #include "nlid/models/greybox_estimate.hpp"
 #include "nlid/models/hammerstein_wiener.hpp"
 #include "nlid/models/integrators.hpp"

@@ -23,6 +23,7 @@
 #include "nlid/nonlinearities/sigmoid_network.hpp"
 #include "nlid/regressors/lagged.hpp"
 
+#include "../support/register_widths.hpp"
 #include "../support/study_throttle.hpp"
 
 namespace {
@@ -70,14 +71,7 @@ Eigen::Index throttle_lane(const std::array<nlid::Batch<double, W>, 4>& pb, int 
   return nlid::simulate_physics<double>(StudyThrottle{}, opt, sub, u, ts, p, x, on_sample);
 }
 
-// Register widths this machine can run Batches on: 16 always, 32 and 64 where the CPU has them
-// (nlid::cpu_register_bytes; run-time dispatch where they exceed the build's own width).
-std::vector<std::size_t> register_widths() {
-  std::vector<std::size_t> r;
-  for (std::size_t b : {std::size_t{16}, std::size_t{32}, std::size_t{64}})
-    if (b <= nlid::cpu_register_bytes()) r.push_back(b);
-  return r;
-}
+using nlid_test::register_widths;  // tests/support/register_widths.hpp
 
 }  // namespace
 
@@ -463,6 +457,9 @@ TEST_CASE("Batched nlarx5-like simulation equals W single simulations", "[core][
   CHECK_THROWS_WITH(nlid::simulate_batched<4>(model, u, thetas, x0s.leftCols(2)),
                     Catch::Contains("x0s has 2 columns for 11 parameter sets"));
   CHECK_THROWS_WITH(nlid::simulate_batched<4>(model, u, thetas, x0s, 48), Catch::Contains("use 16, 32 or 64"));
+  // What simulate_batched takes is checked at the call (a concept), not deep inside it.
+  static_assert(nlid::BatchSimulatable<decltype(model), 8>);
+  static_assert(!nlid::BatchSimulatable<Eigen::MatrixXd, 8>);
 }
 
 TEST_CASE("A batched model with run-time sizes stays on the build's own registers", "[core][batch][models]") {

@@ -60,6 +60,7 @@
 #include <array>
 #include <bit>
 #include <cmath>
+#include <concepts>
 #include <cstdint>
 #include <cstring>
 #include <limits>
@@ -969,6 +970,17 @@ void simulate_batched_into(const Model& model, const Eigen::Ref<const Eigen::Mat
 }
 }  // namespace detail
 
+/// A model whose free run `simulate_batched` can take: the scalar-generic core
+/// `simulate(u, std::span<const S> theta, std::span<const S> x0, std::span<S> y) -> bool` on
+/// S = Batch<double, W>. Satisfied by `Nlarx`, `HammersteinWiener` and series models (whose
+/// blocks must then be branch-free to compile). Grey-box models have their own overload
+/// (models/greybox_batched.hpp).
+template <class M, int W>
+concept BatchSimulatable = requires(const M& m, const Eigen::Ref<const Eigen::MatrixXd>& u,
+                                    std::span<const Batch<double, W>> c, std::span<Batch<double, W>> y) {
+  { m.simulate(u, c, c, y) } -> std::convertible_to<bool>;
+};
+
 /// Free-run simulation of K parameter sets of one model on a shared input record, W at a time.
 ///
 /// `model` is any model with the scalar-generic core
@@ -987,7 +999,7 @@ void simulate_batched_into(const Model& model, const Eigen::Ref<const Eigen::Mat
 /// Throws `nlid::Error` if `x0s` has columns but not K of them, or for a `register_bytes` that
 /// is not 16, 32 or 64, wider than the CPU offers, or wider than the translation unit's for a
 /// model with run-time sizes.
-template <int W, class Model>
+template <int W, BatchSimulatable<W> Model>
 Eigen::MatrixXd simulate_batched(const Model& model, const Eigen::Ref<const Eigen::MatrixXd>& u,
                                  const Eigen::Ref<const Eigen::MatrixXd>& thetas,
                                  const Eigen::Ref<const Eigen::MatrixXd>& x0s = Eigen::MatrixXd(),

@@ -28,14 +28,26 @@ namespace nlid::physics {
 /// (file comment). Generic over double, float and Dual; `width` may depend on parameters.
 template <class T>
 T penetration(const T& z, const T& width) {
-  if (!(value_of(width) > 0)) return max(z, T(0));
-  const T s = z / width;
-  // Beyond 30 widths the smoothing changes the value by less than 10⁻¹³·w, so the exact max is
-  // used there: no exp overflow, and no exp at all on the far side of a stop, where a trajectory
-  // between the stops always is (libm exp was a third of a catalogue-throttle estimation).
-  if (s > T(30)) return z;
-  if (s < T(-30)) return T(0);
-  return width * log1p(exp(s));
+  if constexpr (requires { T::lanes; }) {
+    // A lane-parallel Batch (core/batch.hpp) cannot branch per lane: the exact max where every
+    // lane is beyond 30 widths of both sides of its stop (a run between the stops: the common
+    // case, no exp), otherwise the smoothing where a lane needs it. Lanes of width 0 take the max.
+    const T exact = max(z, T(0));
+    const T s = z / width;
+    const auto band = abs(s) <= 30.0;
+    if (!any(band)) return exact;
+    return select(band, T(width * log1p(exp(s))), exact);
+  } else {
+    if (!(value_of(width) > 0)) return max(z, T(0));
+    const T s = z / width;
+    // Beyond 30 widths the smoothing changes the value by less than 10⁻¹³·w, so the exact max is
+    // used there: no exp overflow, and no exp at all on the far side of a stop, where a
+    // trajectory between the stops always is (libm exp was a third of a catalogue-throttle
+    // estimation).
+    if (s > T(30)) return z;
+    if (s < T(-30)) return T(0);
+    return width * log1p(exp(s));
+  }
 }
 
 }  // namespace nlid::physics
