@@ -56,6 +56,11 @@ void run_model(benchmark::State& state, const Model& m) {
   count(state, static_cast<double>(u.rows()));
 }
 
+// Counter reg_bytes: the register width a batched benchmark ran on (0 asked for the widest).
+void count_registers(benchmark::State& state, std::size_t register_bytes) {
+  state.counters["reg_bytes"] = static_cast<double>(register_bytes == 0 ? nlid::cpu_register_bytes() : register_bytes);
+}
+
 // ---- nlarx5 -------------------------------------------------------------------------------------
 
 void Nlarx5_Fixed(benchmark::State& state) { run_model(state, perf::make_nlarx5()); }
@@ -86,8 +91,7 @@ void run_nlarx5_batch(benchmark::State& state, std::size_t register_bytes) {
     benchmark::DoNotOptimize(y.data());
   }
   count(state, static_cast<double>(u.rows()) * W);
-  state.counters["reg_bytes"] =
-      static_cast<double>(register_bytes == 0 ? nlid::cpu_register_bytes() : register_bytes);
+  count_registers(state, register_bytes);
 }
 template <int W>
 void Nlarx5_Batch(benchmark::State& state) {
@@ -180,8 +184,7 @@ void run_throttle_batch(benchmark::State& state, std::size_t register_bytes) {
       },
       register_bytes);
   count(state, static_cast<double>(u.rows()) * W);
-  state.counters["reg_bytes"] =
-      static_cast<double>(register_bytes == 0 ? nlid::cpu_register_bytes() : register_bytes);
+  count_registers(state, register_bytes);
 }
 template <int W>
 void Throttle_Batch(benchmark::State& state) {

@@ -73,6 +73,26 @@ Eigen::Index throttle_lane(const std::array<nlid::Batch<double, W>, 4>& pb, int 
 
 using nlid_test::register_widths;  // tests/support/register_widths.hpp
 
+// The throttle batch `pb` (lanes of Batch<double, W>) from (20, 0) on registers of `r` bytes
+// (nlid::with_register_bytes); returns simulate_physics' sample count.
+template <int W, class OnSample>
+Eigen::Index throttle_on_registers(std::size_t r, const std::array<nlid::Batch<double, W>, 4>& pb,
+                                   const nlid::IntegratorOptions& opt, const Eigen::MatrixXd& u, double ts, int sub,
+                                   OnSample&& on_sample) {
+  Eigen::Index steps = -1;
+  nlid::with_register_bytes(
+      [&]<std::size_t R>() {
+        using BR = nlid::Batch<double, W, R>;
+        std::array<BR, 4> p;
+        for (int j = 0; j < 4; ++j) p[static_cast<std::size_t>(j)] = BR::load(&pb[static_cast<std::size_t>(j)][0]);
+        std::array<BR, 2> x{BR(20.0), BR(0.0)};
+        steps = nlid::simulate_physics<BR>(StudyThrottle{}, opt, sub, u, ts, p.data(), x.data(),
+                                           [&](Eigen::Index k, const BR* y) { on_sample(k, y[0]); });
+      },
+      r);
+  return steps;
+}
+
 }  // namespace
 
 TEST_CASE("Batch arithmetic acts lane by lane", "[core][batch]") {
@@ -522,18 +542,8 @@ TEST_CASE("Batched grey-box throttle (RK4) equals W single simulations", "[core]
   CHECK(worst_against_single() <= 1e-12 * 100.0);
   for (std::size_t r : register_widths()) {
     INFO("registers of " << r << " bytes");
-    Eigen::Index steps = 0;
-    nlid::with_register_bytes(
-        [&]<std::size_t R>() {
-          using BR = nlid::Batch<double, W, R>;
-          std::array<BR, 4> p;
-          for (int j = 0; j < 4; ++j) p[static_cast<std::size_t>(j)] = BR::load(&pb[static_cast<std::size_t>(j)][0]);
-          std::array<BR, 2> x{BR(20.0), BR(0.0)};
-          steps = nlid::simulate_physics<BR>(phys, opt, sub, u, ts, p.data(), x.data(), [&](Eigen::Index k, const BR* y) {
-            y[0].store(yb[static_cast<std::size_t>(k)].data());
-          });
-        },
-        r);
+    const Eigen::Index steps = throttle_on_registers<W>(
+        r, pb, opt, u, ts, sub, [&](Eigen::Index k, const auto& y) { y.store(yb[static_cast<std::size_t>(k)].data()); });
     REQUIRE(steps == n);
     CHECK(worst_against_single() <= 1e-12 * 100.0);
   }
@@ -566,16 +576,6 @@ TEST_CASE("A batched RK4 simulation stops where its first lane diverges, as that
   CHECK(got == bad);
   for (std::size_t r : register_widths()) {  // the same on every register width
     INFO("registers of " << r << " bytes");
-    Eigen::Index got_r = -1;
-    nlid::with_register_bytes(
-        [&]<std::size_t R>() {
-          using BR = nlid::Batch<double, W, R>;
-          std::array<BR, 4> p;
-          for (int j = 0; j < 4; ++j) p[static_cast<std::size_t>(j)] = BR::load(&pb[static_cast<std::size_t>(j)][0]);
-          std::array<BR, 2> x{BR(20.0), BR(0.0)};
-          got_r = nlid::simulate_physics<BR>(phys, opt, sub, u, ts, p.data(), x.data(), [](Eigen::Index, const BR*) {});
-        },
-        r);
-    CHECK(got_r == bad);
+    CHECK(throttle_on_registers<W>(r, pb, opt, u, ts, sub, [](Eigen::Index, const auto&) {}) == bad);
   }
 }

@@ -862,6 +862,23 @@ template <class F>
 #else
 #define NLID_BATCH_DISPATCH 0
 #endif
+
+/// f.template operator()<R>(), compiled for the instruction set of R-byte registers where the
+/// translation unit's own are narrower (and dispatch exists), else as the translation unit.
+template <std::size_t R, class F>
+void call_on_registers(F& f) {
+#if NLID_BATCH_DISPATCH
+  if constexpr (R == 64 && simd_bytes < 64) {
+    call_with_avx512(f);
+  } else if constexpr (R == 32 && simd_bytes < 32) {
+    call_with_avx2(f);
+  } else {
+    f.template operator()<R>();
+  }
+#else
+  f.template operator()<R>();
+#endif
+}
 }  // namespace detail
 
 /// Bytes of the registers a `Batch<T, W>` is stored in by default: the translation unit's widest
@@ -912,23 +929,11 @@ void with_register_bytes(F&& f, std::size_t register_bytes = 0) {
           "register width " + std::to_string(r) + " bytes: this CPU offers at most " + std::to_string(cpu),
           at_parameter("register_bytes"));
   if (r == 16) {
-    f.template operator()<std::size_t{16}>();
+    detail::call_on_registers<16>(f);
   } else if (r == 32) {
-    if constexpr (detail::simd_bytes >= 32 || !NLID_BATCH_DISPATCH) {
-      f.template operator()<std::size_t{32}>();
-    } else {
-#if NLID_BATCH_DISPATCH
-      detail::call_with_avx2(f);
-#endif
-    }
+    detail::call_on_registers<32>(f);
   } else {
-    if constexpr (detail::simd_bytes >= 64 || !NLID_BATCH_DISPATCH) {
-      f.template operator()<std::size_t{64}>();
-    } else {
-#if NLID_BATCH_DISPATCH
-      detail::call_with_avx512(f);
-#endif
-    }
+    detail::call_on_registers<64>(f);
   }
 }
 
