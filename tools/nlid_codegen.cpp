@@ -2,7 +2,7 @@
 // or any C code base.
 //
 //   nlid-codegen --model model.json --out DIR [--name NAME] [--ts T] [--substeps N]
-//                [--x0 zero|equilibrium] [--u0 V]
+//                [--x0 zero|equilibrium] [--u0 V] [--precision double|single]
 //
 // Kinds: nlarx, hammerstein_wiener, series, greybox, augmented_greybox (the repaired model of
 // nlid-diagnose --save), arx and output_error. Writes DIR/NAME.h and DIR/NAME.c (atomically; DIR must exist): NAME_init, NAME_step,
@@ -12,7 +12,8 @@
 // time of the generated step (required for them). --x0 equilibrium makes NAME_init start in
 // the steady state for the constant input --u0 (default 0). Exit status 0 on success, 1 on a
 // user error (bad file, a model kind that is not generated, no equilibrium — the message says
-// which), 2 on bad usage.
+// which), 2 on bad usage. --precision single writes float code (no double anywhere) for FPUs
+// without double arithmetic; it computes the model in float rounding, not nlid's bits.
 #include <cctype>
 #include <cmath>
 #include <cstdio>
@@ -29,7 +30,7 @@
 namespace {
 constexpr const char* kUsage =
     "usage: nlid-codegen --model model.json --out DIR [--name NAME] [--ts T] [--substeps N]\n"
-    "                    [--x0 zero|equilibrium] [--u0 V]\n"
+    "                    [--x0 zero|equilibrium] [--u0 V] [--precision double|single]\n"
     "  --model FILE     a model file (nlid-fit --save, or save() in C++)\n"
     "  --out DIR        existing directory for NAME.h and NAME.c\n"
     "  --name NAME      C identifier prefixing every generated name (default: the file's stem)\n"
@@ -38,6 +39,8 @@ constexpr const char* kUsage =
     "  --substeps N     grey box: integrator sub-steps per sample (default: the model's rule)\n"
     "  --x0 MODE        NAME_init state: zero (default) or equilibrium for the input --u0\n"
     "  --u0 V           constant input of the equilibrium (default 0)\n"
+    "  --precision P    double (default: nlid's numbers to the last bit) or single (float\n"
+    "                   throughout, for FPUs without double; float rounding)\n"
     "Generated kinds: nlarx, hammerstein_wiener, series (wh, wiener, hammerstein), greybox,\n"
     "augmented_greybox (nlid-diagnose --save), arx, output_error.\n";
 
@@ -82,7 +85,7 @@ std::string identifier_from(const std::string& path) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string model, out, name, x0 = "zero";
+  std::string model, out, name, x0 = "zero", precision = "double";
   double ts = 0.0, u0 = 0.0;
   bool u0_given = false;
   int substeps = 0;
@@ -99,6 +102,7 @@ int main(int argc, char** argv) {
       else if (k == "--out") out = v;
       else if (k == "--name") name = v;
       else if (k == "--x0") x0 = v;
+      else if (k == "--precision") precision = v;
       else if (k == "--ts") {
         ts = parse_number(k, v);
         if (!(ts > 0)) throw UsageError{"--ts must be positive, got '" + v + "'"};
@@ -110,6 +114,8 @@ int main(int argc, char** argv) {
     }
     if (model.empty() || out.empty()) throw UsageError{"--model and --out are required"};
     if (x0 != "zero" && x0 != "equilibrium") throw UsageError{"--x0 must be zero or equilibrium, got '" + x0 + "'"};
+    if (precision != "double" && precision != "single")
+      throw UsageError{"--precision must be double or single, got '" + precision + "'"};
     if (u0_given && x0 != "equilibrium") throw UsageError{"--u0 sets the input of --x0 equilibrium; give both"};
   } catch (const UsageError& e) {
     std::cerr << "nlid-codegen: " << e.message << "\n" << kUsage;
@@ -132,12 +138,13 @@ int main(int argc, char** argv) {
     o.name = name.empty() ? identifier_from(model) : name;
     o.ts = ts;
     o.substeps = substeps;
+    if (precision == "single") o.precision = nlid::codegen::Precision::single_precision;
     if (x0 == "equilibrium") o.equilibrium_input = Eigen::VectorXd::Constant(m.num_inputs(), u0);
     const nlid::GeneratedCode g = nlid::generate_c(m, o);
     const auto files = g.write(out);
     std::cerr << "nlid-codegen: " << m.kind() << " model " << model << " -> " << files.at(0) << ", " << files.at(1)
               << " (" << m.parameters().size() << " parameters, " << g.paths << " branch path"
-              << (g.paths == 1 ? "" : "s") << ")\n";
+              << (g.paths == 1 ? "" : "s") << (precision == "single" ? ", single precision" : "") << ")\n";
     std::cout << "wrote " << files.at(0) << "\nwrote " << files.at(1) << "\n";
     return 0;
   } catch (const nlid::Error& err) {

@@ -2,15 +2,13 @@
 // test of the feature — generated C for an nlarx with a custom regressor + sigmoid net, a
 // Hammerstein-Wiener with piecewise-linear input and saturated output, and the throttle grey box
 // is compiled with the system C compiler (-std=c99 -Wall -Wextra -pedantic -Werror), run on the
-// throttle data (data3 at 100 Hz) and must match nlid's own simulation to 1e-12 relative.
+// throttle data (data3 at 100 Hz) and must match nlid's own simulation to 1e-12 relative; their
+// single-precision versions must contain no double and stay within float rounding of it.
 #include <catch2/catch.hpp>
 
 #include <cstdio>
 #include <cstdlib>
-#include <filesystem>
-#include <fstream>
 #include <limits>
-#include <sstream>
 #include <string>
 
 // Before the custom regressor's lambda (nlid::max on TraceScalar). The three generators this file
@@ -30,9 +28,8 @@
 #include "nlid/nonlinearities/sigmoid_network.hpp"
 #include "nlid/regressors.hpp"
 
-#include "../support/scratch_dir.hpp"
+#include "../support/generated_c.hpp"
 
-namespace fs = std::filesystem;
 
 namespace {
 
@@ -50,55 +47,30 @@ auto spring() {
       [](auto y1) { return nlid::max(y1, 90.0) + nlid::min(y1, 15.0) - 105.0; });
 }
 
-fs::path temp_dir(const std::string& tag) {
-  const fs::path d = nlid_test::scratch_dir() / tag;
-  fs::create_directories(d);
-  return d;
+using nlid_test::max_relative_error;
+
+Eigen::VectorXd run_generated(const nlid::GeneratedCode& g, const Eigen::MatrixXd& u, const std::string& tag,
+                              bool single = false) {
+  return nlid_test::run_generated_c(g, u, tag, single);
 }
 
-// Writes the code and a driver, compiles with cc, runs on u, returns the outputs.
-Eigen::VectorXd run_generated(const nlid::GeneratedCode& g, const Eigen::MatrixXd& u, const std::string& tag) {
-  const fs::path dir = temp_dir(tag);
-  g.write(dir.string());
-  const std::string n = g.name;
-  std::ofstream(dir / "driver.c") << "#include <stdio.h>\n#include \"" << n << ".h\"\n"
-                                  << "int main(int argc, char** argv) {\n"
-                                  << "  double u[1], y[1];\n  " << n << "_state s;\n"
-                                  << "  FILE* in = argc > 1 ? fopen(argv[1], \"r\") : NULL;\n"
-                                  << "  if (!in) return 2;\n  " << n << "_init(&s);\n"
-                                  << "  while (fscanf(in, \"%lf\", &u[0]) == 1) {\n"
-                                  << "    " << n << "_step(&s, u, y);\n    printf(\"%.17g\\n\", y[0]);\n  }\n"
-                                  << "  fclose(in);\n  return 0;\n}\n";
-  {
-    std::ofstream in(dir / "u.txt");
-    char b[40];
-    for (Eigen::Index t = 0; t < u.rows(); ++t) {
-      std::snprintf(b, sizeof b, "%.17g\n", u(t, 0));
-      in << b;
-    }
-  }
-  const std::string exe = (dir / "driver").string();
-  const std::string cmd = "cc -std=c99 -O2 -Wall -Wextra -pedantic -Werror -o " + exe + " " + (dir / "driver.c").string() +
-                          " " + (dir / (n + ".c")).string() + " -lm > " + (dir / "cc.log").string() + " 2>&1";
-  const int rc = std::system(cmd.c_str());
-  if (rc != 0) {
-    std::ifstream log(dir / "cc.log");
-    std::stringstream ss;
-    ss << log.rdbuf();
-    FAIL("generated code does not compile:\n" << ss.str());
-  }
-  REQUIRE(std::system((exe + " " + (dir / "u.txt").string() + " > " + (dir / "y.txt").string()).c_str()) == 0);
-  std::ifstream out(dir / "y.txt");
-  std::vector<double> ys;
-  double v;
-  while (out >> v) ys.push_back(v);
-  fs::remove_all(dir);
-  return Eigen::Map<Eigen::VectorXd>(ys.data(), static_cast<Eigen::Index>(ys.size()));
-}
-
-double max_relative_error(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
-  const double scale = std::max(1.0, b.cwiseAbs().maxCoeff());
-  return (a - b).cwiseAbs().maxCoeff() / scale;
+// Single-precision code of `m`: no double anywhere, and float rounding of nlid's double
+// simulation `ref` (within `tol` relative to max(1, max |ref|), but not bitwise equal).
+template <class Model>
+void check_single_precision(const Model& m, nlid::CodegenOptions o, const Eigen::MatrixXd& u, const Eigen::VectorXd& ref,
+                            double tol) {
+  o.name += "_f32";
+  o.precision = nlid::codegen::Precision::single_precision;
+  const nlid::GeneratedCode g = nlid::generate_c(m, o);
+  const std::string code = nlid_test::c_code_only(g.source + g.header);
+  CHECK(code.find("double") == std::string::npos);
+  CHECK(g.header.find("typedef float " + o.name + "_real;") != std::string::npos);
+  const Eigen::VectorXd yc = run_generated(g, u, o.name, true);
+  REQUIRE(yc.size() == ref.size());
+  const double gap = max_relative_error(yc, ref);
+  INFO("single precision: max |y_C - y_nlid| / max(1, max |y_nlid|) = " << gap);
+  CHECK(gap <= tol);
+  CHECK(gap > 0.0);
 }
 }  // namespace
 
@@ -111,6 +83,28 @@ TEST_CASE("C literals read back to the same double", "[codegen]") {
   CHECK(nlid::codegen::c_literal(90.0) == "90.0");
   CHECK(nlid::codegen::c_literal(-1.5) == "(-1.5)");
   CHECK(nlid::codegen::c_literal(std::numeric_limits<double>::infinity()) == "HUGE_VAL");
+}
+
+TEST_CASE("single-precision C literals and names read back to the nearest float", "[codegen]") {
+  const nlid::codegen::PrecisionScope single(nlid::codegen::Precision::single_precision);
+  for (double v : {0.1, 1.0 / 3.0, 90.0, -0.0, 6.02214076e23, 1e-40}) {
+    std::string s = nlid::codegen::c_literal(v);
+    if (s.front() == '(') s = s.substr(1, s.size() - 2);
+    REQUIRE(s.back() == 'f');
+    s.pop_back();
+    CHECK(std::strtof(s.c_str(), nullptr) == static_cast<float>(v));
+  }
+  CHECK(nlid::codegen::c_literal(90.0) == "90.0f");
+  CHECK(nlid::codegen::c_literal(-1.5) == "(-1.5f)");
+  CHECK(nlid::codegen::c_literal(1e300) == "HUGE_VALF");  // beyond float's range
+  CHECK(nlid::codegen::c_literal(-1e300) == "(-HUGE_VALF)");
+  CHECK(nlid::codegen::c_real() == "float");
+  CHECK(nlid::codegen::c_math("log1p") == "log1pf");
+  {
+    const nlid::codegen::PrecisionScope inner(nlid::codegen::Precision::double_precision);
+    CHECK(nlid::codegen::c_literal(0.1) == "0.10000000000000001");
+  }
+  CHECK(nlid::codegen::c_literal(0.1) == "0.100000001f");  // the scope restored single
 }
 
 TEST_CASE("tracing: folding, parameters, branch exploration and limits", "[codegen]") {
@@ -181,6 +175,9 @@ TEST_CASE("generated C of an nlarx with a custom regressor and a sigmoid net mat
   const Eigen::VectorXd yc = run_generated(g, e3.u(), "nlarx");
   REQUIRE(yc.size() == ref.size());
   CHECK(max_relative_error(yc, ref) <= 1e-12);
+  // This free run is sensitive: nlid's own double simulation moves by 4.7e-4 of its range when
+  // the parameters change by float's relative rounding (6e-8), so float code cannot be closer.
+  check_single_precision(m, o, e3.u(), ref, 2e-3);
 }
 
 TEST_CASE("generated C of a Hammerstein-Wiener with pwlinear input and saturated output matches nlid", "[codegen]") {
@@ -209,6 +206,7 @@ TEST_CASE("generated C of a Hammerstein-Wiener with pwlinear input and saturated
   const Eigen::VectorXd yc = run_generated(g, e3.u(), "hw");
   REQUIRE(yc.size() == ref.size());
   CHECK(max_relative_error(yc, ref) <= 1e-12);
+  check_single_precision(m, o, e3.u(), ref, 1e-4);
 }
 
 TEST_CASE("generated C of a wavelet-network nlarx and a dead-zone/polynomial HW matches nlid", "[codegen]") {
@@ -268,6 +266,7 @@ TEST_CASE("generated C of the throttle grey box (RK4, smoothed stops) matches nl
   const Eigen::VectorXd yc = run_generated(code, e3.u(), "greybox");
   REQUIRE(yc.size() == ref.size());
   CHECK(max_relative_error(yc, ref) <= 1e-12);
+  check_single_precision(g, o, e3.u(), ref, 1e-4);
 }
 
 TEST_CASE("codegen rejects bad names, missing sample times and the adaptive integrator", "[codegen]") {

@@ -1,7 +1,9 @@
 // Runs generated C code the way a user deploys it: writes NAME.h/NAME.c and a driver that
 // steps the model from NAME_init over the input rows, compiles both with the system C compiler
 // (warnings are errors; -ffp-contract=off for nlid's roundings, docs/codegen.md) and returns the
-// outputs. Shared by the code-generation tests.
+// outputs. Shared by the code-generation tests. The driver works in NAME_real, so it runs
+// double and single-precision code alike; single precision is compiled with
+// -Wdouble-promotion -Wfloat-conversion as errors, which any double operation left in it trips.
 #pragma once
 
 #include <catch2/catch.hpp>
@@ -23,18 +25,19 @@
 namespace nlid_test {
 
 /// Outputs (first output channel) of the generated model on the inputs `u` (N × n_u).
-inline Eigen::VectorXd run_generated_c(const nlid::GeneratedCode& g, const Eigen::MatrixXd& u, const std::string& tag) {
+inline Eigen::VectorXd run_generated_c(const nlid::GeneratedCode& g, const Eigen::MatrixXd& u, const std::string& tag,
+                                       bool single = false) {
   const std::filesystem::path dir = scratch_dir() / ("c_" + tag);
   std::filesystem::create_directories(dir);
   g.write(dir.string());
   const std::string n = g.name, nu = std::to_string(std::max<Eigen::Index>(u.cols(), 1));
   std::ofstream(dir / "driver.c") << "#include <stdio.h>\n#include \"" << n << ".h\"\n"
-                                  << "int main(int argc, char** argv) {\n  double u[" << nu << "], y["
-                                  << nlid::codegen::macro(n) << "_NUM_OUTPUTS];\n  int i;\n  " << n << "_state s;\n"
+                                  << "int main(int argc, char** argv) {\n  " << n << "_real u[" << nu << "], y["
+                                  << nlid::codegen::macro(n) << "_NUM_OUTPUTS];\n  double v;\n  int i;\n  " << n << "_state s;\n"
                                   << "  FILE* in = argc > 1 ? fopen(argv[1], \"r\") : NULL;\n  if (!in) return 2;\n  " << n
                                   << "_init(&s);\n  for (;;) {\n    for (i = 0; i < " << nu
-                                  << "; ++i) if (fscanf(in, \"%lf\", &u[i]) != 1) goto done;\n    " << n
-                                  << "_step(&s, u, y);\n    printf(\"%.17g\\n\", y[0]);\n  }\ndone:\n  fclose(in);\n  return 0;\n}\n";
+                                  << "; ++i) {\n      if (fscanf(in, \"%lf\", &v) != 1) goto done;\n      u[i] = (" << n << "_real)v;\n    }\n    " << n
+                                  << "_step(&s, u, y);\n    printf(\"%.17g\\n\", (double)y[0]);\n  }\ndone:\n  fclose(in);\n  return 0;\n}\n";
   {
     std::ofstream in(dir / "u.txt");
     char b[40];
@@ -45,7 +48,8 @@ inline Eigen::VectorXd run_generated_c(const nlid::GeneratedCode& g, const Eigen
       }
   }
   const std::string exe = (dir / "driver").string();
-  const std::string cmd = "cc -std=c99 -O2 -ffp-contract=off -Wall -Wextra -pedantic -Werror -o \"" + exe + "\" \"" +
+  const std::string cmd = std::string("cc -std=c99 -O2 -ffp-contract=off -Wall -Wextra -pedantic -Werror ") +
+                          (single ? "-Wdouble-promotion -Wfloat-conversion " : "") + "-o \"" + exe + "\" \"" +
                           (dir / "driver.c").string() + "\" \"" + (dir / (n + ".c")).string() + "\" -lm > \"" +
                           (dir / "cc.log").string() + "\" 2>&1";
   if (std::system(cmd.c_str()) != 0) {
@@ -59,6 +63,21 @@ inline Eigen::VectorXd run_generated_c(const nlid::GeneratedCode& g, const Eigen
   std::vector<double> ys;
   for (double v; out >> v;) ys.push_back(v);
   return Eigen::Map<Eigen::VectorXd>(ys.data(), static_cast<Eigen::Index>(ys.size()));
+}
+
+/// The C text without its comments (model descriptions may contain any word).
+inline std::string c_code_only(const std::string& s) {
+  std::string out;
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    if (s.compare(i, 2, "/*") == 0) {
+      i = s.find("*/", i + 2);
+      if (i == std::string::npos) break;
+      ++i;
+      continue;
+    }
+    out += s[i];
+  }
+  return out;
 }
 
 /// max |a − b| / max(1, max |b|).

@@ -12,6 +12,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -46,8 +47,11 @@ std::vector<double> csv_column(const fs::path& p, int col) {
 }
 
 // Compiles DIR/NAME.c with a driver that steps the model over the inputs in u.txt (one per
-// line) from NAME_init and prints the outputs; returns them.
-std::vector<double> run_generated(const fs::path& dir, const std::string& name, const std::vector<double>& u) {
+// line) from NAME_init and prints the outputs; returns them. The driver uses NAME_real, so it
+// serves double and single-precision code; single precision is compiled with
+// -Wdouble-promotion -Wfloat-conversion as errors, which a stray double operation would trip.
+std::vector<double> run_generated(const fs::path& dir, const std::string& name, const std::vector<double>& u,
+                                  bool single = false) {
   {
     std::ofstream f(dir / "u.txt");
     f.precision(17);
@@ -57,14 +61,15 @@ std::vector<double> run_generated(const fs::path& dir, const std::string& name, 
     std::ofstream d(dir / (name + "_driver.c"));
     d << "#include <stdio.h>\n#include \"" << name << ".h\"\n"
       << "int main(int argc, char** argv) {\n"
-      << "  " << name << "_state s;\n  double u[1], y[1];\n  FILE* f = fopen(argv[1], \"r\");\n"
+      << "  " << name << "_state s;\n  " << name << "_real u[1], y[1];\n  double v;\n  FILE* f = fopen(argv[1], \"r\");\n"
       << "  (void)argc;\n  if (!f) return 1;\n  " << name << "_init(&s);\n"
-      << "  while (fscanf(f, \"%lf\", &u[0]) == 1) {\n    " << name << "_step(&s, u, y);\n"
-      << "    printf(\"%.17g\\n\", y[0]);\n  }\n  fclose(f);\n  return 0;\n}\n";
+      << "  while (fscanf(f, \"%lf\", &v) == 1) {\n    u[0] = (" << name << "_real)v;\n    " << name << "_step(&s, u, y);\n"
+      << "    printf(\"%.17g\\n\", (double)y[0]);\n  }\n  fclose(f);\n  return 0;\n}\n";
   }
   const std::string exe = (dir / (name + "_run")).string();
   // -ffp-contract=off: the bitwise agreement needs the same roundings as nlid (docs/codegen.md).
-  const std::string cmd = "cc -std=c99 -O2 -ffp-contract=off -Wall -Wextra -pedantic -Werror -o \"" + exe + "\" \"" +
+  const std::string cmd = std::string("cc -std=c99 -O2 -ffp-contract=off -Wall -Wextra -pedantic -Werror ") +
+                          (single ? "-Wdouble-promotion -Wfloat-conversion " : "") + "-o \"" + exe + "\" \"" +
                           (dir / (name + "_driver.c")).string() + "\" \"" + (dir / (name + ".c")).string() + "\" -lm 2>\"" +
                           (dir / "cc.txt").string() + "\"";
   if (std::system(cmd.c_str()) != 0) FAIL("generated code does not compile:\n" << slurp(dir / "cc.txt"));
@@ -82,6 +87,35 @@ double max_relative_gap(const std::vector<double>& a, const std::vector<double>&
     scale = std::max(scale, std::abs(b[k]));
   }
   return gap / scale;
+}
+
+// The code with its comments removed (a model description may mention any word).
+std::string without_comments(const std::string& s) {
+  std::string out;
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    if (s.compare(i, 2, "/*") == 0) {
+      const std::size_t end = s.find("*/", i + 2);
+      if (end == std::string::npos) break;
+      i = end + 1;
+      continue;
+    }
+    out += s[i];
+  }
+  return out;
+}
+
+// The symbols DIR/NAME.c needs from libraries when compiled for a Cortex-M4F (single-precision
+// FPU only; scripts/deps installs the cross compiler): double arithmetic there is a call of the
+// soft-float routines __aeabi_dadd, __aeabi_dmul, ... Empty optional without the cross compiler.
+std::optional<std::string> cortex_m4f_imports(const fs::path& dir, const std::string& name) {
+  if (std::system("command -v arm-none-eabi-gcc >/dev/null 2>&1") != 0) return std::nullopt;
+  const std::string obj = (dir / (name + "_m4.o")).string();
+  const std::string cmd = "arm-none-eabi-gcc -std=c99 -O2 -mcpu=cortex-m4 -mthumb -mfpu=fpv4-sp-d16 -mfloat-abi=hard "
+                          "-Wall -Wextra -pedantic -Werror -c -o \"" + obj + "\" \"" + (dir / (name + ".c")).string() +
+                          "\" 2>\"" + (dir / "arm.txt").string() + "\"";
+  if (std::system(cmd.c_str()) != 0) FAIL("generated code does not compile for Cortex-M4F:\n" << slurp(dir / "arm.txt"));
+  REQUIRE(std::system(("arm-none-eabi-nm -u \"" + obj + "\" > \"" + (dir / "imports.txt").string() + "\"").c_str()) == 0);
+  return slurp(dir / "imports.txt");
 }
 
 bool pure_ascii(const std::string& s) {
@@ -152,6 +186,33 @@ TEST_CASE("nlid-codegen: C from nlid-fit's model files reproduces nlid-sim for e
       CHECK(max_relative_gap(ye_c, ye_nlid) <= 1e-12);
       // Started in equilibrium, the first output is the steady output, not the zero-state one.
       CHECK(std::abs(ye_c[0] - y_c[0]) > 1e-6);
+
+      // Single precision: no double in the code, float rounding of the same model.
+      const Run gs = codegen("--model " + q(model) + " --out " + q(dir) + " --name sp_model --precision single " +
+                             c.codegen_options);
+      INFO(gs.err);
+      REQUIRE(gs.code == 0);
+      CHECK_THAT(gs.err, Catch::Contains("single precision"));
+      const std::string sp_code = without_comments(slurp(dir / "sp_model.c")) + without_comments(slurp(dir / "sp_model.h"));
+      CHECK(sp_code.find("double") == std::string::npos);
+      CHECK(sp_code.find("float") != std::string::npos);
+      const std::vector<double> ys_c = run_generated(dir, "sp_model", u, true);
+      REQUIRE(ys_c.size() == y_nlid.size());
+      const double gap = max_relative_gap(ys_c, y_nlid);
+      INFO("single precision: max |y_C - y_nlid| / max(1, max |y_nlid|) = " << gap);
+      // Float keeps about 7 digits and a free run amplifies rounding by its own sensitivity:
+      // measured 1.6e-7 ... 1.5e-6 here, 1.3e-4 for the barely estimated output-error model.
+      CHECK(gap <= 1e-3);
+      CHECK(gap > 0.0);  // float rounding shows: the code did compute in float
+      // On a float-only FPU the double code calls soft-float routines, the float code none.
+      if (const auto sp = cortex_m4f_imports(dir, "sp_model")) {
+        const auto dp = cortex_m4f_imports(dir, c.name);
+        INFO("Cortex-M4F imports, double: " << *dp << "\nsingle: " << *sp);
+        CHECK(dp->find("__aeabi_d") != std::string::npos);
+        CHECK(sp->find("__aeabi_d") == std::string::npos);
+      } else {
+        WARN("arm-none-eabi-gcc not installed (scripts/deps installs it): Cortex-M4F check skipped");
+      }
     }
   }
 }
@@ -195,6 +256,9 @@ TEST_CASE("nlid-codegen: a kind it does not generate, a grey box without --ts, a
   r = codegen("--model " + q(nlarx) + " --out " + q(dir) + " --x0 steady");
   CHECK(r.code == 2);
   CHECK_THAT(r.err, Catch::Contains("--x0 must be zero or equilibrium"));
+  r = codegen("--model " + q(nlarx) + " --out " + q(dir) + " --precision half");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("--precision must be double or single, got 'half'"));
   r = codegen("--model " + q(nlarx) + " --out " + q(dir) + " --substeps 0");
   CHECK(r.code == 2);
   CHECK_THAT(r.err, Catch::Contains("--substeps needs an integer from 1"));

@@ -48,6 +48,7 @@ namespace nlid {
 /// bad name, another sample time, a baseline that cannot be traced, or a missing equilibrium.
 template <class P>
 GeneratedCode generate_c(const AugmentedModel<P>& model, const CodegenOptions& options = {}) {
+  const codegen::PrecisionScope precision(options.precision);
   codegen::check_name(options.name);
   require(options.ts <= 0 || std::abs(options.ts - model.ts()) <= 1e-9 * model.ts(),
           "codegen: an augmented grey-box model runs at its own sample time " + detail::format_value(model.ts(), 10) +
@@ -164,40 +165,40 @@ GeneratedCode generate_c(const AugmentedModel<P>& model, const CodegenOptions& o
   std::set<std::string> helpers;
   for (const auto* f : {&f_in, &f_dx, &f_out_first, &f_out, &f_fric}) helpers.insert(f->helpers.begin(), f->helpers.end());
   std::string src = codegen::make_source_prelude(m, helpers);
-  const std::string N = std::to_string(nc);
+  const std::string N = std::to_string(nc), R = codegen::c_real();
   src += "#define " + M + "_SUBSTEPS " + std::to_string(sub) + " /* integrator sub-steps per sample */\n";
   if (dead) src += "#define " + M + "_DELAY_SAMPLES " + std::to_string(m_dead) + " /* whole samples of the dead time */\n";
-  src += "\n/* u_e: the input chain on u(t), u(t-m), u(t-m-1) */\nstatic double " + name +
-         "_input(double uk, double ukm, double ukm1) {\n  double out[1];\n  (void)uk;\n  (void)ukm;\n  (void)ukm1;\n" +
+  src += "\n/* u_e: the input chain on u(t), u(t-m), u(t-m-1) */\nstatic " + R + " " + name +
+         "_input(" + R + " uk, " + R + " ukm, " + R + " ukm1) {\n  " + R + " out[1];\n  (void)uk;\n  (void)ukm;\n  (void)ukm1;\n" +
          codegen::emit_c(f_in, {"out[0]"}, "  ") + "  return out[0];\n}\n\n";
   src += "/* d[x; w]/dt with u_e held and the Dahl state fric */\nstatic void " + name +
-         "_derivative(const double* x, const double* u, double ue, double fric, double* dx) {\n"
+         "_derivative(const " + R + "* x, const " + R + "* u, " + R + " ue, " + R + " fric, " + R + "* dx) {\n"
          "  (void)x;\n  (void)u;\n  (void)ue;\n  (void)fric;\n" +
          codegen::emit_c(f_dx, codegen::targets("dx", nc), "  ") + "}\n\n";
   for (const bool first : {true, false}) {
     src += std::string("/* y through the output chain") + (first ? ", first sample (play starts at the output)" : "") +
            "; out = {y, play} */\nstatic void " + name + (first ? "_output_first" : "_output") +
-           "(const double* x, const double* u, double ue, double play, double* out) {\n"
+           "(const " + R + "* x, const " + R + "* u, " + R + " ue, " + R + " play, " + R + "* out) {\n"
            "  (void)x;\n  (void)u;\n  (void)ue;\n  (void)play;\n" +
            codegen::emit_c(first ? f_out_first : f_out, {"out[0]", "out[1]"}, "  ") + "}\n\n";
   }
   if (dahl) {
-    src += "/* Dahl friction state after a sub-step that moved the position by dq */\nstatic double " + name +
-           "_friction(double fric, double dq) {\n  double out[1];\n  (void)fric;\n  (void)dq;\n" +
+    src += "/* Dahl friction state after a sub-step that moved the position by dq */\nstatic " + R + " " + name +
+           "_friction(" + R + " fric, " + R + " dq) {\n  " + R + " out[1];\n  (void)fric;\n  (void)dq;\n" +
            codegen::emit_c(f_fric, {"out[0]"}, "  ") + "  return out[0];\n}\n\n";
   }
   const std::string X = "s->x";
-  src += "void " + name + "_step(" + name + "_state* s, const double* u, double* y) {\n";
-  src += "  const double h = " + M + "_SAMPLE_TIME / " + M + "_SUBSTEPS;\n";
-  src += "  const double half = 0.5 * h, sixth = h / 6.0;\n";
-  src += "  const int first = " + X + "[" + std::to_string(i_first) + "] != 0.0;\n";
-  src += "  double k1[" + N + "], k2[" + N + "], k3[" + N + "], k4[" + N + "], tmp[" + N + "], out[2], ue;\n";
-  src += std::string("  int i, j;\n") + (dahl ? "  double q_before;\n" : "");
+  src += "void " + name + "_step(" + name + "_state* s, const " + R + "* u, " + R + "* y) {\n";
+  src += "  const " + R + " h = " + M + "_SAMPLE_TIME / " + M + "_SUBSTEPS;\n";
+  src += "  const " + R + " half = " + codegen::c_literal(0.5) + " * h, sixth = h / " + codegen::c_literal(6.0) + ";\n";
+  src += "  const int first = " + X + "[" + std::to_string(i_first) + "] != " + codegen::c_literal(0.0) + ";\n";
+  src += "  " + R + " k1[" + N + "], k2[" + N + "], k3[" + N + "], k4[" + N + "], tmp[" + N + "], out[2], ue;\n";
+  src += std::string("  int i, j;\n") + (dahl ? "  " + R + " q_before;\n" : "");
   const std::string hist = X + "[" + std::to_string(i_hist) + " + ";
   src += "  if (first) {\n";
   if (dead) src += "    for (i = 0; i <= " + M + "_DELAY_SAMPLES; ++i) " + hist + "i] = u[0]; /* u before t = 0 is u(0) */\n";
   if (lag) src += "    " + X + "[" + std::to_string(nx) + "] = " + name + "_input(u[0], u[0], u[0]); /* actuator at rest */\n";
-  src += "    " + X + "[" + std::to_string(i_first) + "] = 0.0;\n  }\n";
+  src += "    " + X + "[" + std::to_string(i_first) + "] = " + codegen::c_literal(0.0) + ";\n  }\n";
   if (dead) {
     src += "  ue = " + name + "_input(u[0], " +
            (m_dead == 0 ? std::string("u[0]") : hist + std::to_string(m_dead - 1) + "]") + ", " + hist +
@@ -218,7 +219,7 @@ GeneratedCode generate_c(const AugmentedModel<P>& model, const CodegenOptions& o
   src += "    " + name + "_derivative(tmp, u, ue, " + fric + ", k3);\n";
   src += "    for (j = 0; j < " + N + "; ++j) tmp[j] = " + X + "[j] + h * k3[j];\n";
   src += "    " + name + "_derivative(tmp, u, ue, " + fric + ", k4);\n";
-  src += "    for (j = 0; j < " + N + "; ++j) {\n      tmp[j] = k1[j] + k4[j];\n      tmp[j] += 2.0 * (k2[j] + k3[j]);\n"
+  src += "    for (j = 0; j < " + N + "; ++j) {\n      tmp[j] = k1[j] + k4[j];\n      tmp[j] += " + codegen::c_literal(2.0) + " * (k2[j] + k3[j]);\n"
          "      " + X + "[j] += sixth * tmp[j];\n    }\n";
   if (dahl) {
     src += "    " + fric + " = " + name + "_friction(" + fric + ", " + X + "[" + std::to_string(model.roles().position) +

@@ -51,6 +51,7 @@ concept TraceablePhysics = requires(const P& p, const TraceScalar* x, TraceScala
 /// missing equilibrium, or a bad name.
 template <class P>
 GeneratedCode generate_c(const GreyBox<P>& model, const CodegenOptions& options) {
+  const codegen::PrecisionScope precision(options.precision);
   codegen::check_name(options.name);
   if constexpr (!codegen::detail::TraceablePhysics<P>) {
     throw Error("codegen: the physics of grey-box model '" + model.name() +
@@ -118,26 +119,26 @@ GeneratedCode generate_c(const GreyBox<P>& model, const CodegenOptions& options)
         options.limits);
     std::set<std::string> helpers = fd.helpers;
     helpers.insert(fg.helpers.begin(), fg.helpers.end());
-    const std::string M = codegen::macro(name), N = std::to_string(nx);
+    const std::string M = codegen::macro(name), N = std::to_string(nx), R = codegen::c_real();
     std::string src = codegen::make_source_prelude(m, helpers);
     src += "#define " + M + "_SUBSTEPS " + std::to_string(sub) + " /* integrator sub-steps per sample */\n\n";
     std::string equation = "the physics";
     if constexpr (detail::HasEquation<P>) equation = phys.equation();
     src += "/* dx = f(x, u, p): " + equation +
-           " */\nstatic void " + name + "_derivative(const double* x, const double* u, double* dx) {\n  (void)x;\n  (void)u;\n" +
+           " */\nstatic void " + name + "_derivative(const " + R + "* x, const " + R + "* u, " + R + "* dx) {\n  (void)x;\n  (void)u;\n" +
            codegen::emit_c(fd, codegen::targets("dx", nx), "  ") + "}\n\n";
-    src += "/* y = g(x, u, p) */\nstatic void " + name + "_output(const double* x, const double* u, double* y) {\n  (void)x;\n  (void)u;\n" +
+    src += "/* y = g(x, u, p) */\nstatic void " + name + "_output(const " + R + "* x, const " + R + "* u, " + R + "* y) {\n  (void)x;\n  (void)u;\n" +
            codegen::emit_c(fg, codegen::targets("y", ny), "  ") + "}\n\n";
-    src += "void " + name + "_step(" + name + "_state* s, const double* u, double* y) {\n";
-    src += "  const double h = " + M + "_SAMPLE_TIME / " + M + "_SUBSTEPS;\n";
-    src += "  double k1[" + N + "], k2[" + N + "], k3[" + N + "], k4[" + N + "], tmp[" + N + "];\n  int i, j;\n";
+    src += "void " + name + "_step(" + name + "_state* s, const " + R + "* u, " + R + "* y) {\n";
+    src += "  const " + R + " h = " + M + "_SAMPLE_TIME / " + M + "_SUBSTEPS;\n";
+    src += "  " + R + " k1[" + N + "], k2[" + N + "], k3[" + N + "], k4[" + N + "], tmp[" + N + "];\n  int i, j;\n";
     src += "  " + name + "_output(s->x, u, y);\n";
     if (io.method == IntegratorMethod::euler) {
       src += "  (void)k2;\n  (void)k3;\n  (void)k4;\n  (void)tmp;\n";
       src += "  for (i = 0; i < " + M + "_SUBSTEPS; ++i) {\n    " + name + "_derivative(s->x, u, k1);\n";
       src += "    for (j = 0; j < " + N + "; ++j) s->x[j] += h * k1[j];\n  }\n}\n";
     } else {
-      src += "  {\n    const double half = 0.5 * h, sixth = h / 6.0;\n";
+      src += "  {\n    const " + R + " half = " + codegen::c_literal(0.5) + " * h, sixth = h / " + codegen::c_literal(6.0) + ";\n";
       src += "    for (i = 0; i < " + M + "_SUBSTEPS; ++i) {\n";
       src += "      " + name + "_derivative(s->x, u, k1);\n";
       src += "      for (j = 0; j < " + N + "; ++j) tmp[j] = s->x[j] + half * k1[j];\n";
@@ -146,7 +147,7 @@ GeneratedCode generate_c(const GreyBox<P>& model, const CodegenOptions& options)
       src += "      " + name + "_derivative(tmp, u, k3);\n";
       src += "      for (j = 0; j < " + N + "; ++j) tmp[j] = s->x[j] + h * k3[j];\n";
       src += "      " + name + "_derivative(tmp, u, k4);\n";
-      src += "      for (j = 0; j < " + N + "; ++j) {\n        tmp[j] = k1[j] + k4[j];\n        tmp[j] += 2.0 * (k2[j] + k3[j]);\n"
+      src += "      for (j = 0; j < " + N + "; ++j) {\n        tmp[j] = k1[j] + k4[j];\n        tmp[j] += " + codegen::c_literal(2.0) + " * (k2[j] + k3[j]);\n"
              "        s->x[j] += sixth * tmp[j];\n      }\n    }\n  }\n}\n";
     }
     GeneratedCode g;

@@ -25,6 +25,7 @@ namespace nlid {
 /// Generates C99 code for a Hammerstein–Wiener model (see the file comment and emitter.hpp).
 template <class In, class L, class Out>
 GeneratedCode generate_c(const HammersteinWiener<In, L, Out>& model, const CodegenOptions& options = {}) {
+  const codegen::PrecisionScope precision(options.precision);
   codegen::check_name(options.name);
   codegen::ModelShape m;
   m.name = options.name;

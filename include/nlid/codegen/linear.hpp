@@ -50,6 +50,7 @@ inline Eigen::VectorXd equilibrium_inputs(const CodegenOptions& o, int nu) {
 /// Generates C99 code for an ARX model (see the file comment). Throws `nlid::Error` on a bad
 /// name, a missing sample time, or an equilibrium of a model with an integrator.
 inline GeneratedCode generate_c(const Arx& model, const CodegenOptions& options = {}) {
+  const codegen::PrecisionScope precision(options.precision);
   using codegen::detail::at;
   codegen::check_name(options.name);
   const int nu = model.num_inputs(), na = model.na();
@@ -93,8 +94,9 @@ inline GeneratedCode generate_c(const Arx& model, const CodegenOptions& options 
   }
   const std::string P = m.name + "_p", X = "s->x";
   int k = 0;
-  std::string body = "  double acc = " + (model.has_offset() ? at(P, model.num_parameters() - 1) : codegen::c_literal(model.offset())) +
-                     ", drive = 0.0;\n  (void)u;\n";
+  const std::string R = codegen::c_real();
+  std::string body = "  " + R + " acc = " + (model.has_offset() ? at(P, model.num_parameters() - 1) : codegen::c_literal(model.offset())) +
+                     ", drive = " + codegen::c_literal(0.0) + ";\n  (void)u;\n";
   for (int j = 1; j <= na; ++j) body += "  acc -= " + at(P, k++) + " * " + at(X, j - 1) + ";\n";
   for (int i = 0; i < nu; ++i) {
     for (int j = 0; j < model.nb(i); ++j) {
@@ -109,13 +111,14 @@ inline GeneratedCode generate_c(const Arx& model, const CodegenOptions& options 
   g.name = m.name;
   g.header = codegen::ascii_text(codegen::make_header(m));
   g.source = codegen::ascii_text(codegen::make_source_prelude(m, {}) + "void " + m.name + "_step(" + m.name +
-                                 "_state* s, const double* u, double* y) {\n  (void)s;\n" + body + "}\n");
+                                 "_state* s, const " + codegen::c_real() + "* u, " + codegen::c_real() + "* y) {\n  (void)s;\n" + body + "}\n");
   return g;
 }
 
 /// Generates C99 code for an output-error model (see the file comment). Throws `nlid::Error`
 /// on a bad name, a missing sample time, or an equilibrium of a block with F(1) = 0.
 inline GeneratedCode generate_c(const OutputError& model, const CodegenOptions& options = {}) {
+  const codegen::PrecisionScope precision(options.precision);
   using codegen::detail::at;
   codegen::check_name(options.name);
   const int nu = model.num_inputs();
@@ -174,12 +177,13 @@ inline GeneratedCode generate_c(const OutputError& model, const CodegenOptions& 
     pf[static_cast<std::size_t>(i)] = k;
     k += static_cast<int>(model.f(i).size());
   }
-  std::string body = "  double out = " + (model.has_offset() ? at(P, model.num_parameters() - 1) : codegen::c_literal(model.offset())) +
-                     ";\n  double w[" + std::to_string(std::max(nu, 1)) + "];\n  (void)u;\n";
+  const std::string R = codegen::c_real();
+  std::string body = "  " + R + " out = " + (model.has_offset() ? at(P, model.num_parameters() - 1) : codegen::c_literal(model.offset())) +
+                     ";\n  " + R + " w[" + std::to_string(std::max(nu, 1)) + "];\n  (void)u;\n";
   for (int i = 0; i < nu; ++i) {
     const auto ii = static_cast<std::size_t>(i);
     const std::string wi = at("w", i);
-    body += "  " + wi + " = 0.0;\n";
+    body += "  " + wi + " = " + codegen::c_literal(0.0) + ";\n";
     for (int j = 0; j < static_cast<int>(model.b(i).size()); ++j) {
       const int lag = model.nk(i) + j;
       body += "  " + wi + " += " + at(P, pb[ii] + j) + " * " + (lag == 0 ? at("u", i) : at(X, uoff[ii] + lag - 1)) + ";\n";
@@ -198,7 +202,7 @@ inline GeneratedCode generate_c(const OutputError& model, const CodegenOptions& 
   g.name = m.name;
   g.header = codegen::ascii_text(codegen::make_header(m));
   g.source = codegen::ascii_text(codegen::make_source_prelude(m, {}) + "void " + m.name + "_step(" + m.name +
-                                 "_state* s, const double* u, double* y) {\n  (void)s;\n" + body + "}\n");
+                                 "_state* s, const " + codegen::c_real() + "* u, " + codegen::c_real() + "* y) {\n  (void)s;\n" + body + "}\n");
   return g;
 }
 

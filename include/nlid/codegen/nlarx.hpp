@@ -36,6 +36,7 @@ namespace nlid {
 /// nonlinearity (too many branches).
 template <class R, class F>
 GeneratedCode generate_c(const Nlarx<R, F>& model, const CodegenOptions& options = {}) {
+  const codegen::PrecisionScope precision(options.precision);
   codegen::check_name(options.name);
   codegen::ModelShape m;
   m.name = options.name;

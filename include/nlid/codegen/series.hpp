@@ -26,6 +26,7 @@ namespace nlid {
 /// count above `CodegenOptions::limits`.
 template <SeriesBlock... Blocks>
 GeneratedCode generate_c(const Series<Blocks...>& model, const CodegenOptions& options = {}) {
+  const codegen::PrecisionScope precision(options.precision);
   codegen::check_name(options.name);
   codegen::ModelShape m;
   m.name = options.name;

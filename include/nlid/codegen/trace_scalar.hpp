@@ -57,16 +57,58 @@ namespace nlid {
 
 namespace codegen {
 
-/// A C99 double literal that reads back to exactly `v` (17 significant digits; HUGE_VAL/NAN
-/// from <math.h> for the non-finite values; negative values parenthesised).
+/// Floating-point type of the generated C. `single_precision` is for targets whose FPU has no
+/// double arithmetic (Cortex-M4F/M33, many PLC runtimes), where every `double` operation would be
+/// a software routine: the code then holds no double at all — float variables, `f` literals, the
+/// `f` functions of <math.h> (expf, …) — and computes nlid's model in float rounding instead of
+/// reproducing nlid's double bits.
+enum class Precision { double_precision, single_precision };
+
+/// The precision generation is running in (one per thread; `PrecisionScope` sets it).
+inline Precision& current_precision() {
+  thread_local Precision p = Precision::double_precision;
+  return p;
+}
+
+/// Sets `current_precision()` for its lifetime (each `generate_c` holds one).
+class PrecisionScope {
+ public:
+  explicit PrecisionScope(Precision p) : previous_(current_precision()) { current_precision() = p; }
+  ~PrecisionScope() { current_precision() = previous_; }
+  PrecisionScope(const PrecisionScope&) = delete;
+  PrecisionScope& operator=(const PrecisionScope&) = delete;
+
+ private:
+  Precision previous_;
+};
+
+/// True while generating single-precision C.
+inline bool single_precision() { return current_precision() == Precision::single_precision; }
+
+/// The C type of real values: "double" or "float".
+inline std::string c_real() { return single_precision() ? "float" : "double"; }
+
+/// The <math.h> function `fn` for the current precision ("exp" or "expf").
+inline std::string c_math(const std::string& fn) { return single_precision() ? fn + "f" : fn; }
+
+/// A C99 literal of the current precision. Double: reads back to exactly `v` (17 significant
+/// digits). Single: `v` rounded to the nearest float, 9 significant digits and an `f` suffix
+/// (reads back to that float). HUGE_VAL(F)/NAN for the non-finite values (and for doubles
+/// beyond float's range in single precision); negative values parenthesised.
 inline std::string c_literal(double v) {
+  const bool single = single_precision();
   if (std::isnan(v)) return "NAN";
-  if (std::isinf(v)) return v > 0 ? "HUGE_VAL" : "(-HUGE_VAL)";
+  const double shown = single ? static_cast<double>(static_cast<float>(v)) : v;  // float overflow: ±inf
+  if (std::isinf(shown)) {
+    const char* huge = single ? "HUGE_VALF" : "HUGE_VAL";
+    return shown > 0 ? std::string(huge) : "(-" + std::string(huge) + ")";
+  }
   char b[40];
-  std::snprintf(b, sizeof b, "%.17g", v);
+  std::snprintf(b, sizeof b, single ? "%.9g" : "%.17g", shown);
   std::string s = b;
   if (s.find_first_of(".e") == std::string::npos) s += ".0";
-  return v < 0 || (v == 0 && std::signbit(v)) ? "(" + s + ")" : s;
+  if (single) s += "f";
+  return shown < 0 || (shown == 0 && std::signbit(shown)) ? "(" + s + ")" : s;
 }
 
 /// Bounds on tracing: more paths than this is reported as an error (a branchy function of many
@@ -139,8 +181,8 @@ class Tape {
 /// way it runs on `double` or `Dual`.
 class TraceScalar {
  public:
-  /// Literal 0.
-  TraceScalar() = default;
+  /// Literal 0 (spelled in the current precision).
+  TraceScalar() : TraceScalar(0.0) {}
   /// A literal constant (implicit, as `T(0.5)` and mixed arithmetic with doubles need).
   TraceScalar(double v) : ref_(codegen::c_literal(v)), value_(v), kind_(Kind::literal) {}  // NOLINT
   /// Arithmetic constants of other types (`T(2)`).
@@ -212,14 +254,15 @@ class TraceScalar {
   friend bool operator!=(const TraceScalar& a, const TraceScalar& b) { return compare(a, b, "!=", a.value_ != b.value_); }
 
   /// Emits (or folds) `fn(a)`; `v` is the folded value when `a` is known.
+  /// `fn` is the double function's C name; single-precision code calls its `f` twin.
   static TraceScalar call(const char* fn, const TraceScalar& a, double v) {
     if (a.is_literal()) return TraceScalar(v);
-    return make(std::string(fn) + "(" + a.ref_ + ")", v, a.known());
+    return make(codegen::c_math(fn) + "(" + a.ref_ + ")", v, a.known());
   }
   /// Emits (or folds) `fn(a, b)`.
   static TraceScalar call(const char* fn, const TraceScalar& a, const TraceScalar& b, double v) {
     if (a.is_literal() && b.is_literal()) return TraceScalar(v);
-    return make(std::string(fn) + "(" + a.ref_ + ", " + b.ref_ + ")", v, a.known() && b.known());
+    return make(codegen::c_math(fn) + "(" + a.ref_ + ", " + b.ref_ + ")", v, a.known() && b.known());
   }
   /// Emits `(a OP b ? x : y)` — a branch-free select with the semantics of `nlid::max/min`.
   static TraceScalar select(const TraceScalar& a, const char* op, const TraceScalar& b, const TraceScalar& x,
@@ -261,7 +304,7 @@ class TraceScalar {
     return tape().decide(a.ref_ + " " + op + " " + b.ref_);
   }
 
-  std::string ref_ = "0.0";
+  std::string ref_;
   double value_ = 0.0;
   Kind kind_ = Kind::literal;
 };
@@ -375,6 +418,17 @@ namespace codegen {
 
 /// C source of a helper function the traced code may call, by name.
 inline std::string helper_source(const std::string& name) {
+  if (name == "nlid_logistic" && single_precision()) {
+    // float: libm's expf in the form that cannot overflow (e^(-|s|) <= 1); NaN stays NaN.
+    return "/* logistic 1/(1+exp(-s)) in float; exp of a non-positive argument only */\n"
+           "static float nlid_logistic(float s) {\n"
+           "  if (s >= 0.0f) return 1.0f / (1.0f + expf(-s));\n"
+           "  {\n"
+           "    const float e = expf(s);\n"
+           "    return e / (1.0f + e);\n"
+           "  }\n"
+           "}\n";
+  }
   if (name == "nlid_logistic") {
     // The operations of nlid::detail::logistic_lanes (core/batch.hpp) in the same order, so the
     // generated code computes nlid's numbers bit for bit (when the C compiler does not contract
@@ -523,7 +577,7 @@ inline std::set<int> emit_node(const TraceNode& n, const std::vector<std::string
     if (!used.count(it->temp)) continue;
     used.erase(it->temp);
     collect_temps(it->text, used);
-    kept.push_back(indent + "const double " + Tape::temp_name(it->temp) + " = " + it->text + ";\n");
+    kept.push_back(indent + "const " + c_real() + " " + Tape::temp_name(it->temp) + " = " + it->text + ";\n");
   }
   for (auto it = kept.rbegin(); it != kept.rend(); ++it) code += *it;
   code += tail;
