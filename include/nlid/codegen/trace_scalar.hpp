@@ -191,20 +191,10 @@ class TraceScalar {
   TraceScalar(I v) : TraceScalar(static_cast<double>(v)) {}  // NOLINT
 
   /// A signal: C expression `c_name` (e.g. "u[0]", "s->x[2]") whose value is unknown.
-  static TraceScalar signal(std::string c_name) {
-    TraceScalar t;
-    t.ref_ = std::move(c_name);
-    t.value_ = 0.0;
-    t.kind_ = Kind::signal;
-    return t;
-  }
+  static TraceScalar signal(std::string c_name) { return TraceScalar(std::move(c_name), 0.0, Kind::signal); }
   /// A parameter: C expression `c_name` (e.g. "P[3]") with known value `value`.
   static TraceScalar parameter(std::string c_name, double value) {
-    TraceScalar t;
-    t.ref_ = std::move(c_name);
-    t.value_ = value;
-    t.kind_ = Kind::parameter;
-    return t;
+    return TraceScalar(std::move(c_name), value, Kind::parameter);
   }
 
   /// The C expression naming this value (a literal, a variable or a temp).
@@ -288,12 +278,10 @@ class TraceScalar {
             at_parameter("TraceScalar"));
     return *t;
   }
+  TraceScalar(std::string ref, double v, Kind kind) : ref_(std::move(ref)), value_(v), kind_(kind) {}
+
   static TraceScalar make(std::string rhs, double v, bool known) {
-    TraceScalar r;
-    r.ref_ = tape().emit(std::move(rhs));
-    r.value_ = known ? v : 0.0;
-    r.kind_ = known ? Kind::parameter : Kind::signal;
-    return r;
+    return TraceScalar(tape().emit(std::move(rhs)), known ? v : 0.0, known ? Kind::parameter : Kind::signal);
   }
   static TraceScalar binary(const TraceScalar& a, const TraceScalar& b, const char* op, double v) {
     if (a.is_literal() && b.is_literal()) return TraceScalar(v);
