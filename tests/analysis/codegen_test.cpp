@@ -98,6 +98,8 @@ TEST_CASE("single-precision C literals and names read back to the nearest float"
   CHECK(nlid::codegen::c_literal(-1.5) == "(-1.5f)");
   CHECK(nlid::codegen::c_literal(1e300) == "HUGE_VALF");  // beyond float's range
   CHECK(nlid::codegen::c_literal(-1e300) == "(-HUGE_VALF)");
+  CHECK(nlid::codegen::c_literal(0x1.fffffep127) == "3.40282347e+38f");  // FLT_MAX itself
+  CHECK(nlid::codegen::c_literal(0x1.ffffffp127) == "HUGE_VALF");        // rounds to infinity
   CHECK(nlid::codegen::c_real() == "float");
   CHECK(nlid::codegen::c_math("log1p") == "log1pf");
   {

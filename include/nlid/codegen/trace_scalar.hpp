@@ -42,6 +42,7 @@
 #include <cmath>
 #include <cstdio>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <set>
 #include <string>
@@ -98,7 +99,12 @@ inline std::string c_math(const std::string& fn) { return single_precision() ? f
 inline std::string c_literal(double v) {
   const bool single = single_precision();
   if (std::isnan(v)) return "NAN";
-  const double shown = single ? static_cast<double>(static_cast<float>(v)) : v;  // float overflow: ±inf
+  // Beyond float's range (at or past the midpoint between FLT_MAX and 2^128, where rounding gives
+  // infinity) the conversion is undefined behaviour in C++: such values are spelt as infinities.
+  const bool overflow = single && std::abs(v) >= 0x1.ffffffp127;
+  const double shown = overflow ? std::copysign(std::numeric_limits<double>::infinity(), v)
+                       : single ? static_cast<double>(static_cast<float>(v))
+                                : v;
   if (std::isinf(shown)) {
     const char* huge = single ? "HUGE_VALF" : "HUGE_VAL";
     return shown > 0 ? std::string(huge) : "(-" + std::string(huge) + ")";
