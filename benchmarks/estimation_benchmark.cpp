@@ -8,6 +8,7 @@
 //   Nlhw2_{Nlid,Ceres}   pwlinear(10) → B/F [3 3 0] → pwlinear(10), 46 parameters, zero initial
 //                        state, ≤ 200 iterations from nlid's data-driven start.
 //   Throttle_{Nlid,Ceres} the study's grey-box equation, 4 parameters, RK4, ≤ 100 iterations.
+//   Throttle_NlidBroyden  an experiment: every other Jacobian a Broyden update (see its comment).
 //
 // Both sides: Levenberg–Marquardt, each with its own defaults (nlid: the options estimate()
 // uses, i.e. uniform damping for Hammerstein-Wiener; Nlhw2_NlidCeresDamping: Ceres' damping, so
@@ -367,6 +368,68 @@ void Throttle_Nlid(benchmark::State& state) {
   run_solve(state, "Throttle_Nlid", throttle_problem(), throttle_theta0(), lm_options(100));
 }
 
+// An experiment on target 3d, not a library feature (docs/performance.md, estimation reading):
+// half of the Jacobians requested at accepted points are Broyden rank-one updates of the last
+// one, J += (r − r_last − J·δ)·δᵀ/(δᵀδ), which costs no Dual<4> pass; the other half are exact.
+// When the solver stops while an updated Jacobian is in use it is restarted from its θ with an
+// exact one (the update's errors, not the optimum, can stop it), within the same 100 attempts.
+struct BroydenThrottle {
+  static constexpr int num_params = 4;
+  explicit BroydenThrottle(const nlid::GreyBoxProblem<perf::StudyThrottle>* p) : exact_problem(p) {}
+  const nlid::GreyBoxProblem<perf::StudyThrottle>* exact_problem;
+  mutable bool have = false;
+  mutable int since_exact = 0;
+  mutable Eigen::Vector4d th_last, th_trial;
+  mutable Eigen::VectorXd r_last, r_trial;
+  mutable Eigen::Matrix<double, Eigen::Dynamic, 4> j_last;
+  mutable Eigen::MatrixXd j_exact;
+  int num_parameters() const { return 4; }
+  Eigen::Index num_residuals() const { return exact_problem->num_residuals(); }
+  bool evaluate(const Eigen::Vector4d& th, Eigen::VectorXd& r, Eigen::Matrix<double, Eigen::Dynamic, 4>* J) const {
+    if (J == nullptr) {
+      th_trial = th;
+      const bool ok = exact_problem->evaluate(Eigen::VectorXd(th), r, nullptr);
+      r_trial = r;
+      return ok;
+    }
+    if (!have || since_exact >= 1) {
+      j_exact.resize(r.size(), 4);
+      if (!exact_problem->evaluate(Eigen::VectorXd(th), r, &j_exact)) return false;
+      j_last = j_exact;
+      have = true;
+      since_exact = 0;
+    } else {
+      if (r_trial.size() == r.size() && th_trial == th) r = r_trial;  // the accepted trial's residuals
+      else if (!exact_problem->evaluate(Eigen::VectorXd(th), r, nullptr)) return false;
+      const Eigen::Vector4d d = th - th_last;
+      j_last += (r - r_last - j_last * d) * d.transpose() / d.squaredNorm();
+      ++since_exact;
+    }
+    *J = j_last;
+    th_last = th;
+    r_last = r;
+    return true;
+  }
+};
+
+void Throttle_NlidBroyden(benchmark::State& state) {
+  const auto problem = throttle_problem();
+  nlid::LmSummary sum;
+  int attempts = 0;
+  for (auto _ : state) {
+    BroydenThrottle b(&problem);
+    Eigen::Vector4d th = throttle_theta0();
+    attempts = 0;
+    for (;;) {
+      b.have = false;
+      sum = nlid::solve_least_squares(b, th, lm_options(100 - attempts));
+      attempts += sum.iterations;
+      if (b.since_exact == 0 || attempts >= 100 || sum.status == nlid::LmStatus::max_iterations_reached) break;
+    }
+  }
+  report(state, "Throttle_NlidBroyden", sum.final_cost, attempts);
+}
+
 // ---- Ceres -------------------------------------------------------------------------------------------------
 
 #ifdef NLID_HAVE_CERES
@@ -453,6 +516,7 @@ BENCHMARK(Nlhw2_NlidCeresDamping)->Unit(benchmark::kMillisecond)->Iterations(3);
 BENCHMARK(Nlhw2_Ceres)->Unit(benchmark::kMillisecond)->Iterations(3);
 #endif
 BENCHMARK(Throttle_Nlid)->Unit(benchmark::kMillisecond)->Iterations(3);
+BENCHMARK(Throttle_NlidBroyden)->Unit(benchmark::kMillisecond)->Iterations(3);
 #ifdef NLID_HAVE_CERES
 BENCHMARK(Throttle_Ceres)->Unit(benchmark::kMillisecond)->Iterations(3);
 #endif
@@ -471,6 +535,8 @@ int main(int argc, char** argv) {
                                             "Nlhw2_Ceres/iterations:3", 0.0},
                                            {"throttle grey-box: nlid speed / Ceres speed", "Throttle_Nlid/iterations:3",
                                             "Throttle_Ceres/iterations:3", 2.0},
+                                           {"throttle, Broyden experiment / Ceres", "Throttle_NlidBroyden/iterations:3",
+                                            "Throttle_Ceres/iterations:3", 0.0},
                                        });
   const auto& c = final_costs();
   auto line = [&](const char* what, const char* a, const char* b, bool info = false) {
@@ -485,6 +551,7 @@ int main(int argc, char** argv) {
   line("nlhw2", "Nlhw2_Nlid", "Nlhw2_Ceres");
   line("nlhw2, Ceres' damping (same iterates)", "Nlhw2_NlidCeresDamping", "Nlhw2_Ceres", true);
   line("throttle grey-box", "Throttle_Nlid", "Throttle_Ceres");
+  line("throttle, Broyden experiment", "Throttle_NlidBroyden", "Throttle_Ceres", true);
   if (c.count("Nlarx5_Full_Nlid")) std::printf("%-58s %s\n", "nlarx5 full estimate() <= 1 s", "(see Nlarx5_Full_Nlid CPU time)");
   return rc;
 }
