@@ -47,31 +47,9 @@ auto spring() {
       [](auto y1) { return nlid::max(y1, 90.0) + nlid::min(y1, 15.0) - 105.0; });
 }
 
+using nlid_test::check_single_precision;
 using nlid_test::max_relative_error;
-
-Eigen::VectorXd run_generated(const nlid::GeneratedCode& g, const Eigen::MatrixXd& u, const std::string& tag,
-                              bool single = false) {
-  return nlid_test::run_generated_c(g, u, tag, single);
-}
-
-// Single-precision code of `m`: no double anywhere, and float rounding of nlid's double
-// simulation `ref` (within `tol` relative to max(1, max |ref|), but not bitwise equal).
-template <class Model>
-void check_single_precision(const Model& m, nlid::CodegenOptions o, const Eigen::MatrixXd& u, const Eigen::VectorXd& ref,
-                            double tol) {
-  o.name += "_f32";
-  o.precision = nlid::codegen::Precision::single_precision;
-  const nlid::GeneratedCode g = nlid::generate_c(m, o);
-  const std::string code = nlid_test::c_code_only(g.source + g.header);
-  CHECK(code.find("double") == std::string::npos);
-  CHECK(g.header.find("typedef float " + o.name + "_real;") != std::string::npos);
-  const Eigen::VectorXd yc = run_generated(g, u, o.name, true);
-  REQUIRE(yc.size() == ref.size());
-  const double gap = max_relative_error(yc, ref);
-  INFO("single precision: max |y_C - y_nlid| / max(1, max |y_nlid|) = " << gap);
-  CHECK(gap <= tol);
-  CHECK(gap > 0.0);
-}
+using nlid_test::run_generated_c;
 }  // namespace
 
 TEST_CASE("C literals read back to the same double", "[codegen]") {
@@ -174,7 +152,7 @@ TEST_CASE("generated C of an nlarx with a custom regressor and a sigmoid net mat
   CHECK(g.source.find("nlid_logistic") != std::string::npos);
   CHECK(g.source.find(">= 90.0 ?") != std::string::npos);  // the custom regressor's max
   CHECK(g.header.find("#define NLARX_SIG_NUM_STATES 2") != std::string::npos);
-  const Eigen::VectorXd yc = run_generated(g, e3.u(), "nlarx");
+  const Eigen::VectorXd yc = run_generated_c(g, e3.u(), "nlarx");
   REQUIRE(yc.size() == ref.size());
   CHECK(max_relative_error(yc, ref) <= 1e-12);
   // This free run is sensitive: nlid's own double simulation moves by 4.7e-4 of its range when
@@ -205,7 +183,7 @@ TEST_CASE("generated C of a Hammerstein-Wiener with pwlinear input and saturated
   // pwlinear: 4 paths (3 segments; the C++ tests x < x_end before "|| last segment", so the last
   // segment is reached by both outcomes of that test), saturation: 3 regions.
   CHECK(g.paths == 4 * 3);
-  const Eigen::VectorXd yc = run_generated(g, e3.u(), "hw");
+  const Eigen::VectorXd yc = run_generated_c(g, e3.u(), "hw");
   REQUIRE(yc.size() == ref.size());
   CHECK(max_relative_error(yc, ref) <= 1e-12);
   check_single_precision(m, o, e3.u(), ref, 1e-4);
@@ -228,7 +206,7 @@ TEST_CASE("generated C of a wavelet-network nlarx and a dead-zone/polynomial HW 
   Eigen::VectorXd sim(e3.size());
   const bool finite = w.simulate<double>(e3.u(), nlid::detail::as_const_span(w.parameters()), {}, nlid::detail::as_span(sim));
   REQUIRE(finite);
-  const Eigen::VectorXd yw = run_generated(gw, e3.u(), "wavenet");
+  const Eigen::VectorXd yw = run_generated_c(gw, e3.u(), "wavenet");
   REQUIRE(yw.size() == sim.size());
   CHECK(max_relative_error(yw, sim) <= 1e-12);
   (void)ref_w;
@@ -245,7 +223,7 @@ TEST_CASE("generated C of a wavelet-network nlarx and a dead-zone/polynomial HW 
   o.name = "dzpoly";
   const nlid::GeneratedCode g = nlid::generate_c(m, o);
   CHECK(g.paths == 3);
-  const Eigen::VectorXd yc = run_generated(g, e3.u(), "dzpoly");
+  const Eigen::VectorXd yc = run_generated_c(g, e3.u(), "dzpoly");
   REQUIRE(yc.size() == ref.size());
   CHECK(max_relative_error(yc, ref) <= 1e-12);
 }
@@ -265,7 +243,7 @@ TEST_CASE("generated C of the throttle grey box (RK4, smoothed stops) matches nl
   const nlid::GeneratedCode code = nlid::generate_c(g, o);
   CHECK(code.source.find("#define THROTTLE_MODEL_SUBSTEPS " + std::to_string(g.substeps(e3.ts()))) != std::string::npos);
   CHECK(code.source.find("log1p") != std::string::npos);  // the smoothed contact
-  const Eigen::VectorXd yc = run_generated(code, e3.u(), "greybox");
+  const Eigen::VectorXd yc = run_generated_c(code, e3.u(), "greybox");
   REQUIRE(yc.size() == ref.size());
   CHECK(max_relative_error(yc, ref) <= 1e-12);
   check_single_precision(g, o, e3.u(), ref, 1e-4);

@@ -83,17 +83,9 @@ TEST_CASE("codegen: augmented grey-box models (every effect) reproduce simulate 
       CHECK(std::abs(yne(0) - yn(0)) > 1e-6);
 
       // Single precision (FPUs without double): no double in the code, float rounding of simulate.
-      o.name = "aug_f32";
+      o.name = "aug" + std::to_string(variant);
       o.equilibrium_input.reset();
-      o.precision = codegen::Precision::single_precision;
-      const GeneratedCode gs = generate_c(m, o);
-      CHECK(nlid_test::c_code_only(gs.source + gs.header).find("double") == std::string::npos);
-      const Eigen::VectorXd ycs = nlid_test::run_generated_c(gs, u, "aug" + std::to_string(variant) + "f32", true);
-      REQUIRE(ycs.size() == yn.size());
-      const double gap = nlid_test::max_relative_error(ycs, yn);
-      INFO("single precision: " << gap);
-      CHECK(gap <= 1e-4);
-      CHECK(gap > 0.0);
+      nlid_test::check_single_precision(m, o, u, yn, 1e-4);
     }
   }
 }

@@ -19,6 +19,7 @@
 
 #include <Eigen/Core>
 
+#include "c_text.hpp"
 #include "nlid/codegen/emitter.hpp"
 #include "scratch_dir.hpp"
 
@@ -65,24 +66,28 @@ inline Eigen::VectorXd run_generated_c(const nlid::GeneratedCode& g, const Eigen
   return Eigen::Map<Eigen::VectorXd>(ys.data(), static_cast<Eigen::Index>(ys.size()));
 }
 
-/// The C text without its comments (model descriptions may contain any word).
-inline std::string c_code_only(const std::string& s) {
-  std::string out;
-  for (std::size_t i = 0; i < s.size(); ++i) {
-    if (s.compare(i, 2, "/*") == 0) {
-      i = s.find("*/", i + 2);
-      if (i == std::string::npos) break;
-      ++i;
-      continue;
-    }
-    out += s[i];
-  }
-  return out;
-}
-
 /// max |a − b| / max(1, max |b|).
 inline double max_relative_error(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
   return (a - b).cwiseAbs().maxCoeff() / std::max(1.0, b.cwiseAbs().maxCoeff());
+}
+
+/// Single-precision code of `m` (options `o`, name suffixed "_f32"): no double anywhere,
+/// `NAME_real` is float, and its run on `u` is float rounding of nlid's double simulation `ref`
+/// — within `tol` relative to max(1, max |ref|), but not bitwise equal.
+template <class Model>
+void check_single_precision(const Model& m, nlid::CodegenOptions o, const Eigen::MatrixXd& u, const Eigen::VectorXd& ref,
+                            double tol) {
+  o.name += "_f32";
+  o.precision = nlid::codegen::Precision::single_precision;
+  const nlid::GeneratedCode g = generate_c(m, o);
+  CHECK(c_code_only(g.source + g.header).find("double") == std::string::npos);
+  CHECK(g.header.find("typedef float " + o.name + "_real;") != std::string::npos);
+  const Eigen::VectorXd yc = run_generated_c(g, u, o.name, true);
+  REQUIRE(yc.size() == ref.size());
+  const double gap = max_relative_error(yc, ref);
+  INFO("single precision: max |y_C - y_nlid| / max(1, max |y_nlid|) = " << gap);
+  CHECK(gap <= tol);
+  CHECK(gap > 0.0);
 }
 
 }  // namespace nlid_test

@@ -17,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "../support/c_text.hpp"
 #include "tool_runner.hpp"
 
 namespace fs = std::filesystem;
@@ -87,21 +88,6 @@ double max_relative_gap(const std::vector<double>& a, const std::vector<double>&
     scale = std::max(scale, std::abs(b[k]));
   }
   return gap / scale;
-}
-
-// The code with its comments removed (a model description may mention any word).
-std::string without_comments(const std::string& s) {
-  std::string out;
-  for (std::size_t i = 0; i < s.size(); ++i) {
-    if (s.compare(i, 2, "/*") == 0) {
-      const std::size_t end = s.find("*/", i + 2);
-      if (end == std::string::npos) break;
-      i = end + 1;
-      continue;
-    }
-    out += s[i];
-  }
-  return out;
 }
 
 // The symbols DIR/NAME.c needs from libraries when compiled for a Cortex-M4F (single-precision
@@ -193,7 +179,7 @@ TEST_CASE("nlid-codegen: C from nlid-fit's model files reproduces nlid-sim for e
       INFO(gs.err);
       REQUIRE(gs.code == 0);
       CHECK_THAT(gs.err, Catch::Contains("single precision"));
-      const std::string sp_code = without_comments(slurp(dir / "sp_model.c")) + without_comments(slurp(dir / "sp_model.h"));
+      const std::string sp_code = nlid_test::c_code_only(slurp(dir / "sp_model.c") + slurp(dir / "sp_model.h"));
       CHECK(sp_code.find("double") == std::string::npos);
       CHECK(sp_code.find("float") != std::string::npos);
       const std::vector<double> ys_c = run_generated(dir, "sp_model", u, true);
