@@ -113,6 +113,24 @@ TEST_CASE("Runtime-chosen models equal compile-time models to 1e-12", "[greybox]
                                                 Eigen::Vector2d(1.0, 0.8));
 }
 
+TEST_CASE("Runtime physics: Jacobian passes in lockstep pairs, in chunks of 8 columns, bit for bit",
+          "[greybox][dynamic][jacobian]") {
+  // 7 parameters + 2 initial states = 9 columns: two chunk passes of RuntimeDual per pair.
+  nlid::DynamicGreyBox d = nlid::make_greybox("throttle");
+  Eigen::VectorXd p7(7);
+  p7 << 30.0, 400.0, 1e5, 56000.0, 15.0, 90.0, 0.0;
+  d.set_parameters(p7);
+  Dataset data;
+  const Eigen::MatrixXd ua = nlid_test::steps({0.3, 0.9, -0.2, 0.6}, 40, 160);
+  const Eigen::MatrixXd ub = nlid_test::steps({0.7, 0.1}, 30, 130);
+  data.add(nlid::Experiment(ua, d.simulate(ua, 0.01, Eigen::Vector2d(20.0, 1.0)), 0.01, "a"));
+  data.add(nlid::Experiment(ub, d.simulate(ub, 0.01, Eigen::Vector2d(40.0, 0.0)), 0.01, "b"));
+  nlid::GreyBoxProblem<nlid::AnyPhysics> pb(d.physics(), d.integrator(), data, InitialCondition::estimate);
+  Eigen::VectorXd th(pb.num_parameters());
+  th << p7 * 0.97, 21.0, 0.5, 38.0, 0.2;
+  nlid_test::check_lockstep_jacobians(pb, th);
+}
+
 TEST_CASE("A runtime model estimates like its compile-time twin", "[greybox][dynamic][estimate]") {
   GreyBox<physics::MassSpringDamper> truth;
   truth.set_parameters(Eigen::Vector4d(8.0, 150.0, 3000.0, 40.0));

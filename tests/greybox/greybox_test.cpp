@@ -271,6 +271,54 @@ TEST_CASE("Residuals alone equal the residuals of the Jacobian pass, bit for bit
   }
 }
 
+TEST_CASE("Jacobian passes in lockstep pairs equal the passes one after the other, bit for bit",
+          "[greybox][jacobian]") {
+  GreyBox<physics::Throttle> m;
+  m.set_parameters(throttle_truth());
+  const double ts = 0.01;
+  // Three records of different lengths: the first two paired, the third alone.
+  Dataset d;
+  d.add(nlid_test::simulated(m, nlid_test::steps({0.3, 0.9, -0.2, 0.5}, 60, 240), ts, Eigen::Vector2d(15.0, 0.0), 0.3, 1, "a"));
+  d.add(nlid_test::simulated(m, nlid_test::steps({0.8, 0.1, 0.6}, 35, 170), ts, Eigen::Vector2d(15.0, 0.0), 0.3, 2, "b"));
+  d.add(nlid_test::simulated(m, nlid_test::steps({0.5, 0.2}, 40, 200), ts, Eigen::Vector2d(15.0, 0.0), 0.3, 3, "c"));
+  Eigen::VectorXd p = throttle_truth();
+  p[0] *= 1.3;
+  for (const InitialCondition ic : {InitialCondition::zero, InitialCondition::estimate, InitialCondition::equilibrium}) {
+    INFO("initial condition " << static_cast<int>(ic));
+    nlid::GreyBoxProblem<physics::Throttle> pb(m.physics(), m.integrator(), d, ic);
+    Eigen::VectorXd theta(pb.num_parameters());
+    theta.head(7) = p;
+    pb.refresh_initial_states(theta);
+    if (ic == InitialCondition::estimate) theta.tail(6) += Eigen::VectorXd::LinSpaced(6, 0.5, 3.0);
+    nlid_test::check_lockstep_jacobians(pb, theta);
+  }
+  SECTION("a fixed parameter") {
+    std::vector<bool> fixed(7, false);
+    fixed[2] = true;
+    nlid::GreyBoxProblem<physics::Throttle> pb(m.physics(), m.integrator(), d, InitialCondition::estimate, fixed);
+    Eigen::VectorXd theta(pb.num_parameters());
+    theta.head(7) = p;
+    pb.refresh_initial_states(theta);
+    nlid_test::check_lockstep_jacobians(pb, theta);
+  }
+  SECTION("initial states only") {
+    nlid::GreyBoxProblem<physics::Throttle> pb(m.physics(), m.integrator(), d, InitialCondition::estimate, {},
+                                               true, p);
+    Eigen::VectorXd theta(pb.num_parameters());
+    pb.refresh_initial_states(theta);
+    nlid_test::check_lockstep_jacobians(pb, theta);
+  }
+  SECTION("a record that diverges fails both ways") {
+    Dataset bad;
+    bad.add(d[0]);
+    Eigen::MatrixXd u = d[1].u();
+    u(50, 0) = 1e305;
+    bad.add(Experiment(u, d[1].y(), ts, "wild"));
+    nlid::GreyBoxProblem<physics::Throttle> pb(m.physics(), m.integrator(), bad, InitialCondition::zero);
+    nlid_test::check_lockstep_jacobians(pb, p, false);
+  }
+}
+
 namespace {
 
 // ẋ = −a·x³ + b·u, y = x. No `spectral_radius`: the sub-step rule takes the Gershgorin bound
@@ -311,6 +359,7 @@ TEST_CASE("Records needing different sub-steps are evaluated one after the other
   REQUIRE(pb.evaluate(theta, rj, &J));
   CHECK(r.norm() > 1.0);
   CHECK((r - rj).cwiseAbs().maxCoeff() == 0.0);
+  nlid_test::check_lockstep_jacobians(pb, theta);  // the pair falls back to one after the other
 }
 
 TEST_CASE("Exact sensitivities equal central finite differences", "[greybox][jacobian]") {

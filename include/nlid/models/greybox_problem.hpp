@@ -43,6 +43,7 @@
 #include <Eigen/LU>
 
 #include "nlid/ad/dual.hpp"
+#include "nlid/core/batch.hpp"
 #include "nlid/core/error.hpp"
 #include "nlid/core/initial_condition.hpp"
 #include "nlid/data/dataset.hpp"
@@ -176,6 +177,14 @@ class GreyBoxProblem {
   /// The physics.
   [[nodiscard]] const P& physics() const { return phys_; }
 
+  /// Whether Jacobian evaluations simulate two experiments at a time in lockstep, as residual
+  /// evaluations always do. The numbers are the same either way (tested bit for bit); only the
+  /// speed differs, and the default is the faster choice for the build's registers: on where a
+  /// dual's derivative lanes fit one register (AVX2, AVX-512 builds for up to 4 or 8 columns),
+  /// off with SSE2 alone.
+  void set_lockstep_jacobians(bool on) { lockstep_jacobians_ = on; }
+  [[nodiscard]] bool lockstep_jacobians() const { return lockstep_jacobians_; }
+
   /// Per-parameter fixed mask over θ (physical parameters as given, initial states free), for
   /// `LmOptions::fixed`.
   [[nodiscard]] std::vector<bool> fixed_mask() const {
@@ -234,17 +243,22 @@ class GreyBoxProblem {
     if (theta.size() != num_parameters() || !theta.allFinite()) return false;
     const double* p = states_only_ ? p_values_.data() : theta.data();
     const std::size_t ne = data_->size();
+    // Experiments in lockstep pairs (simulate_physics_pair): one trajectory is a single chain
+    // of dependent operations, and the second one fills the cycles it leaves idle. Same numbers
+    // as one after the other. Residuals alone (every LM trial step, every multi-start
+    // candidate) take about two thirds of the time; Jacobian passes gain where the duals fit one
+    // register (set_lockstep_jacobians).
+    std::size_t e = 0;
     if (J) {
       J->setZero();
-      for (std::size_t e = 0; e < ne; ++e) {
+      for (; lockstep_jacobians_ && e + 1 < ne; e += 2) {
+        if (!jacobian_pair(e, theta, p, r, *J)) return false;
+      }
+      for (; e < ne; ++e) {
         if (!evaluate_experiment(e, theta, p, r, J)) return false;
       }
       return true;
     }
-    // Residuals only (every trial step of LM, every multi-start candidate): experiments in
-    // lockstep pairs, about two thirds of the time of one after the other
-    // (simulate_physics_pair). Same numbers either way.
-    std::size_t e = 0;
     for (; e + 1 < ne; e += 2) {
       if (!residuals_pair(e, theta, p, r)) return false;
     }
@@ -321,27 +335,31 @@ class GreyBoxProblem {
     return true;
   }
 
-  bool evaluate_experiment(std::size_t e, const Eigen::VectorXd& theta, const double* p,
-                           Eigen::VectorXd& r, Eigen::MatrixXd* J) const {
-    Eigen::Matrix<double, NX, 1> x0(nx_);
-    Eigen::MatrixXd jinv;
-    if (ic_ == InitialCondition::equilibrium) {
-      if (!equilibrium_start(e, p, x0.data(), J ? &jinv : nullptr)) return false;
-    } else {
-      initial_state(theta, e, x0.data());
-    }
-    const int sub = substeps(e, p, x0.data());
-    if (!J) return residuals_alone(e, p, x0.data(), sub, r);
-    // Columns this experiment can affect.
+  // What a Jacobian pass over experiment e needs: its start, and the θ columns it can affect.
+  struct PassSetup {
+    Eigen::Matrix<double, NX, 1> x0;
+    Eigen::MatrixXd jinv;  // (∂f/∂x)⁻¹ at the equilibrium start
     ActiveList act{};
     int nact = 0;
+    int sub = 1;
+  };
+
+  bool setup_pass(std::size_t e, const Eigen::VectorXd& theta, const double* p, PassSetup& s) const {
+    s.x0.resize(nx_);
+    if (ic_ == InitialCondition::equilibrium) {
+      if (!equilibrium_start(e, p, s.x0.data(), &s.jinv)) return false;
+    } else {
+      initial_state(theta, e, s.x0.data());
+    }
+    s.sub = substeps(e, p, s.x0.data());
+    s.nact = 0;
     auto push = [&](bool is_state, int index, int column) {
       if constexpr (kStatic) {
-        act[static_cast<std::size_t>(nact)] = Active{is_state, index, column};
+        s.act[static_cast<std::size_t>(s.nact)] = Active{is_state, index, column};
       } else {
-        act.push_back(Active{is_state, index, column});
+        s.act.push_back(Active{is_state, index, column});
       }
-      ++nact;
+      ++s.nact;
     };
     if (!states_only_) {
       for (int i = 0; i < np_; ++i) {
@@ -351,12 +369,62 @@ class GreyBoxProblem {
     if (ic_ == InitialCondition::estimate) {
       for (int i = 0; i < nx_; ++i) push(true, i, state_column(e) + i);
     }
-    constexpr int W = full_width();
-    constexpr int WS = states_width();
-    constexpr int WP = params_width();
-    if (states_only_) return passes<WS>(e, p, x0.data(), act.data(), nact, jinv, sub, r, *J);
-    if (ic_ != InitialCondition::estimate) return passes<WP>(e, p, x0.data(), act.data(), nact, jinv, sub, r, *J);
-    return passes<W>(e, p, x0.data(), act.data(), nact, jinv, sub, r, *J);
+    return true;
+  }
+
+  // The dual width of the passes: every active column in one pass where the physics allows.
+  static constexpr int pass_width(bool states_only, InitialCondition ic) {
+    if (states_only) return states_width();
+    return ic != InitialCondition::estimate ? params_width() : full_width();
+  }
+
+  // Jacobian passes in lockstep pairs by default only where a dual's derivative lanes fill at
+  // most one register: then a dual operation is one short dependency chain and the core has
+  // room for a second one (throttle, Dual<4>: 35.3 -> 29.3 ms per solve with AVX-512, 38.5 ->
+  // 37.4 ms with AVX2). With SSE2 the same dual takes two or three packets per operation, the
+  // core is already busy, and pairs ran 2 % slower (docs/performance.md).
+  static constexpr bool lockstep_jacobians_by_default() {
+    return static_cast<std::size_t>(pass_width(false, InitialCondition::zero)) * sizeof(double) <=
+           default_register_bytes;
+  }
+
+  bool evaluate_experiment(std::size_t e, const Eigen::VectorXd& theta, const double* p,
+                           Eigen::VectorXd& r, Eigen::MatrixXd* J) const {
+    if (!J) {
+      Eigen::Matrix<double, NX, 1> x0(nx_);
+      if (ic_ == InitialCondition::equilibrium) {
+        if (!equilibrium_start(e, p, x0.data(), nullptr)) return false;
+      } else {
+        initial_state(theta, e, x0.data());
+      }
+      return residuals_alone(e, p, x0.data(), substeps(e, p, x0.data()), r);
+    }
+    PassSetup s;
+    if (!setup_pass(e, theta, p, s)) return false;
+    constexpr int WS = pass_width(true, InitialCondition::zero);
+    constexpr int WP = pass_width(false, InitialCondition::zero);
+    constexpr int W = pass_width(false, InitialCondition::estimate);
+    if (states_only_) return passes<WS>(e, p, s, r, *J);
+    if (ic_ != InitialCondition::estimate) return passes<WP>(e, p, s, r, *J);
+    return passes<W>(e, p, s, r, *J);
+  }
+
+  // Jacobian and residuals of experiments e and e + 1 in lockstep; one after the other when
+  // their sample times or sub-step counts differ.
+  bool jacobian_pair(std::size_t e, const Eigen::VectorXd& theta, const double* p, Eigen::VectorXd& r,
+                     Eigen::MatrixXd& J) const {
+    PassSetup a, b;
+    if (!setup_pass(e, theta, p, a)) return false;
+    if (!setup_pass(e + 1, theta, p, b)) return false;
+    if ((*data_)[e].ts() != (*data_)[e + 1].ts() || a.sub != b.sub) {
+      return evaluate_experiment(e, theta, p, r, &J) && evaluate_experiment(e + 1, theta, p, r, &J);
+    }
+    constexpr int WS = pass_width(true, InitialCondition::zero);
+    constexpr int WP = pass_width(false, InitialCondition::zero);
+    constexpr int W = pass_width(false, InitialCondition::estimate);
+    if (states_only_) return passes_pair<WS>(e, p, a, b, r, J);
+    if (ic_ != InitialCondition::estimate) return passes_pair<WP>(e, p, a, b, r, J);
+    return passes_pair<W>(e, p, a, b, r, J);
   }
 
   // Writes experiment e's weighted residuals (zero where the measurement is missing).
@@ -367,6 +435,54 @@ class GreyBoxProblem {
         r[off + k * ny_ + j] = std::isfinite(ym) ? (y[j] - ym) * weights_[j] : 0.0;
       }
     };
+  }
+
+  // Writes experiment e's Jacobian columns act[c0, c1) from dual outputs (and, in the first
+  // pass, its residuals).
+  template <class D>
+  auto jacobian_writer(std::size_t e, const PassSetup& s, int c0, int c1, Eigen::VectorXd& r,
+                       Eigen::MatrixXd& J) const {
+    return [this, &ex = (*data_)[e], off = offsets_[e], act = s.act.data(), c0, c1, &r, &J](Eigen::Index k,
+                                                                                          const D* y) {
+      const bool first = c0 == 0;
+      for (int j = 0; j < ny_; ++j) {
+        const double ym = ex.y()(k, j);
+        const Eigen::Index row = off + k * ny_ + j;
+        if (!std::isfinite(ym)) {
+          if (first) r[row] = 0.0;
+          continue;
+        }
+        const double w = weights_[j];
+        if (first) r[row] = (y[j].a - ym) * w;
+        for (int c = c0; c < c1; ++c) J(row, act[c].column) = y[j].v[c - c0] * w;
+      }
+    };
+  }
+
+  // Seeds the duals of pass [c0, c1): parameters into pd (the same for every experiment, whose
+  // active parameters are the same), initial states into xd.
+  template <class D>
+  void seed_parameters(const double* p, const PassSetup& s, int c0, int c1, D* pd) const {
+    for (int i = 0; i < np_; ++i) pd[i] = D(p[i]);
+    for (int c = c0; c < c1; ++c) {
+      const Active& a = s.act[static_cast<std::size_t>(c)];
+      if (!a.is_state) pd[a.index] = D::variable(p[a.index], c - c0);
+    }
+  }
+  template <class D>
+  void seed_states(std::size_t e, const PassSetup& s, int c0, int c1, const D* pd, D* xd) const {
+    for (int i = 0; i < nx_; ++i) xd[i] = D(ic_ == InitialCondition::zero ? 0.0 : s.x0[i]);
+    for (int c = c0; c < c1; ++c) {
+      const Active& a = s.act[static_cast<std::size_t>(c)];
+      if (a.is_state) xd[a.index] = D::variable(s.x0[a.index], c - c0);
+    }
+    if (ic_ == InitialCondition::equilibrium) {
+      const Experiment& ex = (*data_)[e];
+      Eigen::Matrix<D, NU, 1> u0(nu_);
+      Eigen::Matrix<D, NX, 1> work(nx_);
+      for (int j = 0; j < nu_; ++j) u0[j] = D(ex.u()(0, j));
+      equilibrium_sensitivity_step(phys_, s.x0.data(), u0.data(), pd, s.jinv.data(), work.data(), xd);
+    }
   }
 
   // Residuals of experiment e simulated on its own from x0 (not modified).
@@ -397,48 +513,41 @@ class GreyBoxProblem {
 
   // Simulates experiment e on Dual<double, W>, seeding `W` active columns per pass.
   template <int W>
-  bool passes(std::size_t e, const double* p, const double* x0, const Active* act, int nact,
-              const Eigen::MatrixXd& jinv, int sub, Eigen::VectorXd& r, Eigen::MatrixXd& J) const {
+  bool passes(std::size_t e, const double* p, const PassSetup& s, Eigen::VectorXd& r, Eigen::MatrixXd& J) const {
     using D = Dual<double, W>;
     const Experiment& ex = (*data_)[e];
-    const Eigen::Index off = offsets_[e];
     Eigen::Matrix<D, NP, 1> pd(np_);
-    Eigen::Matrix<D, NX, 1> xd(nx_), work(nx_);
-    Eigen::Matrix<D, NU, 1> u0(nu_);
-    for (int j = 0; j < nu_; ++j) u0[j] = D(ex.u()(0, j));
-    for (int c0 = 0; c0 < std::max(nact, 1); c0 += W) {
-      const int c1 = std::min(nact, c0 + W);
-      for (int i = 0; i < np_; ++i) pd[i] = D(p[i]);
-      for (int i = 0; i < nx_; ++i) xd[i] = D(ic_ == InitialCondition::zero ? 0.0 : x0[i]);
-      for (int s = c0; s < c1; ++s) {
-        const Active& a = act[s];
-        if (a.is_state) {
-          xd[a.index] = D::variable(x0[a.index], s - c0);
-        } else {
-          pd[a.index] = D::variable(p[a.index], s - c0);
-        }
-      }
-      if (ic_ == InitialCondition::equilibrium) {
-        equilibrium_sensitivity_step(phys_, x0, u0.data(), pd.data(), jinv.data(), work.data(),
-                                     xd.data());
-      }
-      const bool first = c0 == 0;
-      const Eigen::Index got = simulate_physics<D>(
-          phys_, options_, sub, ex.u(), ex.ts(), pd.data(), xd.data(),
-          [&](Eigen::Index k, const D* y) {
-            for (int j = 0; j < ny_; ++j) {
-              const double ym = ex.y()(k, j);
-              const Eigen::Index row = off + k * ny_ + j;
-              if (!std::isfinite(ym)) {
-                if (first) r[row] = 0.0;
-                continue;
-              }
-              const double w = weights_[j];
-              if (first) r[row] = (y[j].a - ym) * w;
-              for (int s = c0; s < c1; ++s) J(row, act[s].column) = y[j].v[s - c0] * w;
-            }
-          });
+    Eigen::Matrix<D, NX, 1> xd(nx_);
+    for (int c0 = 0; c0 < std::max(s.nact, 1); c0 += W) {
+      const int c1 = std::min(s.nact, c0 + W);
+      seed_parameters(p, s, c0, c1, pd.data());
+      seed_states(e, s, c0, c1, pd.data(), xd.data());
+      const Eigen::Index got = simulate_physics<D>(phys_, options_, s.sub, ex.u(), ex.ts(), pd.data(), xd.data(),
+                                                   jacobian_writer<D>(e, s, c0, c1, r, J));
       if (got != ex.size()) return false;
+    }
+    return true;
+  }
+
+  // The same for experiments e and e + 1 in lockstep (equal sample times and sub-steps; both
+  // have the same active parameters, and their state columns sit at the same lanes).
+  template <int W>
+  bool passes_pair(std::size_t e, const double* p, const PassSetup& a, const PassSetup& b, Eigen::VectorXd& r,
+                   Eigen::MatrixXd& J) const {
+    using D = Dual<double, W>;
+    const Experiment& ea = (*data_)[e];
+    const Experiment& eb = (*data_)[e + 1];
+    Eigen::Matrix<D, NP, 1> pd(np_);
+    Eigen::Matrix<D, NX, 1> xa(nx_), xb(nx_);
+    for (int c0 = 0; c0 < std::max(a.nact, 1); c0 += W) {
+      const int c1 = std::min(a.nact, c0 + W);
+      seed_parameters(p, a, c0, c1, pd.data());
+      seed_states(e, a, c0, c1, pd.data(), xa.data());
+      seed_states(e + 1, b, c0, c1, pd.data(), xb.data());
+      const std::array<Eigen::Index, 2> got = simulate_physics_pair(
+          phys_, options_, a.sub, ea.u(), eb.u(), ea.ts(), static_cast<const D*>(pd.data()), xa.data(), xb.data(),
+          jacobian_writer<D>(e, a, c0, c1, r, J), jacobian_writer<D>(e + 1, b, c0, c1, r, J));
+      if (got[0] != ea.size() || got[1] != eb.size()) return false;
     }
     return true;
   }
@@ -454,6 +563,7 @@ class GreyBoxProblem {
   std::vector<Eigen::Index> offsets_;
   Eigen::Index rows_ = 0;
   Eigen::VectorXd weights_;
+  bool lockstep_jacobians_ = lockstep_jacobians_by_default();
 };
 
 }  // namespace nlid
