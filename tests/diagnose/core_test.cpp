@@ -193,6 +193,17 @@ TEST_CASE("augmented model: effects act as their laws say", "[diagnose][augmente
   CHECK(yd(15, 0) == Approx(0.0).margin(1e-12));
 }
 
+TEST_CASE("augmented model: a record at another sample time is refused, naming it", "[diagnose][augmented][errors]") {
+  const physics::FirstOrder fo;
+  AugmentedModel<physics::FirstOrder> m(fo, diag_test::table(fo, {{"tau", 0.1}, {"gain", 2.0}}), 0.01);
+  const Eigen::MatrixXd u = Eigen::MatrixXd::Constant(50, 1, 1.0);
+  const Experiment fast(u, Eigen::MatrixXd::Zero(50, 1), 0.001, "raw");
+  const std::string msg = message_of([&] { (void)m.simulate(fast, Eigen::VectorXd::Zero(1)); });
+  CHECK_THAT(msg, Catch::Contains("experiment 'raw' has sample time 0.001") && Catch::Contains("model's is 0.01"));
+  // The same samples at the model's rate simulate.
+  CHECK(m.simulate(Experiment(u, Eigen::MatrixXd::Zero(50, 1), 0.01), Eigen::VectorXd::Zero(1)).rows() == 50);
+}
+
 TEST_CASE("augmented model: exact Jacobian equals central finite differences", "[diagnose][augmented][jacobian]") {
   const physics::MassSpringDamper msd;
   const double ts = 0.01;

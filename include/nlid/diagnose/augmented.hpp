@@ -673,6 +673,12 @@ void AugmentedModel<P>::check_experiment(const Experiment& e, long index) const 
               std::to_string(detail::physics_inputs(phys_)),
           where);
   require(e.size() >= 2, who + " has fewer than 2 samples", where);
+  // The simulation steps by the model's own sample time: a record at another rate would run on
+  // a stretched time axis and still look plausible.
+  require(std::abs(e.ts() - ts_) <= 1e-9 * ts_,
+          who + " has sample time " + std::to_string(e.ts()) + " s but the model's is " + std::to_string(ts_) +
+              " s (resample the data, e.g. decimate it as for the estimation)",
+          where);
 }
 
 template <Physics P>
