@@ -384,11 +384,12 @@ void adopt_data(M& model, const Dataset& data, int history, const char* kind) {
 
 /// Estimates a nonlinear ARX model on `data` (one or more experiments; residuals stacked).
 /// `model` supplies the structure (and the starting θ when `options.initialize` is false).
-/// Returns the model with estimated θ, sample time, channel names and `report()`.
+/// Returns the model with estimated θ, sample time, channel names and `report()` (the argument
+/// is a copy and stays as it was: `m = estimate(m, data)`; a grey box is estimated in place).
 /// Throws `nlid::Error` naming the experiment for data that do not fit the model, or when a
 /// simulation-focus estimation cannot start because every start diverges.
 template <Regressor R, Nonlinearity F>
-Nlarx<R, F> estimate(Nlarx<R, F> model, const Dataset& data, const EstimateOptions& options = {}) {
+[[nodiscard]] Nlarx<R, F> estimate(Nlarx<R, F> model, const Dataset& data, const EstimateOptions& options = {}) {
   using M = Nlarx<R, F>;
   const auto t0 = std::chrono::steady_clock::now();
   detail::adopt_data(model, data, model.history_length(), "nonlinear ARX");
@@ -592,7 +593,7 @@ Nlarx<R, F> estimate(Nlarx<R, F> model, const Dataset& data, const EstimateOptio
 /// Throws `nlid::Error` naming the experiment for data that do not fit the model, and for
 /// `InitialCondition::measured` (not defined for a block state).
 template <ScalarNonlinearity In, LinearBlock L, ScalarNonlinearity Out>
-HammersteinWiener<In, L, Out> estimate(HammersteinWiener<In, L, Out> model, const Dataset& data,
+[[nodiscard]] HammersteinWiener<In, L, Out> estimate(HammersteinWiener<In, L, Out> model, const Dataset& data,
                                        const EstimateOptions& options = {}) {
   const auto t0 = std::chrono::steady_clock::now();
   detail::adopt_data(model, data, 0, "Hammerstein-Wiener");

@@ -741,7 +741,7 @@ SeriesInitialization initialize_series(Series<B...>& model, const Dataset& data,
 /// Throws `nlid::Error` naming the experiment for data that do not fit the model, for
 /// `InitialCondition::measured`, or if the initial model's simulation diverges.
 template <SeriesBlock... B>
-Series<B...> estimate(Series<B...> model, const Dataset& data, const SeriesEstimateOptions& options = {}) {
+[[nodiscard]] Series<B...> estimate(Series<B...> model, const Dataset& data, const SeriesEstimateOptions& options = {}) {
   using M = Series<B...>;
   const auto t0 = std::chrono::steady_clock::now();
   detail::adopt_data(model, data, 0, M::kind().c_str());
