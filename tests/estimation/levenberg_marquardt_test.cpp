@@ -304,6 +304,38 @@ TEST_CASE("steps into a region where evaluate() fails are rejected, not propagat
                         Contains("evaluate() returned false"));
 }
 
+TEST_CASE("a solve that never moves from its start is reported as stalled, not converged",
+          "[estimation][lm]") {
+  // r = θ − 1 with a Jacobian that lies (huge and of the wrong sign, as exploding simulation
+  // sensitivities do): every damped step goes the wrong way and is rejected until it is tiny.
+  auto problem = nlid::make_problem<1>(1, 1, [](const auto& th, Eigen::VectorXd& r, auto* J) {
+    r[0] = th[0] - 1.0;
+    if (J) (*J)(0, 0) = -1e8;
+    return true;
+  });
+  Eigen::Matrix<double, 1, 1> th(0.0);
+  const auto s = nlid::solve_least_squares(problem, th);
+  INFO(s.message());
+  CHECK(s.status == LmStatus::parameter_tolerance_reached);
+  CHECK(s.accepted_steps == 0);
+  CHECK(s.stalled_at_start());
+  CHECK_FALSE(s.converged());
+  CHECK(th[0] == 0.0);
+  CHECK_THAT(s.message(), Contains("stalled") && !Contains("(converged)"));
+  // The same stop after progress is a convergence: r = θ − 1 with the true Jacobian converges.
+  auto honest = nlid::make_problem<1>(1, 1, [](const auto& t, Eigen::VectorXd& r, auto* J) {
+    r[0] = (t[0] - 1.0) * (t[0] - 1.0) * (t[0] - 1.0);
+    if (J) (*J)(0, 0) = 3.0 * (t[0] - 1.0) * (t[0] - 1.0);
+    return true;
+  });
+  Eigen::Matrix<double, 1, 1> t2(0.0);
+  const auto s2 = nlid::solve_least_squares(honest, t2);
+  INFO(s2.message());
+  CHECK(s2.accepted_steps > 0);
+  CHECK(s2.converged());
+  CHECK_FALSE(s2.stalled_at_start());
+}
+
 TEST_CASE("a non-finite Jacobian at an accepted point stops with a named parameter",
           "[estimation][lm]") {
   // r = θ² − 0.01 with an analytic Jacobian that (wrongly) turns NaN below θ = 0.5.

@@ -132,6 +132,9 @@ enum class LmStatus {
   /// The step just tried satisfies ‖Δθ‖₂ ≤ parameter_tolerance·(‖θ‖₂ + parameter_tolerance)
   /// (Δθ after projection onto the bounds, θ before the step). An accepted step is taken
   /// first; after a rejected one θ stays (a larger λ would only shorten the step further).
+  /// If no step at all was accepted, θ is the start and nothing certifies it: `converged()`
+  /// is false and the message says the solve stalled (typically exploding sensitivities, e.g.
+  /// a simulation-focus start whose free run is locally unstable).
   parameter_tolerance_reached,
   /// `max_iterations` step attempts were made without meeting another criterion.
   max_iterations_reached,
@@ -180,12 +183,16 @@ struct LmSummary {
   std::string detail;                ///< extra information for some statuses (else empty)
 
   /// True for the statuses that certify a (local) solution: gradient, function or parameter
-  /// tolerance reached, or nothing to estimate.
+  /// tolerance reached (the last after at least one accepted step), or nothing to estimate.
   bool converged() const {
     return status == LmStatus::gradient_tolerance_reached ||
            status == LmStatus::function_tolerance_reached ||
-           status == LmStatus::parameter_tolerance_reached ||
+           (status == LmStatus::parameter_tolerance_reached && !stalled_at_start()) ||
            status == LmStatus::all_parameters_fixed;
+  }
+  /// True if the solve stopped on a rejected tiny step without ever moving from the start.
+  bool stalled_at_start() const {
+    return status == LmStatus::parameter_tolerance_reached && accepted_steps == 0;
   }
   /// One-paragraph human-readable account: status, costs, counts, time.
   std::string message() const {
@@ -195,7 +202,10 @@ struct LmSummary {
       return std::string(buf);
     };
     std::string s = std::string("Levenberg-Marquardt: ") + to_string(status) +
-                    (converged() ? " (converged)" : " (not converged)") + " after " +
+                    (converged()          ? " (converged)"
+                     : stalled_at_start() ? " (stalled: no step reduced the cost, the start was kept)"
+                                          : " (not converged)") +
+                    " after " +
                     std::to_string(iterations) + " iterations (" + std::to_string(accepted_steps) +
                     " accepted); cost " + num(initial_cost) + " -> " + num(final_cost) +
                     ", |projected gradient| " + num(final_gradient_norm) + ", lambda " +
