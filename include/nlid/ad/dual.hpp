@@ -518,6 +518,30 @@ template <class T> T max(T x, T y) requires std::is_arithmetic_v<T> { return x >
 /// Smaller of two plain numbers, so `min(x, y)` is generic.
 template <class T> T min(T x, T y) requires std::is_arithmetic_v<T> { return x <= y ? x : y; }
 
+// Scalar types defined after this header (the code generator's TraceScalar) take part through
+// the hooks `scalar_max` / `scalar_min`, found by argument-dependent lookup when a model is
+// instantiated. A qualified call `nlid::max(y, 90.0)` in a user's lambda only sees the `max`
+// overloads declared before the lambda; this one is always among them, so the header order of
+// a program does not matter.
+namespace detail {
+template <class X, class Y>
+concept HasScalarMax = requires(const X& x, const Y& y) { scalar_max(x, y); };
+template <class X, class Y>
+concept HasScalarMin = requires(const X& x, const Y& y) { scalar_min(x, y); };
+}  // namespace detail
+/// Larger value for scalar types that provide the `scalar_max` hook.
+template <class X, class Y>
+  requires detail::HasScalarMax<X, Y>
+auto max(const X& x, const Y& y) {
+  return scalar_max(x, y);
+}
+/// Smaller value for scalar types that provide the `scalar_min` hook.
+template <class X, class Y>
+  requires detail::HasScalarMin<X, Y>
+auto min(const X& x, const Y& y) {
+  return scalar_min(x, y);
+}
+
 /// True if the value and every derivative are finite.
 template <class T, int N> bool isfinite(const Dual<T, N>& x) {
   using std::isfinite;

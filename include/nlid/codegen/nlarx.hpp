@@ -16,8 +16,9 @@
 /// Custom regressors are generic lambdas; they are traced like everything else, which is why
 /// the toolbox's restriction ("code generation does not support custom regressors") does not
 /// apply. A regressor written with `nlid::max(y1, 90.0)` becomes `(x >= 90.0 ? x : 90.0)`.
-/// Note: include nlid/codegen.hpp (or this header) *before* defining a lambda that calls
-/// `nlid::max`/`nlid::min` with qualification, so that the `TraceScalar` overloads are visible.
+/// The header order does not matter: a lambda that calls `nlid::max`/`nlid::min` and was
+/// compiled before this header reaches the `TraceScalar` overloads through the generic
+/// `nlid::max`/`nlid::min` of ad/dual.hpp (tests/static/codegen_include_order.cpp).
 
 #include <span>
 #include <string>

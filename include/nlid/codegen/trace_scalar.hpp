@@ -378,6 +378,14 @@ inline TraceScalar max(double x, const TraceScalar& y) { return max(TraceScalar(
 inline TraceScalar min(const TraceScalar& x, double y) { return min(x, TraceScalar(y)); }
 /// min with a constant on the left.
 inline TraceScalar min(double x, const TraceScalar& y) { return min(TraceScalar(x), y); }
+/// Hooks of the generic `nlid::max` / `nlid::min` (ad/dual.hpp): they reach the overloads above
+/// from code compiled before this header was included.
+inline TraceScalar scalar_max(const TraceScalar& x, const TraceScalar& y) { return max(x, y); }
+inline TraceScalar scalar_max(const TraceScalar& x, double y) { return max(x, y); }
+inline TraceScalar scalar_max(double x, const TraceScalar& y) { return max(x, y); }
+inline TraceScalar scalar_min(const TraceScalar& x, const TraceScalar& y) { return min(x, y); }
+inline TraceScalar scalar_min(const TraceScalar& x, double y) { return min(x, y); }
+inline TraceScalar scalar_min(double x, const TraceScalar& y) { return min(x, y); }
 /// The "value part" of a traced scalar is itself, so `if (value_of(s) >= 0)` becomes a traced
 /// decision (or a known one).
 inline TraceScalar value_of(const TraceScalar& x) { return x; }

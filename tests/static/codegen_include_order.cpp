@@ -1,0 +1,26 @@
+// Compile-only: a model whose custom regressor calls `nlid::max` / `nlid::min` is defined
+// before nlid/codegen.hpp is included (a project's own model header, then the code generator).
+// The qualified calls only see the overloads declared before the lambda; the generic ones of
+// ad/dual.hpp reach the TraceScalar overloads at instantiation. Building this file is the test.
+#include "nlid/models/nlarx.hpp"
+#include "nlid/nonlinearities/linear.hpp"
+#include "nlid/regressors.hpp"
+
+namespace include_order {
+
+inline auto spring_model() {
+  auto spring = nlid::custom_regressor<nlid::OutputLag<1>>(
+      "max(y1(t-1),90)+min(y1(t-1),15)-105", [](auto y) { return nlid::max(y, 90.0) + nlid::min(y, 15.0) - 105.0; });
+  return nlid::Nlarx(nlid::RegressorSet{nlid::LaggedRegressors<2, 1, 0>{}, spring}, nlid::LinearMap<4>{});
+}
+
+}  // namespace include_order
+
+#include "nlid/codegen.hpp"
+
+namespace include_order {
+
+inline std::string generated() { return nlid::generate_c(spring_model(), nlid::CodegenOptions{}).source; }
+[[maybe_unused]] const auto instantiate = &generated;
+
+}  // namespace include_order
