@@ -15,6 +15,14 @@
 #include "nlid/io/series_serial.hpp"
 #include "nlid/models/spec.hpp"  // nlid-fit's specs: must coexist with the series serialiser
 #include "nlid/models/physics/catalogue.hpp"
+#include "nlid/linear.hpp"
+#include "nlid/models/any_model.hpp"
+#include "nlid/models/greybox.hpp"
+#include "nlid/models/hammerstein_wiener.hpp"
+#include "nlid/models/nlarx.hpp"
+#include "nlid/nonlinearities.hpp"
+#include "nlid/regressors.hpp"
+#include "nlid/regressors/expression.hpp"
 
 #include "../support/scratch_dir.hpp"
 
@@ -154,5 +162,54 @@ TEST_CASE("model file: one series layout - blocks as their own objects, the olde
     FAIL("a static block in a linear position was accepted");
   } catch (const Error& err) {
     CHECK_THAT(err.what(), Catch::Contains("structure.blocks[0]") && Catch::Contains("must be linear"));
+  }
+}
+
+TEST_CASE("orders beyond max_model_order are refused everywhere, before any lag arithmetic overflows",
+          "[io][errors]") {
+  constexpr int huge = 2147483647;
+  using Catch::Contains;
+  // Specs (nlid-fit): orders, delays, unit counts and tree depths have the loader's limits.
+  CHECK_THROWS_WITH(parse_model_spec("linear:arx:na=1,nb=2,nk=2147483647"),
+                    Contains("'nk=2147483647'") && Contains("too large (at most 100000)"));
+  CHECK_THROWS_WITH(parse_model_spec("nlarx:na=2,nb=2,nk=0:sigmoidnet:2000000000"),
+                    Contains("too large (at most 1048576)"));
+  CHECK_THROWS_WITH(parse_model_spec("nlarx:na=2,nb=2,nk=0:treepartition:depth=40"), Contains("at most 12"));
+  CHECK_THROWS_WITH(parse_model_spec("linear:arx:na=1,nb=99999999999999999999999,nk=0"),
+                    Contains("not a non-negative integer"));
+  CHECK_NOTHROW(parse_model_spec("linear:arx:na=1,nb=2,nk=100000"));
+  // The library itself (model files call these constructors).
+  CHECK_THROWS_WITH(Arx(Eigen::VectorXd::Zero(1), {Eigen::VectorXd::Ones(2)}, {huge}, 0.01),
+                    Contains("delay nk must be in 0 ... 100000"));
+  CHECK_THROWS_WITH(OutputError({Eigen::VectorXd::Ones(2)}, {Eigen::VectorXd::Zero(1)}, {huge}, 0.01),
+                    Contains("delay nk must be in 0 ... 100000"));
+  const Experiment e = steps(400, 0.01);
+  CHECK_THROWS_WITH(arx(e, ArxOrders(1, 2, huge)), Contains("beyond the largest order"));
+  CHECK_THROWS_WITH(oe(e, OeOrders(2, 1, huge)), Contains("nk = 2147483647 is beyond the largest order"));
+  CHECK_THROWS_WITH((TransferFunctionBlock<Dynamic, Dynamic, Dynamic>(2, 1, huge)), Contains("must be in 0 ... 100000"));
+  RegressorList list;
+  CHECK_THROWS_WITH(list.add_input_lags(2, huge), Contains("model order nk must be in 0 ... 100000"));
+}
+
+TEST_CASE("a record resized through u() or y() is refused by every model's simulate, not read past its end",
+          "[io][errors]") {
+  using Catch::Contains;
+  Experiment shorter_y = steps(200, 0.01);
+  shorter_y.y().conservativeResize(100, 1);
+  Experiment shorter_u = steps(200, 0.01);
+  shorter_u.u().conservativeResize(100, 1);
+  const Arx a(Eigen::VectorXd::Constant(1, -0.5), {Eigen::VectorXd::Ones(2)}, {1}, 0.01);
+  const OutputError o({Eigen::VectorXd::Ones(2)}, {Eigen::VectorXd::Constant(1, -0.5)}, {0}, 0.01);
+  Nlarx<LaggedRegressors<1, 1, 0>, LinearMap<2>> n;
+  n.set_ts(0.01);
+  HammersteinWiener hw(UnitGain{}, TransferFunctionBlock<1, 1, 0>{}, UnitGain{}, 0.01);
+  GreyBox<physics::Throttle> g;
+  for (const Experiment* e : {&shorter_y, &shorter_u}) {
+    CHECK_THROWS_WITH(a.simulate(*e), Contains("output rows (resized through u() or y()?)"));
+    CHECK_THROWS_WITH(o.simulate(*e), Contains("output rows (resized through u() or y()?)"));
+    CHECK_THROWS_WITH(n.simulate(*e, InitialCondition::measured), Contains("output rows (resized"));
+    CHECK_THROWS_WITH(hw.simulate(*e), Contains("output rows (resized"));
+    CHECK_THROWS_WITH(g.simulate(*e, InitialCondition::zero), Contains("output rows (resized"));
+    CHECK_THROWS_WITH(AnyModel(a).simulate(*e), Contains("output rows (resized"));
   }
 }

@@ -9,6 +9,11 @@ namespace nlid {
 /// "Size chosen at run time" (equal to `Eigen::Dynamic`, so it can be passed straight to Eigen).
 inline constexpr int Dynamic = -1;
 
+/// Largest model order or delay (na, nb, nf, nk) accepted anywhere: far beyond any real model
+/// (10⁵ samples of delay), and small enough that lag arithmetic such as nk + nb − 1 cannot
+/// overflow an int. The model-file loader and the model specs use the same limit.
+inline constexpr int max_model_order = 100000;
+
 /// Sum of sizes; `Dynamic` if any term is dynamic. Used by compositions to compute their own size.
 template <class... Ints>
 constexpr int size_sum(Ints... n) {

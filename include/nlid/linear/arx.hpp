@@ -47,6 +47,7 @@
 #include <Eigen/QR>
 
 #include "nlid/core/error.hpp"
+#include "nlid/core/sizes.hpp"
 #include "nlid/core/initial_condition.hpp"
 #include "nlid/data/dataset.hpp"
 #include "nlid/data/experiment.hpp"
@@ -129,8 +130,15 @@ class Arx {
                 std::to_string(nk_.size()) + " delays; give one of each per input",
             at_parameter("nk"));
     for (std::size_t i = 0; i < nk_.size(); ++i)
-      require(nk_[i] >= 0, "Arx: delay nk must be >= 0, got " + std::to_string(nk_[i]),
+      require(nk_[i] >= 0 && nk_[i] <= max_model_order,
+              "Arx: delay nk must be in 0 ... " + std::to_string(max_model_order) + ", got " + std::to_string(nk_[i]),
               at_parameter("nk[" + std::to_string(i) + "]"));
+    require(a_.size() <= max_model_order, "Arx: more than " + std::to_string(max_model_order) + " A coefficients",
+            at_parameter("a"));
+    for (std::size_t i = 0; i < b_.size(); ++i)
+      require(b_[i].size() <= max_model_order,
+              "Arx: more than " + std::to_string(max_model_order) + " B coefficients",
+              at_parameter("b[" + std::to_string(i) + "]"));
     require(ts_ > 0 && std::isfinite(ts_), "Arx: sample time must be positive",
             at_parameter("ts"));
     bool finite = a_.allFinite() && std::isfinite(offset_);
@@ -468,6 +476,9 @@ namespace detail {
 // Checks orders against the data's input count; messages name the offending order.
 inline void check_arx_orders(const ArxOrders& o, int num_inputs, const std::string& who) {
   require(o.na >= 0, who + ": na must be >= 0, got " + std::to_string(o.na), at_parameter("na"));
+  require(o.na <= max_model_order,
+          who + ": na = " + std::to_string(o.na) + " is beyond the largest order " + std::to_string(max_model_order),
+          at_parameter("na"));
   require(o.nb.size() == o.nk.size(),
           who + ": nb has " + std::to_string(o.nb.size()) + " entries but nk has " +
               std::to_string(o.nk.size()) + "; give one of each per input",
@@ -483,6 +494,10 @@ inline void check_arx_orders(const ArxOrders& o, int num_inputs, const std::stri
             at_parameter("nb" + idx));
     require(o.nk[i] >= 0, who + ": nk must be >= 0, got " + std::to_string(o.nk[i]),
             at_parameter("nk" + idx));
+    require(o.nb[i] <= max_model_order && o.nk[i] <= max_model_order,
+            who + ": nb = " + std::to_string(o.nb[i]) + ", nk = " + std::to_string(o.nk[i]) +
+                " are beyond the largest order " + std::to_string(max_model_order),
+            at_parameter(o.nk[i] > max_model_order ? "nk" + idx : "nb" + idx));
   }
 }
 

@@ -49,6 +49,7 @@
 #include <Eigen/Core>
 
 #include "nlid/core/error.hpp"
+#include "nlid/core/sizes.hpp"
 #include "nlid/core/initial_condition.hpp"
 #include "nlid/data/dataset.hpp"
 #include "nlid/data/experiment.hpp"
@@ -129,8 +130,13 @@ class OutputError {
     for (std::size_t i = 0; i < b_.size(); ++i) {
       require(b_[i].size() >= 1, "OutputError: B needs at least one coefficient",
               at_parameter("b[" + std::to_string(i) + "]"));
-      require(nk_[i] >= 0, "OutputError: delay nk must be >= 0",
+      require(nk_[i] >= 0 && nk_[i] <= max_model_order,
+              "OutputError: delay nk must be in 0 ... " + std::to_string(max_model_order) + ", got " +
+                  std::to_string(nk_[i]),
               at_parameter("nk[" + std::to_string(i) + "]"));
+      require(b_[i].size() <= max_model_order && f_[i].size() <= max_model_order,
+              "OutputError: more than " + std::to_string(max_model_order) + " B or F coefficients",
+              at_parameter("b[" + std::to_string(i) + "], f[" + std::to_string(i) + "]"));
       require(b_[i].allFinite() && f_[i].allFinite(), "OutputError: coefficients must be finite",
               at_parameter("b, f"));
     }
@@ -600,6 +606,11 @@ inline void check_oe_orders(const OeOrders& o, int num_inputs) {
             at_parameter("nf" + idx));
     require(o.nk[i] >= 0, who + ": nk must be >= 0, got " + std::to_string(o.nk[i]),
             at_parameter("nk" + idx));
+    for (const auto& [v, name] : {std::pair{o.nb[i], "nb"}, std::pair{o.nf[i], "nf"}, std::pair{o.nk[i], "nk"}})
+      require(v <= max_model_order,
+              who + ": " + name + " = " + std::to_string(v) + " is beyond the largest order " +
+                  std::to_string(max_model_order),
+              at_parameter(name + idx));
   }
 }
 

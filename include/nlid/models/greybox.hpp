@@ -320,6 +320,7 @@ class GreyBox {
   /// equilibrium, or a diverging simulation (naming the sample and suggesting a remedy).
   [[nodiscard]] Eigen::MatrixXd simulate(const Experiment& e,
                                          InitialCondition ic = InitialCondition::estimate) const {
+    check_channels(e, -1);
     const StateVector x0 = initial_state(e, ic);
     return simulate(e, x0);
   }
@@ -512,6 +513,10 @@ class GreyBox {
     const Location where = index >= 0 ? at_experiment(index) : Location{};
     const std::string label = "experiment " + (index >= 0 ? std::to_string(index) + " " : std::string()) +
                               (e.name().empty() ? std::string() : "('" + e.name() + "') ");
+    require(e.u().rows() == e.y().rows(),
+            label + "has " + std::to_string(e.u().rows()) + " input rows but " + std::to_string(e.y().rows()) +
+                " output rows (resized through u() or y()?)",
+            where);
     require(e.num_inputs() == input_dimension(),
             label + "has " + std::to_string(e.num_inputs()) + " input(s), grey-box model '" + name() +
                 "' takes " + std::to_string(input_dimension()),

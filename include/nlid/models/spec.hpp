@@ -140,17 +140,31 @@ inline bool is_nonlinearity_kind(const std::string& k) {
   return false;
 }
 
+// The largest value a spec accepts for `key`: the limits of the model-file loader (orders and
+// delays 100000, units / breakpoints / degree 2^20, tree depth 12), so that a typo such as
+// nk=2147483647 is an error here and not an integer overflow or an allocation of gigabytes later.
+inline int spec_int_limit(const std::string& key) {
+  if (key == "na" || key == "nb" || key == "nf" || key == "nk") return 100000;
+  if (key == "depth" || key == "treepartition") return 12;
+  if (key == "linear") return 1;
+  return 1 << 20;
+}
+
 inline int spec_int(const std::string& v, const std::string& key, const std::string& spec) {
   std::size_t pos = 0;
-  int x = 0;
+  long long x = -1;
   try {
-    x = std::stoi(v, &pos);
+    x = std::stoll(v, &pos);
   } catch (...) {
     pos = 0;
   }
   require(pos == v.size() && !v.empty() && x >= 0,
           "'" + key + "=" + v + "' in model spec '" + spec + "' is not a non-negative integer", at_parameter(key));
-  return x;
+  const int limit = spec_int_limit(key);
+  require(x <= limit,
+          "'" + key + "=" + v + "' in model spec '" + spec + "' is too large (at most " + std::to_string(limit) + ")",
+          at_parameter(key));
+  return static_cast<int>(x);
 }
 
 /// Applies a size number to a nonlinearity by its kind.
