@@ -31,3 +31,38 @@ TEST_CASE("atomic write and read report the file on failure") {
   CHECK_THROWS_WITH(nlid::read_file(fs::temp_directory_path().string()),
                     Catch::Contains("directory"));
 }
+
+TEST_CASE("files written as a set change together or not at all") {
+  const fs::path dir = fs::temp_directory_path() / "nlid_atomic_set_test";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const std::string h = (dir / "m.h").string(), c = (dir / "m.c").string();
+  nlid::write_files_atomically({{h, "header 1"}, {c, "source 1"}});
+  CHECK(nlid::read_file(h) == "header 1");
+  CHECK(nlid::read_file(c) == "source 1");
+  // The second target is a directory: the first file must keep its old content.
+  fs::remove(c);
+  fs::create_directories(dir / "m.c");
+  CHECK_THROWS_WITH(nlid::write_files_atomically({{h, "header 2"}, {c, "source 2"}}),
+                    Catch::Contains("path is a directory") && Catch::Contains("m.c"));
+  CHECK(nlid::read_file(h) == "header 1");
+  // Nothing but m.h and the directory m.c is left behind (no temporaries).
+  int entries = 0;
+  for (const auto& e : fs::directory_iterator(dir)) {
+    (void)e;
+    ++entries;
+  }
+  CHECK(entries == 2);
+  fs::remove_all(dir);
+}
+
+TEST_CASE("a long file name still gets a temporary within the name limit") {
+  const fs::path dir = fs::temp_directory_path() / "nlid_atomic_long_test";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const std::string name(240, 'n');
+  const std::string path = (dir / (name + ".json")).string();
+  nlid::write_file_atomically(path, "{}");
+  CHECK(nlid::read_file(path) == "{}");
+  fs::remove_all(dir);
+}

@@ -66,14 +66,14 @@ struct GeneratedCode {
   std::string source;  ///< NAME.c
   int paths = 1;       ///< branches of the traced step (leaves of its decision tree)
 
-  /// Writes DIR/NAME.h and DIR/NAME.c atomically (the directory must exist); returns the paths.
+  /// Writes DIR/NAME.h and DIR/NAME.c atomically and as a pair (the directory must exist): if
+  /// either cannot be written, neither file changes. Returns the paths.
   std::vector<std::string> write(const std::string& dir) const {
     require(std::filesystem::is_directory(dir), "codegen: output directory '" + dir + "' does not exist",
             at_parameter("dir"));
     const std::string h = (std::filesystem::path(dir) / (name + ".h")).string();
     const std::string c = (std::filesystem::path(dir) / (name + ".c")).string();
-    write_file_atomically(h, header);
-    write_file_atomically(c, source);
+    write_files_atomically({{h, header}, {c, source}});
     return {h, c};
   }
 };
