@@ -88,6 +88,7 @@ TEST_CASE("Unknown physics names are reported with the known ones", "[greybox][d
   } catch (const nlid::Error& e) {
     CHECK_THAT(e.what(), Catch::Contains("unknown physics 'trottle'; known physics: first_order, "
                                          "mass_spring_damper, rigid_body, throttle, two_tank"));
+    CHECK_THAT(e.what(), Catch::Contains("parameter 'physics'"));  // the argument, not the typo
   }
   CHECK_THROWS_WITH(nlid::AnyPhysics(nullptr), Catch::Contains("null physics"));
   CHECK_THROWS_WITH(nlid::register_physics("throttle", [] {

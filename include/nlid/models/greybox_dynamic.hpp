@@ -364,7 +364,7 @@ inline AnyPhysics make_physics(std::string_view name) {
     std::string known;
     for (const std::string& n : physics_names()) known += (known.empty() ? "" : ", ") + n;
     throw Error("unknown physics '" + std::string(name) + "'; known physics: " + known,
-                at_parameter(std::string(name)));
+                at_parameter("physics"));
   }
   auto impl = f();
   require(impl != nullptr, "physics factory for '" + std::string(name) + "' returned null");
