@@ -4,6 +4,7 @@
 
 #include <bit>
 #include <cmath>
+#include <limits>
 #include <cstdint>
 #include <filesystem>
 #include <string>
@@ -186,7 +187,7 @@ TEST_CASE("orders beyond max_model_order are refused everywhere, before any lag 
   const Experiment e = steps(400, 0.01);
   CHECK_THROWS_WITH(arx(e, ArxOrders(1, 2, huge)), Contains("beyond the largest order"));
   CHECK_THROWS_WITH(oe(e, OeOrders(2, 1, huge)), Contains("nk = 2147483647 is beyond the largest order"));
-  CHECK_THROWS_WITH((TransferFunctionBlock<Dynamic, Dynamic, Dynamic>(2, 1, huge)), Contains("must be in 0 ... 100000"));
+  CHECK_THROWS_WITH((TransferFunctionBlock<Dynamic, Dynamic, Dynamic>(2, 1, huge)), Contains("must be <= 100000"));
   RegressorList list;
   CHECK_THROWS_WITH(list.add_input_lags(2, huge), Contains("model order nk must be in 0 ... 100000"));
 }
@@ -212,4 +213,18 @@ TEST_CASE("a record resized through u() or y() is refused by every model's simul
     CHECK_THROWS_WITH(g.simulate(*e, InitialCondition::zero), Contains("output rows (resized"));
     CHECK_THROWS_WITH(AnyModel(a).simulate(*e), Contains("output rows (resized"));
   }
+}
+
+TEST_CASE("set_parameters refuses a NaN or infinite value, naming the parameter", "[io][errors]") {
+  using Catch::Contains;
+  Nlarx<LaggedRegressors<1, 1, 0>, LinearMap<2>> n;
+  Eigen::VectorXd th = Eigen::VectorXd::Zero(n.num_parameters());
+  th[1] = std::nan("");
+  CHECK_THROWS_WITH(n.set_parameters(th), Contains("parameter 1 ('" + n.parameter_names()[1] + "') is NaN"));
+  HammersteinWiener hw(UnitGain{}, TransferFunctionBlock<1, 1, 0>{}, UnitGain{}, 0.01);
+  Eigen::VectorXd t2 = Eigen::VectorXd::Zero(hw.num_parameters());
+  t2[0] = std::numeric_limits<double>::infinity();
+  CHECK_THROWS_WITH(hw.set_parameters(t2), Contains("is infinite"));
+  t2[0] = 0.5;
+  CHECK_NOTHROW(hw.set_parameters(t2));
 }

@@ -273,12 +273,13 @@ class Nlarx {
 
   /// Estimated (or set) parameters.
   [[nodiscard]] const Eigen::VectorXd& parameters() const { return theta_; }
-  /// Sets θ. Throws `nlid::Error` if its length is not `num_parameters()`.
+  /// Sets θ. Throws `nlid::Error` if its length is not `num_parameters()` or a value is not finite.
   void set_parameters(const Eigen::VectorXd& theta) {
     require(theta.size() == num_parameters(),
             "parameter vector has " + std::to_string(theta.size()) + " values, the model has " +
                 std::to_string(num_parameters()),
             at_parameter("theta"));
+    detail::require_finite_parameters(theta, parameter_names());
     theta_ = theta;
   }
   /// Names of the parameters (those of the nonlinearity).

@@ -209,9 +209,12 @@ class TransferFunctionBlock {
   // ---- Implementation details below ----------------------------------------------------------
  private:
   static int checked(int v, int compile_time, int min, const char* name) {
-    require(v >= min && v <= max_model_order,
-            std::string("linear block order ") + name + " must be in " + std::to_string(min) + " ... " +
-                std::to_string(max_model_order) + ", got " + std::to_string(v),
+    require(v >= min, std::string("linear block order ") + name + " must be >= " + std::to_string(min) +
+                          ", got " + std::to_string(v),
+            at_parameter(name));
+    require(v <= max_model_order,
+            std::string("linear block order ") + name + " must be <= " + std::to_string(max_model_order) +
+                " (the largest model order), got " + std::to_string(v),
             at_parameter(name));
     require(compile_time == Dynamic || v == compile_time,
             std::string("linear block order ") + name + " = " + std::to_string(v) +

@@ -100,6 +100,19 @@ inline void check_experiment(const Experiment& e, long index, int num_inputs, in
   }
 }
 
+/// Throws unless every value of θ is finite, naming the first that is not by its index and name
+/// (a NaN parameter would otherwise surface much later as a "diverging" simulation).
+inline void require_finite_parameters(const Eigen::VectorXd& theta, const std::vector<std::string>& names) {
+  for (Eigen::Index i = 0; i < theta.size(); ++i) {
+    if (std::isfinite(theta[i])) continue;
+    const auto k = static_cast<std::size_t>(i);
+    const std::string name = k < names.size() ? names[k] : "theta[" + std::to_string(i) + "]";
+    throw Error("parameter " + std::to_string(i) + " ('" + name + "') is " + (std::isnan(theta[i]) ? "NaN" : "infinite") +
+                    "; every parameter must be a finite number",
+                at_parameter(name));
+  }
+}
+
 /// Throws if an experiment has a missing (NaN or infinite) sample, naming the experiment, the
 /// channel and the sample. Estimation needs complete records: one missing sample poisons every
 /// later residual of a simulation, and the data-driven initialisation would otherwise report it
