@@ -487,3 +487,31 @@ TEST_CASE("write_csv refuses unreadable headers and bad paths", "[data][csv]") {
   o.delimiter = ';';
   CHECK(nlid::read_csv(dir.file("x.csv"), o).size() == 3);
 }
+
+TEST_CASE("read_csv: control bytes are shown escaped, underflow reads as the nearest double, bad options are named",
+          "[data][csv][errors]") {
+  TempDir dir;
+  const std::string nul = dir.write("nul.csv", std::string("t,u,y\n0,1,2\n0.001,1,2\0x\n", 24));
+  const nlid::Error e = error_of([&] { (void)nlid::read_csv(nul); });
+  // The whole message survives (a raw NUL ended it after "cell '2"): cell, file and row.
+  CHECK_THAT(e.what(), Contains("non-numeric cell '2\\x00x'") && Contains("nul.csv") && Contains("row 3"));
+
+  const std::string tiny = dir.write("tiny.csv", "t,u,y\n0,1e-400,2\n0.001,1,2\n0.002,1,3\n");
+  const nlid::Experiment ex = nlid::read_csv(tiny);
+  CHECK(ex.u()(0, 0) == 0.0);
+  const std::string huge = dir.write("huge.csv", "t,u,y\n0,1e400,2\n0.001,1,2\n0.002,1,3\n");
+  CHECK_THROWS_WITH(nlid::read_csv(huge), Contains("number out of the range of double: '1e400'"));
+
+  nlid::CsvReadOptions o;
+  o.max_gap = -5;
+  CHECK_THROWS_WITH(nlid::read_csv(tiny, o), Contains("max_gap must be >= 0") && Contains("max_gap"));
+  o = {};
+  o.delimiter = '\0';
+  CHECK_THROWS_WITH(nlid::read_csv(tiny, o), Contains("delimiter must be a printable separator"));
+  o = {};
+  o.decimal_point = ',';
+  CHECK_THROWS_WITH(nlid::read_csv(tiny, o), Contains("decimal_point and delimiter are both ','"));
+  nlid::CsvTableOptions to;
+  to.decimal_point = ':';
+  CHECK_THROWS_WITH(nlid::read_csv_table(tiny, to), Contains("decimal_point must be '.' or ','"));
+}

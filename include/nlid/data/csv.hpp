@@ -116,9 +116,29 @@ struct CsvTable {
   [[nodiscard]] Eigen::VectorXd col(std::string_view name) const { return data.col(column(name)); }
 };
 
+namespace detail {
+// Checks the format options every reader shares; a bad one is named before the file is opened.
+inline void check_csv_format(char delimiter, char decimal_point, int max_gap) {
+  const auto d = static_cast<unsigned char>(delimiter);
+  require(delimiter == '\t' || (d >= 0x20 && d != 0x7f && delimiter != '"' && !(delimiter >= '0' && delimiter <= '9') &&
+                                 delimiter != '.' && delimiter != '-' && delimiter != '+'),
+          "delimiter must be a printable separator such as ',', ';', ' ' or a tab (not a digit, sign, '.', quote "
+          "or control character), got code " + std::to_string(static_cast<int>(d)),
+          at_parameter("delimiter"));
+  require(decimal_point == '.' || decimal_point == ',',
+          std::string("decimal_point must be '.' or ',', got '") + decimal_point + "'", at_parameter("decimal_point"));
+  require(decimal_point != delimiter,
+          "decimal_point and delimiter are both '" + std::string(1, delimiter) +
+              "'; with decimal commas use another delimiter, e.g. ';'",
+          at_parameter("decimal_point"));
+  require(max_gap >= 0, "max_gap must be >= 0 samples, got " + std::to_string(max_gap), at_parameter("max_gap"));
+}
+}  // namespace detail
+
 /// Reads a whole numeric CSV file: every column must be numeric (NaN/Inf/empty cells follow
 /// `options.non_finite`). For tools that handle arbitrary tables; experiments use `read_csv`.
 inline CsvTable read_csv_table(const std::string& path, const CsvTableOptions& options = {}) {
+  detail::check_csv_format(options.delimiter, options.decimal_point, options.max_gap);
   const detail::CsvText t = detail::tokenize_csv(path, options.delimiter);
   CsvTable table;
   table.file = path;
@@ -187,6 +207,7 @@ inline Experiment read_csv(const std::string& path, const CsvReadOptions& option
   if (!(options.time_tolerance >= 0.0)) {
     throw Error("time_tolerance must be >= 0", at_parameter("time_tolerance"));
   }
+  detail::check_csv_format(options.delimiter, options.decimal_point, options.max_gap);
   const detail::CsvText t = detail::tokenize_csv(path, options.delimiter);
   const auto n = static_cast<Eigen::Index>(t.rows.size());
 

@@ -11,6 +11,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <cstdio>
+#include <cstdlib>
 #include <limits>
 #include <string>
 #include <string_view>
@@ -206,6 +207,27 @@ inline CsvText tokenize_csv(const std::string& path, char delimiter) {
   return t;
 }
 
+/// The cell as it can be shown in a message: control characters (a NUL byte would end the
+/// message early) as \xNN, and at most 80 characters.
+inline std::string printable(const std::string& cell) {
+  std::string out;
+  for (const char ch : cell) {
+    const auto c = static_cast<unsigned char>(ch);
+    if (c < 0x20 || c == 0x7f) {
+      char buf[8];
+      std::snprintf(buf, sizeof buf, "\\x%02x", c);
+      out += buf;
+    } else {
+      out += ch;
+    }
+    if (out.size() >= 80) {
+      out += "...";
+      break;
+    }
+  }
+  return out;
+}
+
 /// Parses one cell. Empty → NaN (a missing value). Throws quoting the cell if it is not a number.
 inline double parse_cell(const std::string& cell, char decimal_point, const CsvText& t,
                          std::size_t row, std::size_t col) {
@@ -223,11 +245,16 @@ inline double parse_cell(const std::string& cell, char decimal_point, const CsvT
   const auto where = [&] {
     return csv_at(t.file, t.lines[row], static_cast<long>(col) + 1, t.header[col]);
   };
-  if (ec == std::errc::result_out_of_range) {
-    throw Error("number out of the range of double: '" + cell + "'", where());
+  if (ec == std::errc::result_out_of_range && ptr == s.data() + s.size()) {
+    // from_chars reports underflow (1e-400) and overflow (1e400) alike; only overflow is an
+    // error: a number below the smallest double reads as the nearest double, as strtod does.
+    const std::string z(s);
+    const double w = std::strtod(z.c_str(), nullptr);
+    if (std::isfinite(w)) return w;
+    throw Error("number out of the range of double: '" + printable(cell) + "'", where());
   }
   if (ec != std::errc() || ptr != s.data() + s.size()) {
-    throw Error("non-numeric cell '" + cell + "'", where());
+    throw Error("non-numeric cell '" + printable(cell) + "'", where());
   }
   return v;
 }
