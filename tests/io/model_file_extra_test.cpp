@@ -228,3 +228,13 @@ TEST_CASE("set_parameters refuses a NaN or infinite value, naming the parameter"
   t2[0] = 0.5;
   CHECK_NOTHROW(hw.set_parameters(t2));
 }
+
+TEST_CASE("model specs carry nlarx's data-driven starts", "[io]") {
+  const ModelSpec s = parse_model_spec("nlarx:na=3,nb=3,nk=0:sigmoidnet:5:starts=4,start_iterations=30");
+  CHECK(s.starts == 4);
+  REQUIRE(s.start_iterations.has_value());
+  CHECK(*s.start_iterations == 30);
+  CHECK(parse_model_spec("nlarx:na=2,nb=2,nk=0:sigmoidnet:3").starts == 1);
+  CHECK_THROWS_WITH(parse_model_spec("linear:arx:na=1,nb=1,nk=0:starts=2"), Catch::Contains("applies to nlarx models"));
+  CHECK_THROWS_WITH(parse_model_spec("nlarx:na=2,nb=2,nk=0:sigmoidnet:3:starts=0"), Catch::Contains("starts must be in 1 ... 64"));
+}

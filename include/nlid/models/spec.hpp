@@ -22,7 +22,10 @@
 /// key=value options (units, breakpoints, degree, depth, linear=0|1). In `hw`, `in=` and `out=`
 /// name the two maps (default unitgain). Options for the whole fit may follow anywhere as
 /// key=value fields: `focus=simulation|prediction` (nlarx; default simulation),
-/// `ic=zero|estimate|equilibrium` (initial condition during estimation).
+/// `ic=zero|estimate|equilibrium` (initial condition during estimation), and for nlarx
+/// `starts=N` / `start_iterations=N` (N data-driven starts of the network, each refined for
+/// `start_iterations`; the best continues — `EstimateOptions::starts`, e.g. the study's nlarx5:
+/// `nlarx:na=3,nb=3,nk=0:sigmoidnet:5:starts=4,start_iterations=30` with `--iterations 90`).
 ///
 /// Errors name the field and list what is accepted, e.g. "unknown model family 'wx' in model
 /// spec 'wx:…' (accepted: linear:arx, linear:oe, nlarx, hw, wh, hammerstein, wiener, greybox)".
@@ -97,6 +100,8 @@ struct ModelSpec {
   std::string physics;                       ///< greybox: catalogue name
   std::optional<Focus> focus;                ///< nlarx: prediction or simulation (default simulation)
   std::optional<InitialCondition> initial_condition;  ///< during estimation
+  int starts = 1;                            ///< nlarx: data-driven starts (EstimateOptions::starts)
+  std::optional<int> start_iterations;       ///< nlarx: iterations per start (EstimateOptions::start_iterations)
 };
 
 /// Options of `fit_model_spec`.
@@ -259,6 +264,13 @@ inline ModelSpec parse_model_spec(const std::string& text) {
         if (k == "degree") last->options.degree = x;
         if (k == "depth") last->options.depth = x;
         if (k == "linear") last->options.linear_term = x != 0;
+      } else if (k == "starts" || k == "start_iterations") {
+        require(s.family == "nlarx", "model spec '" + text + "': '" + k + "' applies to nlarx models", at_parameter(k));
+        const int x = detail::spec_int(v, k, text);
+        require(k != "starts" || (x >= 1 && x <= 64), "model spec '" + text + "': starts must be in 1 ... 64, got " + v,
+                at_parameter(k));
+        if (k == "starts") s.starts = x;
+        else s.start_iterations = x;
       } else if (k == "focus") {
         require(v == "simulation" || v == "prediction",
                 "model spec '" + text + "': focus must be simulation or prediction, got '" + v + "'", at_parameter("focus"));
@@ -273,7 +285,7 @@ inline ModelSpec parse_model_spec(const std::string& text) {
                       at_parameter("ic"));
       } else {
         throw Error("unknown key '" + k + "' in model spec '" + text +
-                        "' (accepted: na, nb, nf, nk, units, breakpoints, degree, depth, linear, focus, ic)",
+                        "' (accepted: na, nb, nf, nk, units, breakpoints, degree, depth, linear, focus, ic, starts, start_iterations)",
                     at_parameter(k));
       }
     }
@@ -407,6 +419,8 @@ AnyModel fit_model_spec(const ModelSpec& s, const Dataset& data, const SpecFitOp
     eo.initial_condition = s.initial_condition;
     eo.solver.callback = o.callback;
     if (o.iterations >= 0) eo.solver.max_iterations = o.iterations;
+    eo.starts = s.starts;
+    if (s.start_iterations) eo.start_iterations = *s.start_iterations;
     if (s.family == "nlarx") {
       const auto& od = s.orders[0];
       RegressorList r = RegressorList::lagged(od.na, std::vector<int>(static_cast<std::size_t>(nu), od.nb),
