@@ -10,9 +10,9 @@
 // a C identifier. The generated step reproduces `nlid-sim` on the same model to the last bits
 // (same operations in the same order). Grey-box models are continuous: --ts sets the sample
 // time of the generated step (required for them). --x0 equilibrium makes NAME_init start in
-// the steady state for the constant input --u0 (default 0). Exit status 0 on success, 1 on a
-// user error (bad file, a model kind that is not generated, no equilibrium — the message says
-// which), 2 on bad usage. --precision single writes float code (no double anywhere) for FPUs
+// the steady state for the constant input --u0 (default 0). Exit status (cli_common.hpp) 0 on success, 1 on a
+// bad file or model (a model kind that is not generated, no or a non-finite equilibrium, a
+// missing --out directory — the message says which), 2 on a bad command line. --precision single writes float code (no double anywhere) for FPUs
 // without double arithmetic; it computes the model in float rounding, not nlid's bits.
 #include <cctype>
 #include <cmath>
@@ -26,6 +26,7 @@
 #include "nlid/io/augmented_serial.hpp"  // repaired models from nlid-diagnose --save
 #include "nlid/models/any_model.hpp"
 #include "nlid/models/spec.hpp"
+#include "cli_common.hpp"
 
 namespace {
 constexpr const char* kUsage =
@@ -44,9 +45,7 @@ constexpr const char* kUsage =
     "Generated kinds: nlarx, hammerstein_wiener, series (wh, wiener, hammerstein), greybox,\n"
     "augmented_greybox (nlid-diagnose --save), arx, output_error.\n";
 
-struct UsageError {
-  std::string message;
-};
+using nlid_tools::UsageError;
 
 double parse_number(const std::string& opt, const std::string& v) {
   std::size_t pos = 0;
@@ -56,21 +55,8 @@ double parse_number(const std::string& opt, const std::string& v) {
   } catch (...) {
     pos = 0;
   }
-  if (v.empty() || pos != v.size() || !std::isfinite(x)) throw UsageError{opt + " needs a finite number, got '" + v + "'"};
+  if (v.empty() || pos != v.size() || !std::isfinite(x)) throw UsageError(opt + " needs a finite number, got '" + v + "'");
   return x;
-}
-
-int parse_count(const std::string& opt, const std::string& v) {
-  std::size_t pos = 0;
-  long x = 0;
-  try {
-    x = std::stol(v, &pos);
-  } catch (...) {
-    pos = 0;
-  }
-  if (v.empty() || pos != v.size() || x < 1 || x > 1000000)
-    throw UsageError{opt + " needs an integer from 1 to 1000000, got '" + v + "'"};
-  return static_cast<int>(x);
 }
 
 // "throttle-nlarx5.json" -> "throttle_nlarx5": the default prefix of the generated names.
@@ -85,19 +71,25 @@ std::string identifier_from(const std::string& path) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string model, out, name, x0 = "zero", precision = "double";
-  double ts = 0.0, u0 = 0.0;
-  bool u0_given = false;
-  int substeps = 0;
-  try {
+  std::string stage = "reading the command line", sizes;
+  return nlid_tools::guarded_main("nlid-codegen", kUsage, "", stage, sizes, [&]() -> int {
+    std::string model, out, name, x0 = "zero", precision = "double";
+    double ts = 0.0, u0 = 0.0;
+    bool u0_given = false;
+    int substeps = 0;
+    nlid_tools::OnceOnly once;
     for (int i = 1; i < argc; ++i) {
       const std::string k = argv[i];
       if (k == "-h" || k == "--help") {
         std::cout << kUsage;
-        return 0;
+        return nlid_tools::exit_ok;
       }
-      if (i + 1 >= argc) throw UsageError{"option " + k + " needs a value"};
+      const bool known = k == "--model" || k == "--out" || k == "--name" || k == "--x0" || k == "--precision" ||
+                         k == "--ts" || k == "--u0" || k == "--substeps";
+      if (!known) throw UsageError("unknown option '" + k + "'");
+      if (i + 1 >= argc) throw UsageError("option " + k + " needs a value");
       const std::string v = argv[++i];
+      once(k);
       if (k == "--model") model = v;
       else if (k == "--out") out = v;
       else if (k == "--name") name = v;
@@ -105,23 +97,25 @@ int main(int argc, char** argv) {
       else if (k == "--precision") precision = v;
       else if (k == "--ts") {
         ts = parse_number(k, v);
-        if (!(ts > 0)) throw UsageError{"--ts must be positive, got '" + v + "'"};
+        if (!(ts > 0)) throw UsageError("--ts must be positive, got '" + v + "'");
       } else if (k == "--u0") {
         u0 = parse_number(k, v);
         u0_given = true;
-      } else if (k == "--substeps") substeps = parse_count(k, v);
-      else throw UsageError{"unknown option '" + k + "'"};
+      } else if (k == "--substeps") substeps = nlid_tools::parse_int(k, v, 1, 1000000);
     }
-    if (model.empty() || out.empty()) throw UsageError{"--model and --out are required"};
-    if (x0 != "zero" && x0 != "equilibrium") throw UsageError{"--x0 must be zero or equilibrium, got '" + x0 + "'"};
+    if (model.empty() || out.empty()) throw UsageError("--model and --out are required");
+    if (x0 != "zero" && x0 != "equilibrium") throw UsageError("--x0 must be zero or equilibrium, got '" + x0 + "'");
     if (precision != "double" && precision != "single")
-      throw UsageError{"--precision must be double or single, got '" + precision + "'"};
-    if (u0_given && x0 != "equilibrium") throw UsageError{"--u0 sets the input of --x0 equilibrium; give both"};
-  } catch (const UsageError& e) {
-    std::cerr << "nlid-codegen: " << e.message << "\n" << kUsage;
-    return 2;
-  }
-  try {
+      throw UsageError("--precision must be double or single, got '" + precision + "'");
+    if (u0_given && x0 != "equilibrium") throw UsageError("--u0 sets the input of --x0 equilibrium; give both");
+    const std::string stem = name.empty() ? identifier_from(model) : name;
+    const std::string h_path = (std::filesystem::path(out) / (stem + ".h")).string();
+    const std::string c_path = (std::filesystem::path(out) / (stem + ".c")).string();
+    nlid_tools::check_outputs_distinct({{"--out", out}, {"--out (header)", h_path}, {"--out (source)", c_path}},
+                                       {{"--model", model}});
+    nlid_tools::check_output_dir("--out", out);
+
+    stage = "reading " + model;
     nlid::register_series_model_kind();
     const nlid::AnyModel m = nlid::load_model(model);
     if (ts > 0 && m.ts() > 0 && std::abs(ts - m.ts()) > 1e-9 * m.ts()) {
@@ -134,21 +128,46 @@ int main(int argc, char** argv) {
       throw nlid::Error("a grey-box model is continuous: give --ts, the sample time of the generated step (e.g. the "
                         "sample time of the data it was estimated on) - " + model,
                         nlid::at_parameter("--ts"));
+    if (x0 == "equilibrium") {
+      // NAME_init's state is nlid-sim's equilibrium for a record starting at u0: a steady state
+      // that is not finite (an input far outside the model's range) would be written as inf/nan.
+      stage = "computing the equilibrium for --u0";
+      const double step = m.ts() > 0 ? m.ts() : ts;
+      if (step > 0) {
+        const nlid::Experiment held(Eigen::MatrixXd::Constant(8, m.num_inputs(), u0), Eigen::MatrixXd::Zero(8, m.num_outputs()),
+                                    step);
+        Eigen::MatrixXd y;
+        bool simulated = false;
+        try {
+          y = m.simulate(held, nlid::InitialCondition::equilibrium);
+          simulated = true;
+        } catch (const nlid::Error&) {
+          // no equilibrium or another refusal: generate_c below reports it in its own words
+        }
+        if (simulated && y.rows() > 0 && !y.row(0).allFinite()) {
+          char buf[160];
+          std::snprintf(buf, sizeof buf, "the equilibrium of %s for the input held at --u0 %.17g is not finite (output %g)",
+                        model.c_str(), u0, y(0, 0));
+          throw nlid::Error(std::string(buf) + ": the generated initial state would be inf/nan - choose an input within "
+                                               "the model's operating range",
+                            nlid::at_parameter("--u0"));
+        }
+      }
+    }
+    stage = "generating C for " + model;
     nlid::CodegenOptions o;
-    o.name = name.empty() ? identifier_from(model) : name;
+    o.name = stem;
     o.ts = ts;
     o.substeps = substeps;
     if (precision == "single") o.precision = nlid::codegen::Precision::single_precision;
     if (x0 == "equilibrium") o.equilibrium_input = Eigen::VectorXd::Constant(m.num_inputs(), u0);
     const nlid::GeneratedCode g = nlid::generate_c(m, o);
+    stage = "writing " + out;
     const auto files = g.write(out);
     std::cerr << "nlid-codegen: " << m.kind() << " model " << model << " -> " << files.at(0) << ", " << files.at(1)
               << " (" << m.parameters().size() << " parameters, " << g.paths << " branch path"
               << (g.paths == 1 ? "" : "s") << (precision == "single" ? ", single precision" : "") << ")\n";
     std::cout << "wrote " << files.at(0) << "\nwrote " << files.at(1) << "\n";
-    return 0;
-  } catch (const nlid::Error& err) {
-    std::cerr << "nlid-codegen: " << err.what() << "\n";
-    return 1;
-  }
+    return nlid_tools::exit_ok;
+  });
 }

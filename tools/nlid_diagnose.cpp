@@ -6,8 +6,10 @@
 // locates where its simulation leaves the noise floor, tries the effect catalogue (refit by
 // simulation error, scored on the validation records), and reports what was missing. Progress
 // goes to stderr, a short summary to stdout; --json and --html write the full result.
-// Exit codes: 0 success, 2 user error (bad option, file, column, baseline, data too short),
-// 1 unexpected internal failure.
+// Exit codes (cli_common.hpp, as the other tools): 0 success; 1 a bad file, column or data (too
+// short, a constant input), or a failed run (out of memory, internal error); 2 a bad command line
+// (unknown, missing, repeated or malformed option, unknown baseline or effect, an output that is an
+// input).
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -22,6 +24,7 @@
 #include "nlid/diagnose/report.hpp"
 #include "nlid/io/augmented_serial.hpp"
 #include "nlid/io/model_file.hpp"
+#include "cli_common.hpp"
 #include "record_options.hpp"
 
 namespace {
@@ -55,46 +58,41 @@ const char* const usage =
     "                    nlid-sim and nlid-codegen (kind augmented_greybox)\n"
     "  --quiet           no progress on stderr\n";
 
-struct UsageError : std::exception {
-  explicit UsageError(std::string m) : msg(std::move(m)) {}
-  const char* what() const noexcept override { return msg.c_str(); }
-  std::string msg;
-};
-
-int parse_int(const std::string& opt, const std::string& v, int lo) {
-  try {
-    std::size_t pos = 0;
-    const int x = std::stoi(v, &pos);
-    if (pos == v.size() && x >= lo) return x;
-  } catch (const std::exception&) {
-  }
-  throw UsageError(opt + " needs an integer >= " + std::to_string(lo) + ", got '" + v + "'");
-}
+using nlid_tools::UsageError;
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::vector<std::string> est_files, val_files, effects;
-  std::string baseline, input = "u", output = "y", json_path, html_path, save_path;
-  nlid_tools::RecordOptions record;
-  bool quiet = false;
-  nlid::DiagnoseOptions opt;
-  try {
+  std::string stage = "reading the command line", sizes;
+  return nlid_tools::guarded_main("nlid-diagnose", usage, "error: ", stage, sizes, [&]() -> int {
+    std::vector<std::string> est_files, val_files;
+    std::string baseline, input = "u", output = "y", json_path, html_path, save_path;
+    nlid_tools::RecordOptions record;
+    bool quiet = false;
+    nlid::DiagnoseOptions opt;
+    nlid_tools::OnceOnly once;
     std::vector<std::string> args(argv + 1, argv + argc);
     if (args.empty()) throw UsageError("no arguments");
+    static const char* const with_value[] = {"--baseline",  "--est",    "--val",       "--input",   "--output",
+                                             "--time",      "--ts",     "--delimiter", "--decimal", "--decimate",
+                                             "--starts",    "--max-effects", "--threads", "--json",  "--html",
+                                             "--save",      "--x0",     "--effects"};
     for (std::size_t i = 0; i < args.size(); ++i) {
       const std::string& a = args[i];
       if (a == "--help" || a == "-h") {
         std::cout << usage;
-        return 0;
+        return nlid_tools::exit_ok;
       }
       if (a == "--quiet") {
         quiet = true;
         continue;
       }
-      if (i + 1 >= args.size() || args[i + 1].rfind("--", 0) == 0)
-        throw UsageError("option " + a + " needs a value");
+      bool known = false;
+      for (const char* f : with_value) known = known || a == f;
+      if (!known) throw UsageError("unknown option '" + a + "'");
+      if (i + 1 >= args.size() || args[i + 1].rfind("--", 0) == 0) throw UsageError("option " + a + " needs a value");
       const std::string& v = args[++i];
+      if (a != "--est" && a != "--val") once(a);
       if (a == "--baseline") baseline = v;
       else if (a == "--est") est_files.push_back(v);
       else if (a == "--val") val_files.push_back(v);
@@ -107,10 +105,10 @@ int main(int argc, char** argv) {
           throw UsageError(e.what());
         }
       }
-      else if (a == "--decimate") opt.decimate = parse_int(a, v, 1);
-      else if (a == "--starts") opt.starts = parse_int(a, v, 1);
-      else if (a == "--max-effects") opt.max_effects = parse_int(a, v, 0);
-      else if (a == "--threads") opt.threads = parse_int(a, v, 1);
+      else if (a == "--decimate") opt.decimate = nlid_tools::parse_int(a, v, 1, 1000000);
+      else if (a == "--starts") opt.starts = nlid_tools::parse_int(a, v, 1, 10000);
+      else if (a == "--max-effects") opt.max_effects = nlid_tools::parse_int(a, v, 0, 100);
+      else if (a == "--threads") opt.threads = nlid_tools::parse_int(a, v, 1, 4096);
       else if (a == "--json") json_path = v;
       else if (a == "--html") html_path = v;
       else if (a == "--save") save_path = v;
@@ -123,8 +121,6 @@ int main(int argc, char** argv) {
         std::string name;
         while (std::getline(ss, name, ','))
           if (!name.empty()) opt.effects.push_back(name);
-      } else {
-        throw UsageError("unknown option '" + a + "'");
       }
     }
     if (baseline.empty()) throw UsageError("--baseline is required");
@@ -135,30 +131,40 @@ int main(int argc, char** argv) {
     } catch (const nlid::Error& e) {
       throw UsageError(e.what());
     }
-  } catch (const UsageError& e) {
-    std::cerr << "nlid-diagnose: error: " << e.what() << "\n\n" << usage;
-    return 2;
-  }
+    // Unknown names fail before any file is read (they list the known ones), located at the flag.
+    try {
+      (void)nlid::make_physics(baseline);
+    } catch (const nlid::Error& e) {
+      throw UsageError(nlid::Error(e.message(), nlid::at_parameter("--baseline")).what());
+    }
+    for (const std::string& e : opt.effects) {
+      try {
+        (void)nlid::effect_kind(e);
+      } catch (const nlid::Error& err) {
+        throw UsageError(nlid::Error(err.message(), nlid::at_parameter("--effects")).what());
+      }
+    }
+    std::vector<nlid_tools::FlagPath> inputs;
+    for (const auto& f : est_files) inputs.emplace_back("--est", f);
+    for (const auto& f : val_files) inputs.emplace_back("--val", f);
+    nlid_tools::check_outputs_distinct({{"--json", json_path}, {"--html", html_path}, {"--save", save_path}}, inputs);
+    nlid_tools::check_output_file("--json", json_path);
+    nlid_tools::check_output_file("--html", html_path);
+    nlid_tools::check_output_file("--save", save_path);
 
-  const auto t0 = std::chrono::steady_clock::now();
-  if (!quiet) {
-    opt.progress = [t0](const std::string& s) {
-      const double t = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-      std::fprintf(stderr, "[%6.1f s] %s\n", t, s.c_str());
-    };
-  }
-  try {
-    // Unknown names fail before any file is read (they list the known ones).
-    (void)nlid::make_physics(baseline);
-    for (const std::string& e : opt.effects) (void)nlid::effect_kind(e);
+    const auto t0 = std::chrono::steady_clock::now();
+    if (!quiet) {
+      opt.progress = [t0](const std::string& s) {
+        const double t = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        std::fprintf(stderr, "[%6.1f s] %s\n", t, s.c_str());
+      };
+    }
     auto read = [&](const std::vector<std::string>& files) {
       nlid::Dataset d;
       for (const std::string& f : files) {
-        nlid::CsvReadOptions o = nlid_tools::csv_read_options(record, f);
-        o.inputs = {input};
-        o.outputs = {output};
+        stage = "reading " + f;
         if (opt.progress) opt.progress("reading " + f);
-        nlid::Experiment e = nlid::read_csv(f, o);
+        nlid::Experiment e = nlid_tools::read_record(record, f, {input}, {output}, "nlid-diagnose");
         if (d.size() > 0 && std::abs(e.ts() - d.ts()) > 1e-9 * d.ts()) {
           nlid::Location l;
           l.file = f;
@@ -171,24 +177,35 @@ int main(int argc, char** argv) {
       return d;
     };
     const nlid::Dataset est = read(est_files);
+    {
+      std::vector<const nlid::Experiment*> records;
+      for (const auto& e : est) records.push_back(&e);
+      nlid_tools::check_inputs_vary(records, est_files, "--est");
+    }
     const nlid::Dataset val = read(val_files);
     if (est.ts() != val.ts() && std::abs(est.ts() - val.ts()) > 1e-9 * est.ts()) {
       throw nlid::Error("estimation records are sampled at " + nlid_tools::format_seconds(est.ts()) +
                         " but validation records at " + nlid_tools::format_seconds(val.ts()));
     }
+    stage = "diagnosing against the baseline " + baseline;
+    sizes = std::to_string(est.total_samples()) + " estimation and " + std::to_string(val.total_samples()) +
+            " validation samples";
     // Catalogue baselines run as compile-time types (fixed-size, one-pass sensitivities).
     return nlid::with_baseline(baseline, [&](auto model) {
       const auto d = nlid::diagnose(std::move(model), est, val, opt);
       std::cout << nlid::diagnosis_summary(d);
       if (!json_path.empty()) {
+        stage = "writing " + json_path;
         nlid::write_diagnosis_json(d, json_path);
         if (opt.progress) opt.progress("wrote " + json_path);
       }
       if (!html_path.empty()) {
+        stage = "writing " + html_path;
         const std::size_t charts = nlid::write_diagnosis_html(d, html_path);
         if (opt.progress) opt.progress("wrote " + html_path + " (" + std::to_string(charts) + " charts)");
       }
       if (!save_path.empty()) {
+        stage = "writing " + save_path;
         nlid::ModelFileInfo info;
         info.description = "nlid-diagnose --baseline " + baseline + ": the repaired model";
         if (!d.model.effects().empty()) {
@@ -201,13 +218,7 @@ int main(int argc, char** argv) {
         if (opt.progress) opt.progress("wrote " + save_path);
       }
       if (opt.progress) opt.progress("done");
-      return 0;
+      return nlid_tools::exit_ok;
     });
-  } catch (const nlid::Error& e) {
-    std::cerr << "nlid-diagnose: error: " << e.what() << "\n";
-    return 2;
-  } catch (const std::exception& e) {
-    std::cerr << "nlid-diagnose: internal error: " << e.what() << "\n";
-    return 1;
-  }
+  });
 }

@@ -5,12 +5,14 @@
 //            [--time t] [--ts T] [--delimiter C] [--decimal C]
 //            [--decimate N] [--iterations N] [--rows FIRST:LAST] --save model.json
 //
-// SPEC grammar: include/nlid/models/spec.hpp and docs/tools.md. Exit status 0 on success, 1 on a
-// user error (message on stderr names the file/row/column/option), 2 on bad usage.
+// SPEC grammar: include/nlid/models/spec.hpp and docs/tools.md. Exit status (cli_common.hpp) 0 on
+// success, 1 on a bad file, data or model or a failed run (the message on stderr names the
+// file/row/column/option), 2 on a bad command line (including a SPEC that does not parse).
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <iostream>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -21,6 +23,7 @@
 #include "nlid/data/resample.hpp"
 #include "nlid/models/any_model.hpp"
 #include "nlid/models/spec.hpp"
+#include "cli_common.hpp"
 #include "record_options.hpp"
 
 namespace {
@@ -46,64 +49,69 @@ struct Args {
   nlid_tools::RecordOptions record;
 };
 
-int to_int(const std::string& v, const std::string& opt) {
-  std::size_t pos = 0;
-  long x = 0;
-  try {
-    x = std::stol(v, &pos);
-  } catch (...) {
-    pos = 0;
-  }
-  if (pos != v.size() || v.empty()) throw nlid::Error("option " + opt + " needs an integer, got '" + v + "'", nlid::at_parameter(opt));
-  return static_cast<int>(x);
+using nlid_tools::UsageError;
+
+bool takes_value(const std::string& k) {
+  static const char* const known[] = {"--model",      "--est",  "--val",  "--input", "--output",    "--save",
+                                      "--decimate",   "--rows", "--time", "--ts",    "--delimiter", "--decimal",
+                                      "--iterations"};
+  for (const char* f : known)
+    if (k == f) return true;
+  return false;
 }
 
 Args parse(int argc, char** argv) {
   Args a;
+  nlid_tools::OnceOnly once;
   for (int i = 1; i < argc; ++i) {
     const std::string k = argv[i];
     if (k == "-h" || k == "--help") {
       std::cout << usage_text();
       std::exit(0);
     }
-    if (i + 1 >= argc) throw nlid::Error("option " + k + " needs a value\n" + usage_text(), nlid::at_parameter(k));
+    if (!takes_value(k)) throw UsageError("unknown option '" + k + "'");
+    if (i + 1 >= argc) throw UsageError("option " + k + " needs a value");
     const std::string v = argv[++i];
+    if (k != "--est" && k != "--val") once(k);
     if (k == "--model") a.model = v;
     else if (k == "--est") a.est.push_back(v);
     else if (k == "--val") a.val.push_back(v);
     else if (k == "--input") a.input = v;
     else if (k == "--output") a.output = v;
     else if (k == "--save") a.save = v;
-    else if (k == "--decimate") a.decimate = to_int(v, k);
-    else if (k == "--iterations") {
-      a.iterations = to_int(v, k);
-      // -1 is the internal "not given"; a user's negative count is a mistake, not a request for it
-      if (a.iterations < 0) throw nlid::Error("--iterations must be >= 0, got " + v, nlid::at_parameter(k));
-    }
+    else if (k == "--decimate") a.decimate = nlid_tools::parse_int(k, v, 1, 1000000);
+    else if (k == "--iterations") a.iterations = nlid_tools::parse_int(k, v, 0, 1000000);
     else if (k == "--rows") {
       const auto c = v.find(':');
-      if (c == std::string::npos) throw nlid::Error("--rows needs FIRST:LAST, got '" + v + "'", nlid::at_parameter(k));
-      a.first = to_int(v.substr(0, c), k);
-      a.last = to_int(v.substr(c + 1), k);
-      if (a.first < 0 || a.last <= a.first)
-        throw nlid::Error("--rows " + v + " needs 0 <= FIRST < LAST (rows FIRST..LAST-1 are kept)", nlid::at_parameter(k));
-    } else if (!nlid_tools::parse_record_option(k, v, a.record)) {
-      throw nlid::Error("unknown option '" + k + "'\n" + usage_text(), nlid::at_parameter(k));
+      if (c == std::string::npos) throw UsageError("--rows needs FIRST:LAST, got '" + v + "'");
+      a.first = nlid_tools::parse_integer("--rows FIRST", v.substr(0, c), 0, std::numeric_limits<long>::max());
+      a.last = nlid_tools::parse_integer("--rows LAST", v.substr(c + 1), 0, std::numeric_limits<long>::max());
+      if (a.last <= a.first) throw UsageError("--rows " + v + " needs 0 <= FIRST < LAST (rows FIRST..LAST-1 are kept)");
+    } else {
+      try {
+        nlid_tools::parse_record_option(k, v, a.record);
+      } catch (const nlid::Error& e) {
+        throw UsageError(e.what());
+      }
     }
   }
-  if (a.model.empty()) throw nlid::Error(std::string("--model SPEC is required\n") + usage_text(), nlid::at_parameter("--model"));
-  if (a.est.empty()) throw nlid::Error(std::string("at least one --est FILE is required\n") + usage_text(), nlid::at_parameter("--est"));
-  if (a.save.empty()) throw nlid::Error(std::string("--save FILE is required\n") + usage_text(), nlid::at_parameter("--save"));
-  if (a.decimate < 1) throw nlid::Error("--decimate must be >= 1", nlid::at_parameter("--decimate"));
-  nlid_tools::check_record_options(a.record);
+  if (a.model.empty()) throw UsageError("--model SPEC is required");
+  if (a.est.empty()) throw UsageError("at least one --est FILE is required");
+  if (a.save.empty()) throw UsageError("--save FILE is required");
+  try {
+    nlid_tools::check_record_options(a.record);
+  } catch (const nlid::Error& e) {
+    throw UsageError(e.what());
+  }
+  std::vector<nlid_tools::FlagPath> inputs;
+  for (const auto& p : a.est) inputs.emplace_back("--est", p);
+  for (const auto& p : a.val) inputs.emplace_back("--val", p);
+  nlid_tools::check_outputs_distinct({{"--save", a.save}}, inputs);
   return a;
 }
 
 nlid::Experiment load(const std::string& path, const Args& a) {
-  nlid::CsvReadOptions o = nlid_tools::csv_read_options(a.record, path);
-  o.inputs = {a.input};
-  o.outputs = {a.output};
-  nlid::Experiment e = nlid::read_csv(path, o);
+  nlid::Experiment e = nlid_tools::read_record(a.record, path, {a.input}, {a.output}, "nlid-fit");
   if (a.last >= 0) {  // --rows given; parse() has checked 0 <= FIRST < LAST
     const long last = a.last;
     if (last > e.size())
@@ -134,19 +142,31 @@ double fit_of(const nlid::AnyModel& m, const nlid::Experiment& e, double* rmse) 
 }  // namespace
 
 int main(int argc, char** argv) {
-  Args a;
-  try {
-    a = parse(argc, argv);
-  } catch (const nlid::Error& e) {
-    std::cerr << "nlid-fit: " << e.what() << "\n";
-    return 2;
-  }
-  try {
+  std::string stage = "reading the command line", sizes;
+  return nlid_tools::guarded_main("nlid-fit", usage_text(), "", stage, sizes, [&]() -> int {
+    const Args a = parse(argc, argv);
+    nlid::ModelSpec spec;
+    try {
+      spec = nlid::parse_model_spec(a.model);
+    } catch (const nlid::Error& e) {
+      throw UsageError(e.what());
+    }
+    nlid_tools::check_output_file("--save", a.save);
     const auto t0 = std::chrono::steady_clock::now();
-    const nlid::ModelSpec spec = nlid::parse_model_spec(a.model);
     nlid::Dataset est, val;
-    for (const auto& p : a.est) est.add(load(p, a));
-    for (const auto& p : a.val) val.add(load(p, a));
+    for (const auto& p : a.est) {
+      stage = "reading " + p;
+      est.add(load(p, a));
+    }
+    for (const auto& p : a.val) {
+      stage = "reading " + p;
+      val.add(load(p, a));
+    }
+    {
+      std::vector<const nlid::Experiment*> records;
+      for (const auto& e : est) records.push_back(&e);
+      nlid_tools::check_inputs_vary(records, a.est, "--est");
+    }
     if (val.size() > 0 && std::abs(val.ts() - est.ts()) > nlid::dataset_ts_tolerance * est.ts()) {
       // %.10g: std::to_string's six decimals printed 20 µs as "0.000020" for both sides
       char buf[160];
@@ -177,9 +197,13 @@ int main(int argc, char** argv) {
       std::cerr << buf;
       return true;
     };
+    stage = "estimating " + a.model;
+    sizes = std::to_string(est.total_samples()) + " samples in " + std::to_string(est.size()) + " record(s)";
     nlid::AnyModel m = nlid::fit_model_spec(spec, est, fo);
     const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    stage = "saving " + a.save;
     m.save(a.save);
+    stage = "simulating the saved model";
     std::printf("model %s (%s), %zu parameters, estimated in %.2f s\n", a.model.c_str(), m.kind().c_str(),
                 static_cast<std::size_t>(m.parameters().size()), secs);
     std::printf("%-12s %-30s %10s %14s\n", "data", "experiment", "fit %", "rmse");
@@ -194,9 +218,6 @@ int main(int argc, char** argv) {
       std::printf("%-12s %-30s %10.4f %14.6g\n", "validation", e.name().c_str(), f, r);
     }
     std::printf("saved %s\n", a.save.c_str());
-    return 0;
-  } catch (const nlid::Error& e) {
-    std::cerr << "nlid-fit: " << e.what() << "\n";
-    return 1;
-  }
+    return nlid_tools::exit_ok;
+  });
 }

@@ -8,9 +8,10 @@
 // written with other separators (record_options.hpp). --decimate N filters and keeps every N-th
 // input sample as nlid-fit does, so a model fitted with `nlid-fit --decimate N` runs on the same
 // raw recordings. The output CSV has columns t,y (the
-// model's output name is not used so that scripts can rely on "y"). Exit status 0 on success,
-// 1 on a user error (bad file, missing column, sample-time mismatch — the message says which),
-// 2 on bad usage.
+// model's output name is not used so that scripts can rely on "y"). A model whose output is not
+// finite on the input (unstable, diverging) is an error naming the first such sample; nothing is
+// written. Exit status (cli_common.hpp) 0 on success, 1 on a bad file, data or model (missing
+// column, sample-time mismatch, divergence — the message says which), 2 on a bad command line.
 #include <cmath>
 #include <cstdio>
 #include <iostream>
@@ -23,6 +24,7 @@
 #include "nlid/io/augmented_serial.hpp"  // repaired models from nlid-diagnose --save
 #include "nlid/models/any_model.hpp"
 #include "nlid/models/spec.hpp"
+#include "cli_common.hpp"
 #include "record_options.hpp"
 
 namespace {
@@ -35,76 +37,60 @@ std::string usage_text() { return std::string(kUsageHead) + nlid_tools::record_u
 }
 
 int main(int argc, char** argv) {
-  std::string model, input, out, x0 = "zero", column;
-  int decimate = 1;
-  nlid_tools::RecordOptions record;
-  for (int i = 1; i < argc; ++i) {
-    const std::string k = argv[i];
-    if (k == "-h" || k == "--help") {
-      std::cout << usage_text();
-      return 0;
-    }
-    if (i + 1 >= argc) {
-      std::cerr << "nlid-sim: option " << k << " needs a value\n" << usage_text();
-      return 2;
-    }
-    const std::string v = argv[++i];
-    if (k == "--model") model = v;
-    else if (k == "--input") input = v;
-    else if (k == "--out") out = v;
-    else if (k == "--x0") x0 = v;
-    else if (k == "--column") column = v;
-    else if (k == "--decimate") {
-      std::size_t pos = 0;
-      long n = 0;
-      try {
-        n = std::stol(v, &pos);
-      } catch (...) {
-        pos = 0;
+  std::string stage = "reading the command line", sizes;
+  return nlid_tools::guarded_main("nlid-sim", usage_text(), "", stage, sizes, [&]() -> int {
+    using nlid_tools::UsageError;
+    std::string model, input, out, x0 = "zero", column;
+    int decimate = 1;
+    nlid_tools::RecordOptions record;
+    nlid_tools::OnceOnly once;
+    for (int i = 1; i < argc; ++i) {
+      const std::string k = argv[i];
+      if (k == "-h" || k == "--help") {
+        std::cout << usage_text();
+        return nlid_tools::exit_ok;
       }
-      if (v.empty() || pos != v.size() || n < 1 || n > 1000000) {
-        std::cerr << "nlid-sim: --decimate needs an integer from 1 to 1000000, got '" << v << "'\n";
-        return 2;
+      const bool known = k == "--model" || k == "--input" || k == "--out" || k == "--x0" || k == "--column" ||
+                         k == "--decimate" || k == "--time" || k == "--ts" || k == "--delimiter" || k == "--decimal";
+      if (!known) throw UsageError("unknown option '" + k + "'");
+      if (i + 1 >= argc) throw UsageError("option " + k + " needs a value");
+      const std::string v = argv[++i];
+      once(k);
+      if (k == "--model") model = v;
+      else if (k == "--input") input = v;
+      else if (k == "--out") out = v;
+      else if (k == "--x0") x0 = v;
+      else if (k == "--column") column = v;
+      else if (k == "--decimate") decimate = nlid_tools::parse_int(k, v, 1, 1000000);
+      else {
+        try {
+          nlid_tools::parse_record_option(k, v, record);
+        } catch (const nlid::Error& e) {
+          throw UsageError(e.what());
+        }
       }
-      decimate = static_cast<int>(n);
     }
-    else if (k == "--time" || k == "--ts" || k == "--delimiter" || k == "--decimal") {
-      try {
-        nlid_tools::parse_record_option(k, v, record);
-      } catch (const nlid::Error& e) {
-        std::cerr << "nlid-sim: " << e.what() << "\n";
-        return 2;
-      }
-    } else {
-      std::cerr << "nlid-sim: unknown option '" << k << "'\n" << usage_text();
-      return 2;
+    if (model.empty() || input.empty() || out.empty()) throw UsageError("--model, --input and --out are required");
+    try {
+      nlid_tools::check_record_options(record);
+    } catch (const nlid::Error& e) {
+      throw UsageError(e.what());
     }
-  }
-  if (model.empty() || input.empty() || out.empty()) {
-    std::cerr << "nlid-sim: --model, --input and --out are required\n" << usage_text();
-    return 2;
-  }
-  try {
-    nlid_tools::check_record_options(record);
-  } catch (const nlid::Error& e) {
-    std::cerr << "nlid-sim: " << e.what() << "\n";
-    return 2;
-  }
-  if (x0 != "zero" && x0 != "equilibrium") {
-    std::cerr << "nlid-sim: --x0 must be zero or equilibrium, got '" << x0 << "'\n";
-    return 2;
-  }
-  try {
+    if (x0 != "zero" && x0 != "equilibrium") throw UsageError("--x0 must be zero or equilibrium, got '" + x0 + "'");
+    nlid_tools::check_outputs_distinct({{"--out", out}}, {{"--model", model}, {"--input", input}});
+    nlid_tools::check_output_file("--out", out);
+
+    stage = "reading " + model;
     nlid::register_series_model_kind();
     const nlid::AnyModel m = nlid::load_model(model);
     if (m.num_inputs() != 1 && column.empty())
       throw nlid::Error("the model in " + model + " reads " + std::to_string(m.num_inputs()) +
                         " inputs; nlid-sim simulates single-input models");
-    nlid::CsvReadOptions o = nlid_tools::csv_read_options(record, input);
     const auto names = m.input_names();
-    o.inputs = {!column.empty() ? column : (!names.empty() && !names[0].empty() ? names[0] : std::string("u"))};
-    o.outputs = {};
-    nlid::Experiment e = nlid::read_csv(input, o);
+    stage = "reading " + input;
+    nlid::Experiment e = nlid_tools::read_record(
+        record, input, {!column.empty() ? column : (!names.empty() && !names[0].empty() ? names[0] : std::string("u"))},
+        {}, "nlid-sim");
     if (decimate > 1) {
       // decimate() filters every channel; the file has no output here, so give it a zero one.
       nlid::Experiment with_y(e.u(), Eigen::MatrixXd::Zero(e.size(), 1), e.ts());
@@ -131,21 +117,37 @@ int main(int argc, char** argv) {
     nlid::Experiment named = run;
     named.set_t0(e.t0());
     named.set_input_names(e.input_names());
+    stage = "simulating " + model;
+    sizes = std::to_string(e.size()) + " samples";
     const Eigen::MatrixXd y =
         m.simulate(named, x0 == "zero" ? nlid::InitialCondition::zero : nlid::InitialCondition::equilibrium);
+    const Eigen::VectorXd t = named.time();
+    // A diverging model gives inf/NaN: refuse to write them (a file of NaN looks like a result).
+    for (Eigen::Index i = 0; i < y.rows(); ++i) {
+      if (!y.row(i).allFinite()) {
+        char buf[200];
+        std::snprintf(buf, sizeof buf, "the simulated output is not finite (%g) from sample %ld on (t = %.10g s",
+                      y(i, 0), static_cast<long>(i), t(i));
+        nlid::Location l;
+        l.file = input;
+        throw nlid::Error(std::string(buf) +
+                              (decimate == 1 ? ", data row " + std::to_string(i + 1) + " of " + input
+                                             : ", after --decimate " + std::to_string(decimate)) +
+                              "): the model " + model + " is unstable or diverges on this input (x0 " + x0 +
+                              "); nothing written to " + out,
+                          l);
+      }
+    }
+    stage = "writing " + out;
     std::string text = "t,y\n";
     text.reserve(static_cast<std::size_t>(e.size()) * 40);
     char buf[96];
-    const Eigen::VectorXd t = named.time();
     for (Eigen::Index i = 0; i < y.rows(); ++i) {
       std::snprintf(buf, sizeof buf, "%.17g,%.17g\n", t(i), y(i, 0));
       text += buf;
     }
     nlid::write_file_atomically(out, text);
     std::cerr << "nlid-sim: " << y.rows() << " samples simulated (" << m.kind() << ", x0 " << x0 << ") -> " << out << "\n";
-    return 0;
-  } catch (const nlid::Error& err) {
-    std::cerr << "nlid-sim: " << err.what() << "\n";
-    return 1;
-  }
+    return nlid_tools::exit_ok;
+  });
 }

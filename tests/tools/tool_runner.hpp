@@ -37,10 +37,12 @@ inline std::string slurp(const fs::path& p) {
   return s.str();
 }
 
-/// Runs `exe args` through the shell; stdout captured, stderr via a file.
-inline Run run_tool(const std::string& exe, const std::string& args) {
+/// Runs `exe args` through the shell; stdout captured, stderr via a file. `limit_kb` > 0 caps the
+/// tool's virtual memory (`ulimit -v`), to make an allocation fail.
+inline Run run_tool(const std::string& exe, const std::string& args, long limit_kb = 0) {
   const fs::path err = work_dir() / "stderr.txt";
-  const std::string cmd = "\"" + exe + "\" " + args + " 2>\"" + err.string() + "\"";
+  const std::string cmd = (limit_kb > 0 ? "ulimit -v " + std::to_string(limit_kb) + "; " : std::string()) + "\"" +
+                          exe + "\" " + args + " 2>\"" + err.string() + "\"";
   Run r;
   FILE* p = ::popen(cmd.c_str(), "r");
   REQUIRE(p != nullptr);

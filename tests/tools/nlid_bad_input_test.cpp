@@ -1,0 +1,290 @@
+// Bad input to the four command-line tools, as a user would give it: every case must end with a
+// clear message naming what and where (file, row, column, flag) and the documented exit code
+// (0 ok, 1 bad file/data/model or a failed run, 2 bad command line; docs/tools.md) - never a
+// crash, a silent NaN, wrapped-around numbers or a destroyed input file.
+#include <catch2/catch.hpp>
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include "tool_runner.hpp"
+
+namespace fs = std::filesystem;
+using tool_test::q;
+using tool_test::Run;
+using tool_test::slurp;
+using tool_test::work_dir;
+using tool_test::write_record;
+
+namespace {
+
+Run fit(const std::string& args) { return tool_test::run_tool(NLID_FIT_EXE, args); }
+Run sim(const std::string& args) { return tool_test::run_tool(NLID_SIM_EXE, args); }
+Run codegen(const std::string& args) { return tool_test::run_tool(NLID_CODEGEN_EXE, args); }
+Run diagnose(const std::string& args) { return tool_test::run_tool(NLID_DIAGNOSE_EXE, args); }
+
+// A record whose input is `u` everywhere (output: a noisy constant).
+fs::path constant_input_record(const std::string& name, double u, int n = 600) {
+  const fs::path p = work_dir() / (name + ".csv");
+  std::ofstream f(p);
+  f << "t,u,y\n";
+  for (int k = 0; k < n; ++k) f << k * 0.01 << "," << u << "," << 1.0 + 0.01 * ((k * 7919) % 13 - 6) << "\n";
+  return p;
+}
+
+// `src` without its data row `drop` (0-based): a dropped sample in a file with a time column.
+fs::path without_row(const fs::path& src, const std::string& name, int drop) {
+  const fs::path p = work_dir() / (name + ".csv");
+  std::ifstream in(src);
+  std::ofstream out(p);
+  std::string line;
+  for (int k = -1; std::getline(in, line); ++k)
+    if (k != drop) out << line << "\n";
+  return p;
+}
+
+}  // namespace
+
+TEST_CASE("tools: out of memory is one clear line and exit 1, not a std::bad_alloc abort", "[tools][fit][bad_input]") {
+  // A sigmoid network of 1000 units on 6000 samples needs a Jacobian of 6000 x 3000 doubles
+  // (144 MB) and more; with the address space capped at 300 MB the allocation fails.
+  const fs::path est = write_record("oom_est", 6000, 201u, 0);
+  const fs::path model = work_dir() / "oom.json";
+  const Run r = tool_test::run_tool(
+      NLID_FIT_EXE, "--model nlarx:na=1,nb=1,nk=1:sigmoidnet:1000 --est " + q(est) + " --save " + q(model), 300000);
+  INFO(r.err);
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, !Catch::Contains("terminate called"));
+  CHECK_THAT(r.err, Catch::Contains("nlid-fit: out of memory while estimating nlarx:na=1,nb=1,nk=1:sigmoidnet:1000") &&
+                        Catch::Contains("too large for memory"));
+  CHECK_FALSE(fs::exists(model));
+}
+
+TEST_CASE("nlid-sim: an unstable model's inf/NaN output is refused, naming the first sample", "[tools][sim][bad_input]") {
+  const fs::path input = write_record("unstable_in", 1500, 202u, 0);  // 2^1024 overflows
+  const fs::path model = work_dir() / "unstable_arx.json";
+  std::ofstream(model) << R"json({"format": "nlid-model", "version": 1, "kind": "arx", "ts": 0.01,
+ "created": "2026-11-26T00:00:00Z", "generator": "test", "description": "y(t) = 2 y(t-1) + u(t-1)",
+ "inputs": [{"name": "u", "unit": ""}], "outputs": [{"name": "y", "unit": ""}], "initial_condition": "zero",
+ "structure": {"a": [-2, 0], "b": [[1, 0]], "nk": [1], "offset": 0},
+ "parameters": {"names": ["a1", "a2", "b1", "b2"], "values": [-2, 0, 1, 0]},
+ "report": {"method": "", "focus": "", "num_experiments": 0, "num_samples": 0, "num_parameters": 4, "loss": 0,
+            "fit_percent": 0, "iterations": 0, "solver_message": ""}})json";
+  const fs::path out = work_dir() / "unstable_out.csv";
+  const Run r = sim("--model " + q(model) + " --input " + q(input) + " --out " + q(out));
+  INFO(r.err);
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("not finite") && Catch::Contains("from sample") &&
+                        Catch::Contains("unstable or diverges") && Catch::Contains("unstable_in.csv"));
+  CHECK_FALSE(fs::exists(out));
+}
+
+TEST_CASE("tools: integer options are range-checked, never wrapped around", "[tools][bad_input]") {
+  const fs::path est = write_record("int_est", 1500, 203u, 0);
+  const fs::path model = work_dir() / "int.json";
+  const std::string base = "--model linear:arx:na=1,nb=1,nk=1 --est " + q(est) + " --save " + q(model);
+  Run r = fit(base + " --decimate 4294967297");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("--decimate needs an integer from 1 to") && Catch::Contains("out of range"));
+  r = fit(base + " --iterations 4294967296");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("--iterations needs an integer from 0 to"));
+  r = fit(base + " --rows 1000:4294968296");  // wrapped to 1000:2000 before
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("--rows 1000:4294968296 is outside the 1500 data rows"));
+  r = fit(base + " --rows 99999999999999999999:2");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("--rows FIRST") && Catch::Contains("out of range"));
+  CHECK_FALSE(fs::exists(model));
+  r = sim("--model " + q(model) + " --input " + q(est) + " --out y.csv --decimate 4294967297");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("--decimate"));
+  r = codegen("--model " + q(model) + " --out " + q(work_dir()) + " --substeps 4294967297");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("--substeps"));
+  r = diagnose("--baseline first_order --est a.csv --val b.csv --starts 4294967297");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("--starts needs an integer from 1 to"));
+  r = diagnose("--baseline first_order --est a.csv --val b.csv --threads 99999999999999999999");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("--threads") && Catch::Contains("out of range"));
+}
+
+TEST_CASE("tools: --ts does not hide a dropped sample; another uniform rate is noted", "[tools][fit][sim][bad_input]") {
+  const fs::path full = write_record("ts_full", 800, 204u, 0);
+  const fs::path gap = without_row(full, "ts_gap", 400);
+  const fs::path model = work_dir() / "ts.json";
+  const std::string spec = "--model linear:arx:na=2,nb=2,nk=1";
+  Run r = fit(spec + " --est " + q(gap) + " --ts 0.01 --save " + q(model));
+  INFO(r.err);
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("ts_gap.csv") && Catch::Contains("not evenly spaced") &&
+                        Catch::Contains("row 401 to row 402") && Catch::Contains("missing samples?") &&
+                        Catch::Contains("--ts 0.01"));
+  CHECK_FALSE(fs::exists(model));
+  // Without --ts the library's message points at the row, and its hint is the tools' one.
+  r = fit(spec + " --est " + q(gap) + " --save " + q(model));
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("non-uniform time column") && !Catch::Contains("CsvReadOptions"));
+  // A uniform column at another rate: --ts wins and the disagreement is printed, naming the file.
+  r = fit(spec + " --est " + q(full) + " --ts 0.02 --save " + q(model));
+  CHECK(r.code == 0);
+  CHECK_THAT(r.err, Catch::Contains("note:") && Catch::Contains("ts_full.csv") &&
+                        Catch::Contains("--ts 0.02 s overrides the sample time 0.01 s"));
+  r = fit(spec + " --est " + q(full) + " --ts 0.01 --save " + q(model));
+  CHECK(r.code == 0);
+  CHECK_THAT(r.err, !Catch::Contains("note:"));
+  r = sim("--model " + q(model) + " --input " + q(gap) + " --ts 0.01 --out " + q(work_dir() / "ts_y.csv"));
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("not evenly spaced"));
+  CHECK_FALSE(fs::exists(work_dir() / "ts_y.csv"));
+}
+
+TEST_CASE("nlid-fit and nlid-diagnose refuse an input that is constant in every estimation record",
+          "[tools][fit][diagnose][bad_input]") {
+  const fs::path c1 = constant_input_record("const_a", 1.0), c2 = constant_input_record("const_b", 1.0);
+  const fs::path model = work_dir() / "const.json";
+  for (const char* spec : {"nlarx:na=2,nb=2,nk=0:sigmoidnet", "wh:nb=2,nf=2,nk=0:poly1d:3:nb=2,nf=2,nk=0",
+                           "greybox:throttle", "nlarx:na=2,nb=2,nk=0:treepartition"}) {
+    INFO(spec);
+    const Run r = fit(std::string("--model '") + spec + "' --est " + q(c1) + " --est " + q(c2) + " --save " + q(model));
+    CHECK(r.code == 1);
+    CHECK_THAT(r.err, Catch::Contains("input 'u' is constant (1) in every estimation record") &&
+                          Catch::Contains("const_a.csv") && Catch::Contains("const_b.csv") &&
+                          Catch::Contains("cannot be identified"));
+    CHECK_FALSE(fs::exists(model));
+  }
+  // One varying record is enough.
+  const fs::path varying = write_record("const_var", 600, 205u, 0);
+  const Run ok = fit("--model linear:arx:na=1,nb=1,nk=1 --est " + q(c1) + " --est " + q(varying) + " --save " + q(model));
+  INFO(ok.err);
+  CHECK(ok.code == 0);
+  const fs::path z = constant_input_record("const_zero", 0.0);
+  const Run d = diagnose("--baseline throttle --est " + q(z) + " --val " + q(varying) + " --quiet");
+  CHECK(d.code == 1);
+  CHECK_THAT(d.err, Catch::Contains("input 'u' is constant (0)") && Catch::Contains("const_zero.csv") &&
+                        Catch::Contains("cannot be identified"));
+  CHECK_THAT(d.out, !Catch::Contains("nothing is missing"));
+}
+
+TEST_CASE("tools: an output that is an input is refused before any work, and the input survives",
+          "[tools][bad_input]") {
+  const fs::path v = write_record("same_v", 600, 206u, 0);
+  const std::string before = slurp(v);
+  Run r = fit("--model linear:arx:na=1,nb=1,nk=1 --est " + q(v) + " --save " + q(v));
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("--save") && Catch::Contains("is the same file as --est"));
+  // Another spelling of the same path.
+  r = fit("--model linear:arx:na=1,nb=1,nk=1 --est " + q(v) + " --save " + q(v.parent_path() / "." / v.filename()));
+  CHECK(r.code == 2);
+  CHECK(slurp(v) == before);
+  const fs::path model = work_dir() / "same_m.json";
+  REQUIRE(fit("--model linear:arx:na=1,nb=1,nk=1 --est " + q(v) + " --save " + q(model)).code == 0);
+  const std::string model_text = slurp(model);
+  r = sim("--model " + q(model) + " --input " + q(v) + " --out " + q(v));
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("is the same file as --input"));
+  r = sim("--model " + q(model) + " --input " + q(v) + " --out " + q(model));
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("is the same file as --model"));
+  CHECK(slurp(v) == before);
+  CHECK(slurp(model) == model_text);
+  r = codegen("--model " + q(model) + " --out " + q(model));
+  CHECK(r.code == 2);
+  CHECK(slurp(model) == model_text);
+  r = diagnose("--baseline first_order --est " + q(v) + " --val " + q(v) + " --json " + q(v));
+  CHECK(r.code == 2);
+  r = diagnose("--baseline first_order --est " + q(v) + " --val " + q(v) + " --json " + q(work_dir() / "r.json") +
+               " --html " + q(work_dir() / "r.json"));
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("--html") && Catch::Contains("--json"));
+  CHECK(slurp(v) == before);
+}
+
+TEST_CASE("nlid-codegen: a non-finite equilibrium is refused, naming --u0", "[tools][codegen][bad_input]") {
+  const fs::path est = write_record("eq_est", 800, 207u, 1);
+  const fs::path dir = work_dir() / "eq_cg";
+  fs::create_directories(dir);
+  const fs::path model = dir / "oe.json";
+  REQUIRE(fit("--model linear:oe:nb=2,nf=2,nk=1 --est " + q(est) + " --save " + q(model)).code == 0);
+  Run r = codegen("--model " + q(model) + " --out " + q(dir) + " --x0 equilibrium --u0 -1e308");
+  INFO(r.err);
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("--u0") && Catch::Contains("not finite"));
+  CHECK_FALSE(fs::exists(dir / "oe.c"));
+  r = codegen("--model " + q(model) + " --out " + q(dir) + " --x0 equilibrium --u0 inf");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("--u0 needs a finite number"));
+  r = codegen("--model " + q(model) + " --out " + q(dir) + " --x0 equilibrium --u0 0.5");
+  CHECK(r.code == 0);
+}
+
+TEST_CASE("tools: unknown last flags, repeated flags, output locations, --baseline, --decimal hints",
+          "[tools][bad_input]") {
+  const fs::path est = write_record("msg_est", 600, 208u, 0);
+  const fs::path model = work_dir() / "msg.json";
+  const std::string base = "--model linear:arx:na=1,nb=1,nk=1 --est " + q(est);
+  // (a) an unknown flag at the end is unknown, not "needs a value"
+  Run r = fit(base + " --save " + q(model) + " --verbose");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("unknown option '--verbose'"));
+  CHECK(sim("--model m.json --input a.csv --out y.csv --verbose").err.find("unknown option '--verbose'") != std::string::npos);
+  CHECK(codegen("--model m.json --out d --verbose").err.find("unknown option '--verbose'") != std::string::npos);
+  r = diagnose("--baseline throttle --est a.csv --val b.csv --verbose");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("unknown option '--verbose'"));
+  // (b) library hints in the tools' words
+  const fs::path bare = write_record("msg_bare", 400, 209u, 0, false);
+  r = fit(base + " --est " + q(bare) + " --save " + q(model));
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("(--ts)") && !Catch::Contains("CsvReadOptions"));
+  // (c) output locations are checked before the work
+  r = fit(base + " --save " + q(work_dir() / "no_dir" / "m.json"));
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("--save") && Catch::Contains("does not exist") && !Catch::Contains("estimating"));
+  r = sim("--model m.json --input a.csv --out " + q(work_dir() / "no_dir" / "y.csv"));
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("--out") && Catch::Contains("does not exist"));
+  r = codegen("--model m.json --out " + q(est));
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("is not a directory"));
+  r = diagnose("--baseline first_order --est " + q(est) + " --val " + q(est) + " --html " +
+               q(work_dir() / "no_dir" / "r.html"));
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("--html") && Catch::Contains("does not exist") && !Catch::Contains("reading"));
+  // (d) a flag that takes one value, given twice
+  r = fit(base + " --model linear:oe:nb=1,nf=1,nk=1 --save " + q(model));
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("option --model is given twice"));
+  r = fit(base + " --save a.json --save " + q(model));
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("option --save is given twice"));
+  r = sim("--model m.json --input a.csv --out y.csv --out z.csv");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("option --out is given twice"));
+  r = codegen("--model m.json --out d --out e");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("option --out is given twice"));
+  r = diagnose("--baseline throttle --baseline first_order --est a.csv --val b.csv");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("option --baseline is given twice"));
+  // (e) the unknown baseline is located at the flag
+  r = diagnose("--baseline nosuch --est a.csv --val b.csv");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("unknown physics 'nosuch'") && Catch::Contains("parameter '--baseline'") &&
+                        !Catch::Contains("parameter 'nosuch'"));
+  // (f) decimal commas read with --delimiter ';' alone: the hint names --decimal
+  const fs::path eu = work_dir() / "msg_eu.csv";
+  {
+    std::ofstream f(eu);
+    f << "t;u;y\n0,000;0,0000;1,5\n0,010;1,0000;1,6\n0,020;0,0000;1,7\n";
+  }
+  r = fit("--model linear:arx:na=1,nb=1,nk=1 --est " + q(eu) + " --delimiter ';' --save " + q(model));
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("non-numeric cell '0,000'") && Catch::Contains("--decimal ,"));
+  r = diagnose("--baseline first_order --est " + q(eu) + " --val " + q(eu) + " --delimiter ';'");
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("--decimal ,"));
+  CHECK_FALSE(fs::exists(model));
+}

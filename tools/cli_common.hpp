@@ -1,0 +1,255 @@
+#pragma once
+// What every command-line tool does the same way: exit codes, integer options with a range,
+// options that may be given once, output paths checked before any work, library messages in the
+// tools' words, and a top level that turns every exception into one line and an exit code.
+//
+// Exit codes (docs/tools.md): 0 success; 1 the command line is fine but a file, the data or the
+// model is not, or the computation failed (out of memory, a diverging model); 2 the command line
+// itself is wrong (unknown, missing, repeated or malformed options, an output that is an input).
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <exception>
+#include <filesystem>
+#include <iostream>
+#include <limits>
+#include <new>
+#include <set>
+#include <stdexcept>
+#include <string>
+#include <system_error>
+#include <utility>
+#include <vector>
+
+#include "nlid/core/error.hpp"
+#include "nlid/data/experiment.hpp"
+
+namespace nlid_tools {
+
+inline constexpr int exit_ok = 0;
+inline constexpr int exit_error = 1;  ///< bad file, data or model; out of memory; divergence
+inline constexpr int exit_usage = 2;  ///< bad command line
+
+/// A bad command line (exit 2).
+struct UsageError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+/// An integer option value in [lo, hi]; anything else (text, a fraction, overflow, out of range)
+/// is a usage error naming the option and the range. No wrap-around: 4294967297 is not 1.
+inline long parse_integer(const std::string& flag, const std::string& v, long lo, long hi) {
+  long x = 0;
+  const char* b = v.data();
+  const char* e = v.data() + v.size();
+  const auto [ptr, ec] = std::from_chars(b, e, x);
+  const std::string range = hi == std::numeric_limits<long>::max()
+                                ? "an integer >= " + std::to_string(lo)
+                                : "an integer from " + std::to_string(lo) + " to " + std::to_string(hi);
+  if (v.empty() || ec == std::errc::invalid_argument || ptr != e)
+    throw UsageError(flag + " needs " + range + ", got '" + v + "'");
+  if (ec == std::errc::result_out_of_range || x < lo || x > hi)
+    throw UsageError(flag + " needs " + range + ", got '" + v + "' (out of range)");
+  return x;
+}
+
+inline int parse_int(const std::string& flag, const std::string& v, int lo, int hi) {
+  return static_cast<int>(parse_integer(flag, v, lo, hi));
+}
+
+/// Options that take one value: a second occurrence is an error (it used to win silently).
+class OnceOnly {
+ public:
+  void operator()(const std::string& flag) {
+    if (!seen_.insert(flag).second)
+      throw UsageError("option " + flag + " is given twice; it takes one value");
+  }
+
+ private:
+  std::set<std::string> seen_;
+};
+
+/// True if `a` and `b` name the same file: std::filesystem::equivalent when both exist (hard
+/// links, symbolic links, ./x vs x), else their weakly canonical paths are compared.
+inline bool same_file(const std::string& a, const std::string& b) {
+  namespace fs = std::filesystem;
+  std::error_code ec1, ec2;
+  if (fs::exists(a, ec1) && fs::exists(b, ec2)) {
+    std::error_code ec;
+    const bool eq = fs::equivalent(a, b, ec);
+    if (!ec) return eq;
+  }
+  std::error_code ea, eb;
+  const fs::path ca = fs::weakly_canonical(fs::absolute(a), ea), cb = fs::weakly_canonical(fs::absolute(b), eb);
+  if (ea || eb) return fs::absolute(a).lexically_normal() == fs::absolute(b).lexically_normal();
+  return ca == cb;
+}
+
+/// A (flag, path) pair of the command line.
+using FlagPath = std::pair<std::string, std::string>;
+
+/// Refuses an output that is the same file as an input or as another output (usage error): the
+/// output would destroy the input before, or while, it is read.
+inline void check_outputs_distinct(const std::vector<FlagPath>& outputs, const std::vector<FlagPath>& inputs) {
+  for (std::size_t i = 0; i < outputs.size(); ++i) {
+    const auto& [of, op] = outputs[i];
+    if (op.empty()) continue;
+    for (const auto& [inf, ip] : inputs)
+      if (!ip.empty() && same_file(op, ip))
+        throw UsageError(of + " " + op + " is the same file as " + inf + " " + ip +
+                         ": writing it would destroy the input; choose another output file");
+    for (std::size_t j = 0; j < i; ++j)
+      if (!outputs[j].second.empty() && same_file(op, outputs[j].second))
+        throw UsageError(of + " " + op + " is the same file as " + outputs[j].first + " " + outputs[j].second +
+                         ": one would overwrite the other; choose another output file");
+  }
+}
+
+/// Checks, before any work, that an output file can be created where asked: its directory exists
+/// and the path is not itself a directory (exit 1 via nlid::Error naming the option).
+inline void check_output_file(const std::string& flag, const std::string& path) {
+  namespace fs = std::filesystem;
+  if (path.empty()) return;
+  std::error_code ec;
+  if (fs::is_directory(path, ec))
+    throw nlid::Error(flag + " " + path + " is a directory; give a file name", nlid::at_parameter(flag));
+  fs::path dir = fs::path(path).parent_path();
+  if (dir.empty()) dir = ".";
+  if (!fs::exists(dir, ec))
+    throw nlid::Error(flag + " " + path + ": output directory '" + dir.string() + "' does not exist; create it first",
+                      nlid::at_parameter(flag));
+  if (!fs::is_directory(dir, ec))
+    throw nlid::Error(flag + " " + path + ": '" + dir.string() + "' is not a directory", nlid::at_parameter(flag));
+}
+
+/// Checks that an output directory exists and is a directory (exit 1 via nlid::Error).
+inline void check_output_dir(const std::string& flag, const std::string& dir) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (!fs::exists(dir, ec))
+    throw nlid::Error("output directory '" + dir + "' does not exist; create it first", nlid::at_parameter(flag));
+  if (!fs::is_directory(dir, ec))
+    throw nlid::Error(flag + " " + dir + " is not a directory (it names the directory for the output files)",
+                      nlid::at_parameter(flag));
+}
+
+/// A library message in the tools' words: hints that name C++ option fields name the flag.
+inline std::string translate(std::string s) {
+  static const std::pair<const char*, const char*> table[] = {
+      {" (CsvReadOptions::ts with time_column \"\"; --ts in the tools)", " (--ts)"},
+      {" (CsvReadOptions::delimiter; --delimiter in the tools)", " (--delimiter)"},
+      // In the tools --ts does not paper over a gap (docs/tools.md): resampling is the remedy.
+      {"missing samples? resample first or set CsvReadOptions::ts", "missing samples? resample the record onto a uniform grid first"},
+      {"set CsvReadOptions::ts", "give --ts"},
+      {"set it (set_ts) or CodegenOptions::ts", "give --ts"},
+      {"set CodegenOptions::ts", "give --ts"},
+      {"CodegenOptions::ts", "--ts"},
+      {"CsvReadOptions::ts", "--ts"},
+      {"CsvReadOptions::delimiter", "--delimiter"},
+      {"CsvReadOptions::decimal_point", "--decimal"},
+      {"CsvReadOptions::time_column", "--time"},
+      {"IntegratorOptions::substeps / min_substeps, or use the adaptive method", "--substeps (nlid-codegen)"},
+      {"IntegratorOptions::substeps", "--substeps (nlid-codegen)"},
+      {"DiagnoseOptions::decimate", "--decimate"},
+      {"DiagnoseOptions::starts", "--starts"},
+      {"LmOptions::max_iterations", "--iterations"},
+      {"CodegenOptions::equilibrium_input", "--u0"},
+      {"equilibrium_input", "--u0"},
+  };
+  for (const auto& [from, to] : table) {
+    for (std::size_t p = s.find(from); p != std::string::npos; p = s.find(from, p + std::string(to).size()))
+      s.replace(p, std::string(from).size(), to);
+  }
+  return s;
+}
+
+/// A non-numeric cell that looks like a decimal comma ('0,5') read with the decimal point: the
+/// hint names --decimal (only for tools that have the option).
+inline std::string decimal_hint(const nlid::Error& e, char delimiter, char decimal) {
+  const std::string& m = e.message();
+  const std::string key = "non-numeric cell '";
+  if (decimal != '.' || delimiter == ',' || m.rfind(key, 0) != 0) return {};
+  const std::string cell = m.substr(key.size(), m.find('\'', key.size()) - key.size());
+  std::string dotted = cell;
+  bool comma = false;
+  for (char& c : dotted)
+    if (c == ',') c = '.', comma = true;
+  if (!comma) return {};
+  double x = 0;
+  const auto [p, ec] = std::from_chars(dotted.data(), dotted.data() + dotted.size(), x);
+  if (ec != std::errc() || p != dotted.data() + dotted.size()) return {};
+  return "; the cell has a decimal comma - read the file with --decimal ,";
+}
+
+/// Refuses estimation data in which an input channel holds one value in every record: the
+/// input's effect on the output cannot be identified from it (exit 1).
+inline void check_inputs_vary(const std::vector<const nlid::Experiment*>& records,
+                              const std::vector<std::string>& files, const std::string& flag) {
+  if (records.empty()) return;
+  const Eigen::Index nu = records.front()->u().cols();
+  for (Eigen::Index j = 0; j < nu; ++j) {
+    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+    for (const nlid::Experiment* e : records) {
+      if (e->size() == 0) continue;
+      lo = std::min(lo, e->u().col(j).minCoeff());
+      hi = std::max(hi, e->u().col(j).maxCoeff());
+    }
+    if (lo == hi) {
+      const auto names = records.front()->input_names();
+      const std::string name = static_cast<std::size_t>(j) < names.size() ? names[static_cast<std::size_t>(j)] : "u";
+      std::string list;
+      for (std::size_t i = 0; i < files.size(); ++i) list += (i ? ", " : "") + files[i];
+      char value[40];
+      std::snprintf(value, sizeof value, "%.10g", lo);
+      nlid::Location l;
+      l.column_name = name;
+      l.parameter = flag;
+      if (files.size() == 1) l.file = files[0];
+      throw nlid::Error("input '" + name + "' is constant (" + value + ") in every estimation record (" + list +
+                            "): its effect on the output cannot be identified; estimate on records in which '" +
+                            name + "' varies",
+                        l);
+    }
+  }
+}
+
+/// The top level of a tool: runs `body` and turns every exception into one line on stderr and an
+/// exit code. `stage` says what the tool was doing (for out-of-memory and internal errors);
+/// `sizes` what was being processed (e.g. the model spec and the sample count).
+template <class Body>
+int guarded_main(const std::string& tool, const std::string& usage, const std::string& prefix, const std::string& stage,
+                 const std::string& sizes, Body&& body) {
+  const std::string head = tool + ": " + prefix;
+  const auto where = [&] {
+    std::string s = stage.empty() ? std::string() : " while " + stage;
+    if (!sizes.empty()) s += " (" + sizes + ")";
+    return s;
+  };
+  try {
+    return body();
+  } catch (const UsageError& e) {
+    std::cerr << head << translate(e.what()) << "\n";
+    if (!usage.empty()) std::cerr << "\n" << usage;
+    return exit_usage;
+  } catch (const nlid::Error& e) {
+    std::cerr << head << translate(e.what()) << "\n";
+    return exit_error;
+  } catch (const std::bad_alloc&) {
+    std::cerr << head << "out of memory" << where()
+              << ": the model or the data are too large for memory; use a smaller model or fewer samples\n";
+    return exit_error;
+  } catch (const std::length_error& e) {
+    std::cerr << head << "size limit exceeded" << where() << " (" << e.what()
+              << "): the model or the data are too large; use a smaller model or fewer samples\n";
+    return exit_error;
+  } catch (const std::exception& e) {
+    std::cerr << head << "internal error" << where() << ": " << e.what() << "\n";
+    return exit_error;
+  } catch (...) {
+    std::cerr << head << "internal error" << where() << " (unknown exception)\n";
+    return exit_error;
+  }
+}
+
+}  // namespace nlid_tools
