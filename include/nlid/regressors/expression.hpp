@@ -624,8 +624,10 @@ class RegressorList {
 
   /// Appends y(t−1) … y(t−na). Throws naming "na" if na < 0.
   RegressorList& add_output_lags(int na) {
-    require(na >= 0 && na <= max_model_order,
-            "model order na must be in 0 ... " + std::to_string(max_model_order) + ", got " + std::to_string(na),
+    require(na >= 0, "model order na must be >= 0, got " + std::to_string(na), at_parameter("na"));
+    require(na <= max_model_order,
+            "model order na must be <= " + std::to_string(max_model_order) + " (the largest model order), got " +
+                std::to_string(na),
             at_parameter("na"));
     Block b;
     b.kind = Kind::output_lags;
@@ -634,11 +636,15 @@ class RegressorList {
   }
   /// Appends u_c(t−nk) … u_c(t−nk−nb+1). Throws naming "nb", "nk" or "channel".
   RegressorList& add_input_lags(int nb, int nk, int channel = 0) {
-    require(nb >= 0 && nb <= max_model_order,
-            "model order nb must be in 0 ... " + std::to_string(max_model_order) + ", got " + std::to_string(nb),
+    require(nb >= 0, "model order nb must be >= 0, got " + std::to_string(nb), at_parameter("nb"));
+    require(nb <= max_model_order,
+            "model order nb must be <= " + std::to_string(max_model_order) + " (the largest model order), got " +
+                std::to_string(nb),
             at_parameter("nb"));
-    require(nk >= 0 && nk <= max_model_order,
-            "model order nk must be in 0 ... " + std::to_string(max_model_order) + ", got " + std::to_string(nk),
+    require(nk >= 0, "model order nk must be >= 0, got " + std::to_string(nk), at_parameter("nk"));
+    require(nk <= max_model_order,
+            "model order nk must be <= " + std::to_string(max_model_order) + " (the largest model order), got " +
+                std::to_string(nk),
             at_parameter("nk"));
     require(channel >= 0, "input channel must be >= 0, got " + std::to_string(channel), at_parameter("channel"));
     Block b;
