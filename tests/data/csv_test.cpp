@@ -236,8 +236,20 @@ TEST_CASE("read_csv options: several channels, no time column, ts override", "[d
     opt.ts = 0.2;
     const nlid::Experiment o = nlid::read_csv(p, opt);
     CHECK(o.ts() == 0.2);
-    CHECK_THAT(o.notes().back(), Contains("the time column implies 0.1"));
+    CHECK_THAT(o.notes().back(), Contains("the time column's step is 0.1"));
   }
+}
+
+TEST_CASE("read_csv: a sample-time override does not hide a gap in the time column", "[data][csv][errors]") {
+  TempDir dir;
+  // Row 4 (t = 0.003) was dropped by the logger.
+  const std::string gap = dir.write("gap.csv", "t,u,y\n0,1,2\n0.001,1,2\n0.002,1,3\n0.004,1,3\n0.005,1,3\n");
+  nlid::CsvReadOptions o;
+  o.ts = 0.001;
+  CHECK_THROWS_WITH(nlid::read_csv(gap, o), Contains("non-uniform time column: step 0.002") && Contains("gap.csv") &&
+                                                Contains("cut the record at the gap"));
+  o.ts = 0;
+  CHECK_THROWS_WITH(nlid::read_csv(gap, o), Contains("non-uniform time column"));
 }
 
 TEST_CASE("read_csv reports file-level errors with the file name", "[data][csv]") {

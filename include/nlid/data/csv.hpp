@@ -65,7 +65,9 @@ struct CsvReadOptions {
   /// Output columns, in order.
   std::vector<std::string> outputs{"y"};
   /// Sample time override; 0 means "infer from the time column". When given, the time column
-  /// only supplies t_0 and must still increase; a disagreement with it is recorded in the notes.
+  /// supplies t_0 and must still be increasing and evenly spaced (a gap is an error: the
+  /// override would hide a lost sample); a rate different from the column's is recorded in the
+  /// notes.
   double ts = 0.0;
   /// What to do with NaN/Inf/empty cells in input and output columns.
   NonFinitePolicy non_finite = NonFinitePolicy::error;

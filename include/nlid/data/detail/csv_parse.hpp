@@ -515,8 +515,9 @@ inline double time_quantum(const CsvText& t, std::size_t time_col, char decimal_
   return std::pow(10.0, -decimals);
 }
 
-/// Validates the time column and returns (ts, t0). `ts_override` > 0 wins over the column (a
-/// disagreement is noted); otherwise ts is inferred and every step checked against the median.
+/// Validates the time column and returns (ts, t0): every step is checked against the median
+/// step; `ts_override` > 0 then wins over the column's rate (a disagreement is noted), otherwise
+/// ts is inferred from the column.
 inline std::pair<double, double> time_axis(const CsvText& t, std::size_t time_col,
                                            char decimal_point, double ts_override, double tolerance,
                                            std::vector<std::string>& notes) {
@@ -541,24 +542,17 @@ inline std::pair<double, double> time_axis(const CsvText& t, std::size_t time_co
     }
   }
   const double t0 = n > 0 ? time(0) : 0.0;  // n > 0: tokenize_csv rejects files without data
-  if (ts_override > 0.0) {
-    if (n >= 2) {
-      const double implied = (time(n - 1) - t0) / static_cast<double>(n - 1);
-      if (std::abs(implied - ts_override) > tolerance * ts_override) {
-        notes.push_back("sample time " + num(ts_override) +
-                        " set by the caller; the time column implies " + num(implied));
-      }
-    }
-    return {ts_override, t0};
-  }
   if (n < 2) {
+    if (ts_override > 0.0) return {ts_override, t0};
     throw Error(
         "too few rows to infer the sample time from the time column (1 data row); set "
         "CsvReadOptions::ts",
         at_row(0));
   }
   // Steps are checked against the median step, so the message points at the odd step (e.g. a
-  // dropped sample) rather than at whichever step an outlier-biased mean disfavours.
+  // dropped sample) rather than at whichever step an outlier-biased mean disfavours. Also with
+  // a sample-time override: it sets the rate, but a gap in the column is still a lost sample
+  // that evenly spaced samples would hide.
   const Eigen::VectorXd steps = time.tail(n - 1) - time.head(n - 1);
   std::vector<double> sorted(steps.data(), steps.data() + steps.size());
   const auto mid = sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2);
@@ -571,9 +565,17 @@ inline std::pair<double, double> time_axis(const CsvText& t, std::size_t time_co
                       std::to_string(t.lines[static_cast<std::size_t>(k - 1)]) + " deviates by " +
                       percent(dev) + " from the typical step " + num(typical) + " (tolerance " +
                       percent(tolerance) +
-                      "); missing samples? resample first or set CsvReadOptions::ts",
+                      "); missing samples? cut the record at the gap or fill it, or raise "
+                      "CsvReadOptions::time_tolerance if the stamps only jitter",
                   at_row(k));
     }
+  }
+  if (ts_override > 0.0) {
+    if (std::abs(typical - ts_override) > tolerance * ts_override) {
+      notes.push_back("sample time " + num(ts_override) + " set by the caller; the time column's step is " +
+                      num(typical));
+    }
+    return {ts_override, t0};
   }
   return {snap_sample_time(time, time_quantum(t, time_col, decimal_point)), t0};
 }
