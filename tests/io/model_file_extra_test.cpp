@@ -22,6 +22,7 @@
 #include "nlid/models/hammerstein_wiener.hpp"
 #include "nlid/models/nlarx.hpp"
 #include "nlid/nonlinearities.hpp"
+#include "nlid/nonlinearities/any_nonlinearity.hpp"
 #include "nlid/regressors.hpp"
 #include "nlid/regressors/expression.hpp"
 
@@ -237,4 +238,22 @@ TEST_CASE("model specs carry nlarx's data-driven starts", "[io]") {
   CHECK(parse_model_spec("nlarx:na=2,nb=2,nk=0:sigmoidnet:3").starts == 1);
   CHECK_THROWS_WITH(parse_model_spec("linear:arx:na=1,nb=1,nk=0:starts=2"), Catch::Contains("applies to nlarx models"));
   CHECK_THROWS_WITH(parse_model_spec("nlarx:na=2,nb=2,nk=0:sigmoidnet:3:starts=0"), Catch::Contains("starts must be in 1 ... 64"));
+  CHECK_THROWS_WITH(parse_model_spec("nlarx:na=2,nb=2,nk=0:wavenet:3:starts=2"), Catch::Contains("starts > 1 needs a sigmoidnet"));
+  // The run-time network takes the alternative starts like the typed one.
+  AnyNonlinearity net(SigmoidNet<Dynamic, Dynamic>(2, 3));
+  AnyNonlinearity poly(Poly1d<Dynamic>(3));
+  const Eigen::MatrixXd X = Eigen::MatrixXd::Random(400, 2);
+  // A near-step in x0 (as Coulomb friction in a velocity): what the steeper starts are for.
+  const Eigen::VectorXd y = (200.0 * X.col(0).array()).tanh().matrix() + 0.5 * X.col(1);
+  Eigen::VectorXd t0(net.num_parameters()), t1(net.num_parameters()), typed(net.num_parameters());
+  net.initialize(X, y, {t0.data(), static_cast<std::size_t>(t0.size())}, 0);
+  net.initialize(X, y, {t1.data(), static_cast<std::size_t>(t1.size())}, 3);
+  SigmoidNet<Dynamic, Dynamic> ref(2, 3);
+  ref.initialize(X, y, {typed.data(), static_cast<std::size_t>(typed.size())}, 3);
+  CHECK(bit_equal(t1, typed));                    // start 3 of the held network
+  CHECK((t0 - t1).cwiseAbs().maxCoeff() > 0.0);  // which is not the default start again
+  const Eigen::MatrixXd X1 = X.leftCols(1);
+  Eigen::VectorXd tp(poly.num_parameters());
+  CHECK_THROWS_WITH(poly.initialize(X1, y, {tp.data(), static_cast<std::size_t>(tp.size())}, 1),
+                    Catch::Contains("one data-driven start"));
 }

@@ -291,6 +291,9 @@ inline ModelSpec parse_model_spec(const std::string& text) {
     }
     if (has_order) s.orders.push_back(o);
   }
+  require(s.starts == 1 || (s.nonlinearities.size() == 1 && s.nonlinearities[0].kind == "sigmoidnet"),
+          "model spec '" + text + "': starts > 1 needs a sigmoidnet (the only map with alternative starts)",
+          at_parameter("starts"));
   // Shape checks per family.
   auto need = [&](std::size_t norders, std::size_t nnl, const char* example) {
     require(s.orders.size() == norders && s.nonlinearities.size() == nnl,

@@ -110,6 +110,23 @@ class AnyNonlinearity {
   void initialize(const Eigen::MatrixXd& X, const Eigen::VectorXd& y, std::span<double> theta) {
     std::visit([&](auto& f) { f.initialize(X, y, theta); }, v_);
   }
+  /// Alternative data-driven start `start` of the held map (`EstimateOptions::starts`), for the
+  /// maps that have them (SigmoidNet); start 0 is the default start of any map. Throws naming
+  /// "start" for start > 0 of a map with a single start.
+  void initialize(const Eigen::MatrixXd& X, const Eigen::VectorXd& y, std::span<double> theta, int start) {
+    std::visit(
+        [&](auto& f) {
+          if constexpr (requires { f.initialize(X, y, theta, start); }) {
+            f.initialize(X, y, theta, start);
+          } else {
+            require(start == 0, "this nonlinearity has one data-driven start; start " + std::to_string(start) +
+                                    " needs a sigmoid network",
+                    at_parameter("start"));
+            f.initialize(X, y, theta);
+          }
+        },
+        v_);
+  }
   /// Parameter names of the held map.
   [[nodiscard]] std::vector<std::string> parameter_names() const {
     return std::visit([](const auto& f) { return f.parameter_names(); }, v_);
