@@ -257,3 +257,16 @@ TEST_CASE("model specs carry nlarx's data-driven starts", "[io]") {
   CHECK_THROWS_WITH(poly.initialize(X1, y, {tp.data(), static_cast<std::size_t>(tp.size())}, 1),
                     Catch::Contains("one data-driven start"));
 }
+
+TEST_CASE("model specs refuse a key or map given twice and options that do nothing", "[io][errors]") {
+  using Catch::Contains;
+  CHECK_THROWS_WITH(parse_model_spec("linear:arx:na=2,na=5,nb=1,nk=0"), Contains("'na' is given twice"));
+  CHECK_THROWS_WITH(parse_model_spec("nlarx:na=2,nb=2,nk=0:sigmoidnet:3:focus=simulation:focus=prediction"),
+                    Contains("'focus' is given twice"));
+  CHECK_THROWS_WITH(parse_model_spec("hw:nb=2,nf=2,nk=0:in=poly1d:2:in=saturation"), Contains("'in=' is given twice"));
+  CHECK_THROWS_WITH(parse_model_spec("linear:arx:na=2,nb=1,nk=0:focus=prediction"), Contains("focus applies to nlarx"));
+  CHECK_THROWS_WITH(parse_model_spec("nlarx:na=2,nb=2,nk=0:sigmoidnet:linear=7"), Contains("at most 1"));
+  // Two order fields of a Wiener-Hammerstein spec repeat their keys legitimately.
+  CHECK(parse_model_spec("wh:nb=4,nf=3,nk=0:poly1d:9:nb=4,nf=3,nk=0").orders.size() == 2);
+  CHECK(parse_model_spec("hw:nb=3,nf=3,nk=0:in=pwlinear:10:out=pwlinear:breakpoints=10").nonlinearities.size() == 2);
+}

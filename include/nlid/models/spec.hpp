@@ -34,6 +34,7 @@
 /// `register_series_model_kind()` teaches `load_model` to read them (called by the functions
 /// below; idempotent).
 
+#include <algorithm>
 #include <cctype>
 #include <chrono>
 #include <functional>
@@ -214,6 +215,8 @@ inline ModelSpec parse_model_spec(const std::string& text) {
     i = 2;
   }
   NonlinearitySpec* last = nullptr;  // the map a following bare number or option belongs to
+  std::vector<std::string> fit_keys;  // whole-fit options seen so far
+  bool in_given = false, out_given = false;
   for (; i < f.size(); ++i) {
     const std::string& tok = f[i];
     require(!tok.empty(), "model spec '" + text + "' has an empty field " + std::to_string(i + 1), at_parameter("model"));
@@ -232,6 +235,10 @@ inline ModelSpec parse_model_spec(const std::string& text) {
       require(detail::is_nonlinearity_kind(kind), "unknown nonlinearity '" + kind + "' in model spec '" + text +
                                                       "' (accepted: " + detail::spec_nonlinearities() + ")",
               at_parameter("model"));
+      require(!(is_in ? in_given : out_given),
+              "model spec '" + text + "': '" + std::string(is_in ? "in=" : "out=") + "' is given twice",
+              at_parameter("model"));
+      (is_in ? in_given : out_given) = true;
       last = &s.nonlinearities[is_in ? 0 : 1];
       *last = NonlinearitySpec{kind, {}};
       continue;
@@ -247,11 +254,19 @@ inline ModelSpec parse_model_spec(const std::string& text) {
     // key=value list: orders, nonlinearity options or fit options.
     OrderSpec o;
     bool has_order = false;
+    std::vector<std::string> field_keys;
     for (const auto& kv : detail::split_text(tok, ',')) {
       const auto eq = kv.find('=');
       require(eq != std::string::npos && eq > 0, "model spec '" + text + "': '" + kv + "' is not key=value",
               at_parameter("model"));
       const std::string k = kv.substr(0, eq), v = kv.substr(eq + 1);
+      // A key given twice would silently take the last value: refuse it (whole-fit options
+      // across the spec, the others within their field).
+      const bool whole_fit = k == "focus" || k == "ic" || k == "starts" || k == "start_iterations";
+      std::vector<std::string>& seen = whole_fit ? fit_keys : field_keys;
+      require(std::find(seen.begin(), seen.end(), k) == seen.end(),
+              "model spec '" + text + "': '" + k + "' is given twice", at_parameter(k));
+      seen.push_back(k);
       if (k == "na" || k == "nb" || k == "nf" || k == "nk") {
         const int x = detail::spec_int(v, k, text);
         (k == "na" ? o.na : k == "nb" ? o.nb : k == "nf" ? o.nf : o.nk) = x;
@@ -272,6 +287,10 @@ inline ModelSpec parse_model_spec(const std::string& text) {
         if (k == "starts") s.starts = x;
         else s.start_iterations = x;
       } else if (k == "focus") {
+        require(s.family == "nlarx",
+                "model spec '" + text + "': focus applies to nlarx models (the others are estimated by "
+                "their own criterion: ARX prediction, output-error and block models simulation)",
+                at_parameter("focus"));
         require(v == "simulation" || v == "prediction",
                 "model spec '" + text + "': focus must be simulation or prediction, got '" + v + "'", at_parameter("focus"));
         s.focus = v == "simulation" ? Focus::simulation : Focus::prediction;
