@@ -96,7 +96,7 @@ TEST_CASE("pooled multi-experiment residuals: lags never cross an experiment bou
   CHECK(r.white());
 }
 
-TEST_CASE("prediction residuals of a true Nlarx are white; a wrong pole makes them correlated", "[analysis][resid]") {
+TEST_CASE("prediction residuals of a true Nlarx are white, a wrong pole makes them correlated", "[analysis][resid]") {
   using Model = nlid::Nlarx<nlid::LaggedRegressors<1, 1, 0>, nlid::LinearMap<2>>;
   const int n = 3000;
   const Eigen::MatrixXd u = white(n, 11);

@@ -18,7 +18,7 @@ TEST_CASE("Error message names what and where") {
   CHECK(e.where().row == 12);
 }
 
-TEST_CASE("Error without location has no suffix; experiment and parameter locations") {
+TEST_CASE("Error without location has no suffix, experiment and parameter locations") {
   CHECK(std::string(nlid::Error("x").what()) == "nlid: x");
   CHECK(std::string(nlid::Error("too short", nlid::at_experiment(2)).what()) ==
         "nlid: too short [at experiment 2]");

@@ -72,7 +72,7 @@ TEST_CASE("remove_mean and mean_trend", "[data][preprocess]") {
   CHECK((back.y() - e.y()).cwiseAbs().maxCoeff() < 1e-12);
 }
 
-TEST_CASE("detrend removes a least-squares line; linear_trend recovers it", "[data][preprocess]") {
+TEST_CASE("detrend removes a least-squares line, linear_trend recovers it", "[data][preprocess]") {
   const nlid::Experiment e = trended(-4.0, 0.75);
   const nlid::Trend t = nlid::linear_trend(e);
   CHECK(t.output_slope(0) == Approx(0.75).epsilon(1e-12));

@@ -116,7 +116,7 @@ TEST_CASE("an active upper bound: solution on the bound with the KKT sign", "[es
   CHECK(s.final_gradient_norm < 1e-8);
 }
 
-TEST_CASE("an active lower bound; a start outside the box is projected", "[estimation][lm]") {
+TEST_CASE("an active lower bound, a start outside the box is projected", "[estimation][lm]") {
   using P = AutoDiffProblem<nlid_test::Rosenbrock<2>>;
   P problem(nlid_test::Rosenbrock<2>{});
   LmOptions o;
@@ -161,7 +161,7 @@ TEST_CASE("a fixed parameter stays exactly unchanged", "[estimation][lm]") {
   CHECK(s2.final_cost == Approx(s2.initial_cost));
 }
 
-TEST_CASE("Huber loss recovers the line despite gross outliers; squared loss does not",
+TEST_CASE("Huber loss recovers the line despite gross outliers, squared loss does not",
           "[estimation][lm][robust]") {
   // 10 % of the samples carry a +5 error.
   AutoDiffProblem problem(nlid_test::LineWithOutliers(1.0, 2.0, 100, 10, 5.0));
@@ -191,7 +191,7 @@ TEST_CASE("Huber loss recovers the line despite gross outliers; squared loss doe
   CHECK(s_h.final_cost < 0.5 * r.squaredNorm());
 }
 
-TEST_CASE("callback: trace of costs is monotone over accepted steps; abort stops at once",
+TEST_CASE("callback: trace of costs is monotone over accepted steps, abort stops at once",
           "[estimation][lm]") {
   AutoDiffProblem problem(nlid_test::Rosenbrock<2>{});
   std::vector<nlid::IterationReport> trace;
@@ -545,7 +545,7 @@ std::vector<double> cost_history(const auto& problem, Eigen::Vector2d x, nlid::L
 }
 }  // namespace
 
-TEST_CASE("LmScaling: the column scalings are invariant to parameter units; all three converge", "[estimation][lm]") {
+TEST_CASE("LmScaling: the column scalings are invariant to parameter units, all three converge", "[estimation][lm]") {
   AutoDiffProblem plain(nlid_test::Rosenbrock<2>{});
   AutoDiffProblem other(RosenbrockInOtherUnits{});
   std::vector<double> running_max_costs;

@@ -55,7 +55,7 @@ TEST_CASE("robust cost and IRLS weights", "[estimation][robust]") {
   CHECK(w[2] * w[2] * r[2] == Approx(1.0));
 }
 
-TEST_CASE("robust_scale ignores outliers; validation names the field", "[estimation][robust]") {
+TEST_CASE("robust_scale ignores outliers, validation names the field", "[estimation][robust]") {
   Eigen::VectorXd r(101);
   for (int i = 0; i < 101; ++i) r[i] = 0.2 * std::sin(0.37 * i * i);
   const double s0 = nlid::robust_scale(r);

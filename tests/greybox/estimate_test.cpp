@@ -135,7 +135,7 @@ TEST_CASE("Two tanks (Torricelli) with a pump", "[greybox][estimate]") {
   CHECK(m.parameter("offset") == 0.0);
 }
 
-TEST_CASE("Fixed parameters stay bit-for-bit; zero and equilibrium starts work", "[greybox][estimate]") {
+TEST_CASE("Fixed parameters stay bit-for-bit, zero and equilibrium starts work", "[greybox][estimate]") {
   GreyBox<physics::MassSpringDamper> truth;
   truth.set_parameters(Eigen::Vector4d(8.0, 150.0, 300.0, 0.0));
   const Dataset d(nlid_test::simulated(truth, nlid_test::steps({0.0, 1.0, 0.5}, 60, 240), 0.01,

@@ -430,7 +430,7 @@ TEST_CASE("Fixed parameters get zero Jacobian columns", "[greybox][jacobian]") {
   CHECK(pb.fixed_mask() == std::vector<bool>{false, false, true});
 }
 
-TEST_CASE("Initial conditions: zero, equilibrium, estimated; measured is rejected", "[greybox]") {
+TEST_CASE("Initial conditions: zero, equilibrium, estimated, measured is rejected", "[greybox]") {
   GreyBox<physics::MassSpringDamper> m;
   m.set_parameters(Eigen::Vector4d(12.0, 100.0, 80.0, 0.25));
   const double ts = 0.01;

@@ -362,7 +362,7 @@ TEST_CASE("Json pretty printing wraps long numeric arrays and stays parseable") 
   CHECK(nlid::Json::parse(text) == j);
 }
 
-TEST_CASE("write_json / read_json round trip through a file; missing file is an error") {
+TEST_CASE("write_json / read_json round trip through a file, missing file is an error") {
   const auto dir = std::filesystem::temp_directory_path() / "nlid_json_test";
   std::filesystem::create_directories(dir);
   const std::string path = (dir / "summary.json").string();

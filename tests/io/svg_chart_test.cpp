@@ -79,7 +79,7 @@ TEST_CASE("Nice ticks are 1-2-5 steps with the decimals the step needs") {
   CHECK(nlid::detail::nice_ticks(3, 3, 5).values.empty());  // degenerate span: no ticks, no loop
 }
 
-TEST_CASE("Line chart: axes, legend, shading, band; output is deterministic") {
+TEST_CASE("Line chart: axes, legend, shading, band, output is deterministic") {
   std::vector<double> t, y, yhat;
   for (int k = 0; k <= 200; ++k) {
     t.push_back(k * 0.05);
@@ -204,7 +204,7 @@ TEST_CASE("Non-finite samples are gaps and are counted in the legend") {
   CHECK(svg.find(" l0,0") != std::string::npos);  // the lone sample is still visible
 }
 
-TEST_CASE("Unsorted x is drawn in full; x_limits clip to the visible part plus one point") {
+TEST_CASE("Unsorted x is drawn in full, x_limits clip to the visible part plus one point") {
   std::vector<double> x, y;
   for (int k = 0; k < 10000; ++k) {
     x.push_back(std::cos(k * 0.01));
@@ -224,7 +224,7 @@ TEST_CASE("Unsorted x is drawn in full; x_limits clip to the visible part plus o
   CHECK(zoom.svg().find(">900</text>") == std::string::npos);
 }
 
-TEST_CASE("All text is escaped; invalid UTF-8 and control characters are replaced") {
+TEST_CASE("All text is escaped, invalid UTF-8 and control characters are replaced") {
   nlid::LineChart c("<script>alert('x')</script>");
   c.x_label("a & b").y_label("\"q\"");
   c.line(std::string("bad \xC3\x28 utf8 \x01 ctl"), std::vector<double>{1, 2},
@@ -239,7 +239,7 @@ TEST_CASE("All text is escaped; invalid UTF-8 and control characters are replace
   CHECK(svg.find("red&quot; onload=&quot;x") != std::string::npos);
 }
 
-TEST_CASE("Line chart inputs: Eigen vectors and std::array work; bad input is an error") {
+TEST_CASE("Line chart inputs: Eigen vectors and std::array work, bad input is an error") {
   Eigen::VectorXd t = Eigen::VectorXd::LinSpaced(50, 0, 1);
   Eigen::VectorXd y = t.array().square();
   std::array<double, 3> a{1, 2, 3};

@@ -173,7 +173,7 @@ TEST_CASE("AnyModel has value semantics and reaches the held model") {
   CHECK_THROWS_WITH(a.set_parameters(Eigen::VectorXd::Zero(2)), Catch::Contains("parameter vector has 2 values"));
 }
 
-TEST_CASE("AnyModel: linear models take parameter vectors; state space explains why it cannot") {
+TEST_CASE("AnyModel: linear models take parameter vectors, state space explains why it cannot") {
   Arx arx(Eigen::Vector2d(-1.5, 0.7), {Eigen::Vector2d(0.3, 0.1)}, {1}, 0.01, 0.5);
   AnyModel a(arx);
   Eigen::VectorXd th = a.parameters();

@@ -248,7 +248,7 @@ TEST_CASE("more free parameters than residuals is refused before initialisation"
                                     "residuals (5 samples in 1 experiment)"));
 }
 
-TEST_CASE("missing samples are refused by name; a constant rest record is estimated, its fit undefined",
+TEST_CASE("missing samples are refused by name, a constant rest record is estimated, its fit undefined",
           "[models][estimate]") {
   using Net = nlid::Nlarx<nlid::LaggedRegressors<2, 2, 0>, nlid::SigmoidNet<4, 2>>;
   const Eigen::MatrixXd u = steps(300, -1, 1, 12);

@@ -70,7 +70,7 @@ TEST_CASE("Wiener simulation equals filter-then-clamp", "[models][hw]") {
   CHECK((sig.col(2) - ref).cwiseAbs().maxCoeff() < 1e-12);
 }
 
-TEST_CASE("HW on double, float and Dual; Jacobian vs central differences", "[models][hw]") {
+TEST_CASE("HW on double, float and Dual, Jacobian vs central differences", "[models][hw]") {
   Hw m(nlid::PwLinear<3>{}, nlid::TransferFunctionBlock<2, 2, 1>{}, nlid::Saturation{});
   Eigen::VectorXd th(12);
   // pwlinear x0 = -1, gaps e^0 = 1: breakpoints -1, 0, 1 with values -0.8, 0, 1.3 (a kinked gain)

@@ -135,7 +135,7 @@ TEST_CASE("fixed and Dynamic variants of the same model simulate identically", "
   CHECK((fixed.predict(e, 1) - dyn.predict(e, 1)).cwiseAbs().maxCoeff() < 1e-12);
 }
 
-TEST_CASE("one-step prediction is F on measured regressors; long horizons give the simulation", "[models][nlarx]") {
+TEST_CASE("one-step prediction is F on measured regressors, long horizons give the simulation", "[models][nlarx]") {
   const Model m = make_model();
   const Eigen::MatrixXd u = inputs(300);
   Eigen::VectorXd y = reference(u, m.parameters(), 0, 0);

@@ -60,7 +60,7 @@ TEST_CASE("c2d / d2c: first-order known answer and round trip") {
   CHECK_THROWS_WITH(c2d(c, 0.0), Catch::Contains("new sample time must be positive"));
 }
 
-TEST_CASE("with_sample_time: output-error model, exact at the common instants; delays scale") {
+TEST_CASE("with_sample_time: output-error model, exact at the common instants, delays scale") {
   // Throttle-like linear part at 10 ms: B/F [2 2 2].
   const OutputError oe({Eigen::Vector2d(0.12, 0.09)}, {Eigen::Vector2d(-1.6, 0.68)}, {2}, 0.01, 15.0);
   SampleTimeReport rep;

@@ -140,7 +140,7 @@ TEST_CASE("an N-L-N series is the HammersteinWiener model", "[models][series]") 
   CHECK(s.linear_parameters()[3] == 0.1);
 }
 
-TEST_CASE("series on double, float and Dual; Jacobian vs central differences", "[models][series]") {
+TEST_CASE("series on double, float and Dual, Jacobian vs central differences", "[models][series]") {
   Wh m;
   const Eigen::VectorXd th = wh_theta();
   const Eigen::MatrixXd u = gaussian_input(120, 3);

@@ -79,7 +79,7 @@ TEST_CASE("nlid-fit + nlid-sim: a nonlinear ARX model of a known first-order lag
   CHECK(fit_pct > 98.5);
 }
 
-TEST_CASE("nlid-fit: unknown specs say what is accepted; bad files and columns are located", "[tools][fit]") {
+TEST_CASE("nlid-fit: unknown specs say what is accepted, bad files and columns are located", "[tools][fit]") {
   const fs::path good = write_record("fit_good", 400, 33u, 0);
   const fs::path model = work_dir() / "m.json";
   Run r = fit("--model wx:nb=2 --est " + q(good) + " --save " + q(model));
