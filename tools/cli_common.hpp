@@ -140,7 +140,8 @@ inline std::string translate(std::string s) {
       {" (CsvReadOptions::ts with time_column \"\"; --ts in the tools)", " (--ts)"},
       {" (CsvReadOptions::delimiter; --delimiter in the tools)", " (--delimiter)"},
       // In the tools --ts does not paper over a gap (docs/tools.md): resampling is the remedy.
-      {"missing samples? resample first or set CsvReadOptions::ts", "missing samples? resample the record onto a uniform grid first"},
+      {"missing samples? cut the record at the gap or fill it, or raise CsvReadOptions::time_tolerance if the stamps only jitter",
+       "missing samples? cut the record at the gap or resample it onto a uniform grid (--ts cannot make it even)"},
       {"set CsvReadOptions::ts", "give --ts"},
       {"set it (set_ts) or CodegenOptions::ts", "give --ts"},
       {"set CodegenOptions::ts", "give --ts"},

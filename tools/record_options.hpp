@@ -106,48 +106,10 @@ inline nlid::CsvReadOptions csv_read_options(const RecordOptions& o, const std::
   return c;
 }
 
-/// With --ts and a time column in `path` (already read by read_csv, so the stamps are finite and
-/// increasing): the stamps must still be evenly spaced - --ts sets the spacing but cannot make a
-/// record with a dropped sample even, so a step off the typical one by more than 1 % (read_csv's
-/// tolerance) is an error naming the row. A uniform column at another rate than --ts is what
-/// --ts is for; the returned note (printed by the tool) names the file and both sample times.
-inline std::string check_ts_against_time_column(const RecordOptions& o, const std::string& path) {
-  if (!(o.ts > 0.0) || !header_has(path, o.time, o.delimiter)) return {};
-  const nlid::detail::CsvText t = nlid::detail::tokenize_csv(path, o.delimiter);
-  const std::size_t col = nlid::detail::find_column(t, o.time, "time");
-  const Eigen::VectorXd time = nlid::detail::parse_column(t, col, o.decimal);
-  const Eigen::Index n = time.size();
-  if (n < 2) return {};
-  const Eigen::VectorXd steps = time.tail(n - 1) - time.head(n - 1);
-  std::vector<double> sorted(steps.data(), steps.data() + steps.size());
-  const auto mid = sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2);
-  std::nth_element(sorted.begin(), mid, sorted.end());
-  const double typical = *mid;
-  constexpr double tolerance = 1e-2;
-  char buf[320];
-  for (Eigen::Index k = 1; k < n; ++k) {
-    const double step = steps(k - 1);
-    if (!(std::abs(step - typical) <= tolerance * typical)) {
-      const long row0 = t.lines[static_cast<std::size_t>(k - 1)], row1 = t.lines[static_cast<std::size_t>(k)];
-      std::snprintf(buf, sizeof buf,
-                    "the time column '%s' is not evenly spaced: the step from row %ld to row %ld is %.10g s, %.4g times "
-                    "the typical step %.10g s (%s); --ts %.10g would treat the samples as evenly spaced",
-                    o.time.c_str(), row0, row1, step, step / typical, typical,
-                    step > typical ? "missing samples?" : "an extra or misplaced sample?", o.ts);
-      throw nlid::Error(std::string(buf) + " - resample the record onto a uniform grid first",
-                        nlid::detail::csv_at(path, row1, static_cast<long>(col) + 1, o.time));
-    }
-  }
-  if (std::abs(typical - o.ts) > tolerance * o.ts) {
-    std::snprintf(buf, sizeof buf, "%s: --ts %.10g s overrides the sample time %.10g s of its time column '%s'",
-                  path.c_str(), o.ts, typical, o.time.c_str());
-    return buf;
-  }
-  return {};
-}
-
 /// Reads `path` with these options (read_csv), adding the tools' hints: --decimal for a cell with a
-/// decimal comma; with --ts, the time-column check above (its note printed as "TOOL: note: ...").
+/// decimal comma. With --ts and a time column, read_csv still refuses a gap (a dropped sample), and
+/// a column at another rate than --ts is printed as "TOOL: note: FILE: --ts T s overrides ...".
+
 inline nlid::Experiment read_record(const RecordOptions& o, const std::string& path,
                                     const std::vector<std::string>& inputs, const std::vector<std::string>& outputs,
                                     const std::string& tool) {
@@ -156,8 +118,13 @@ inline nlid::Experiment read_record(const RecordOptions& o, const std::string& p
   c.outputs = outputs;
   try {
     nlid::Experiment e = nlid::read_csv(path, c);
-    const std::string note = check_ts_against_time_column(o, path);
-    if (!note.empty()) std::cerr << tool << ": note: " << note << "\n";
+    for (const std::string& n : e.notes()) {
+      const auto at = n.find(" set by the caller; the time column's step is ");
+      if (at == std::string::npos || n.rfind("sample time ", 0) != 0) continue;
+      std::cerr << tool << ": note: " << path << ": --ts " << n.substr(12, at - 12)
+                << " s overrides the sample time " << n.substr(at + 46) << " s of its time column '" << o.time
+                << "'\n";
+    }
     return e;
   } catch (const nlid::Error& e) {
     const std::string hint = decimal_hint(e, o.delimiter, o.decimal);
