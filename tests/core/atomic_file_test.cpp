@@ -2,23 +2,39 @@
 
 #include <catch2/catch.hpp>
 #include <filesystem>
+#include <string>
 
 namespace fs = std::filesystem;
 
-TEST_CASE("write_file_atomically replaces the file and leaves no temporary behind") {
-  const fs::path dir = fs::temp_directory_path() / "nlid_atomic_test";
+namespace {
+
+// An empty scratch directory under the system's temporary directory.
+fs::path fresh_dir(const std::string& name) {
+  const fs::path dir = fs::temp_directory_path() / name;
   fs::remove_all(dir);
   fs::create_directories(dir);
+  return dir;
+}
+
+// Number of entries in `dir` (files left behind show up here).
+int entries(const fs::path& dir) {
+  int n = 0;
+  for (const auto& e : fs::directory_iterator(dir)) {
+    (void)e;
+    ++n;
+  }
+  return n;
+}
+
+}  // namespace
+
+TEST_CASE("write_file_atomically replaces the file and leaves no temporary behind") {
+  const fs::path dir = fresh_dir("nlid_atomic_test");
   const std::string path = (dir / "out.txt").string();
   nlid::write_file_atomically(path, "first");
   nlid::write_file_atomically(path, "second\nline");
   CHECK(nlid::read_file(path) == "second\nline");
-  int entries = 0;
-  for (const auto& e : fs::directory_iterator(dir)) {
-    (void)e;
-    ++entries;
-  }
-  CHECK(entries == 1);
+  CHECK(entries(dir) == 1);
   fs::remove_all(dir);
 }
 
@@ -33,9 +49,7 @@ TEST_CASE("atomic write and read report the file on failure") {
 }
 
 TEST_CASE("files written as a set change together or not at all") {
-  const fs::path dir = fs::temp_directory_path() / "nlid_atomic_set_test";
-  fs::remove_all(dir);
-  fs::create_directories(dir);
+  const fs::path dir = fresh_dir("nlid_atomic_set_test");
   const std::string h = (dir / "m.h").string(), c = (dir / "m.c").string();
   nlid::write_files_atomically({{h, "header 1"}, {c, "source 1"}});
   CHECK(nlid::read_file(h) == "header 1");
@@ -47,19 +61,12 @@ TEST_CASE("files written as a set change together or not at all") {
                     Catch::Contains("path is a directory") && Catch::Contains("m.c"));
   CHECK(nlid::read_file(h) == "header 1");
   // Nothing but m.h and the directory m.c is left behind (no temporaries).
-  int entries = 0;
-  for (const auto& e : fs::directory_iterator(dir)) {
-    (void)e;
-    ++entries;
-  }
-  CHECK(entries == 2);
+  CHECK(entries(dir) == 2);
   fs::remove_all(dir);
 }
 
 TEST_CASE("a long file name still gets a temporary within the name limit") {
-  const fs::path dir = fs::temp_directory_path() / "nlid_atomic_long_test";
-  fs::remove_all(dir);
-  fs::create_directories(dir);
+  const fs::path dir = fresh_dir("nlid_atomic_long_test");
   const std::string name(240, 'n');
   const std::string path = (dir / (name + ".json")).string();
   nlid::write_file_atomically(path, "{}");

@@ -229,15 +229,37 @@ TEST_CASE("Two experiments in lockstep give exactly the numbers of two single ru
   }
 }
 
+namespace {
+
+// Three throttle records of different lengths (240, 170, 200 samples): the first two are
+// evaluated in lockstep, the third alone.
+Dataset three_records(const GreyBox<physics::Throttle>& m, double ts) {
+  Dataset d;
+  d.add(nlid_test::simulated(m, nlid_test::steps({0.3, 0.9, -0.2, 0.5}, 60, 240), ts, Eigen::Vector2d(15.0, 0.0), 0.3, 1, "a"));
+  d.add(nlid_test::simulated(m, nlid_test::steps({0.8, 0.1, 0.6}, 35, 170), ts, Eigen::Vector2d(15.0, 0.0), 0.3, 2, "b"));
+  d.add(nlid_test::simulated(m, nlid_test::steps({0.5, 0.2}, 40, 200), ts, Eigen::Vector2d(15.0, 0.0), 0.3, 3, "c"));
+  return d;
+}
+
+// The first record of `d`, then its second with an input of 1e305 at sample 50, which makes the
+// simulation diverge there.
+Dataset with_wild_second(const Dataset& d) {
+  Dataset bad;
+  bad.add(d[0]);
+  Eigen::MatrixXd u = d[1].u();
+  u(50, 0) = 1e305;
+  bad.add(Experiment(u, d[1].y(), d[1].ts(), "wild"));
+  return bad;
+}
+
+}  // namespace
+
 TEST_CASE("Residuals alone equal the residuals of the Jacobian pass, bit for bit", "[greybox]") {
   // Three records of different lengths: the first two in lockstep, the third alone.
   GreyBox<physics::Throttle> m;
   m.set_parameters(throttle_truth());
   const double ts = 0.01;
-  Dataset d;
-  d.add(nlid_test::simulated(m, nlid_test::steps({0.3, 0.9, -0.2, 0.5}, 60, 240), ts, Eigen::Vector2d(15.0, 0.0), 0.3, 1, "a"));
-  d.add(nlid_test::simulated(m, nlid_test::steps({0.8, 0.1, 0.6}, 35, 170), ts, Eigen::Vector2d(15.0, 0.0), 0.3, 2, "b"));
-  d.add(nlid_test::simulated(m, nlid_test::steps({0.5, 0.2}, 40, 200), ts, Eigen::Vector2d(15.0, 0.0), 0.3, 3, "c"));
+  const Dataset d = three_records(m, ts);
   Eigen::VectorXd p = throttle_truth();
   p[0] *= 1.3;  // away from the truth, so the residuals are not noise alone
   for (const InitialCondition ic : {InitialCondition::zero, InitialCondition::estimate, InitialCondition::equilibrium}) {
@@ -260,11 +282,7 @@ TEST_CASE("Residuals alone equal the residuals of the Jacobian pass, bit for bit
     }
   }
   SECTION("one diverging record fails the evaluation") {
-    Dataset bad;
-    bad.add(d[0]);
-    Eigen::MatrixXd u = d[1].u();
-    u(50, 0) = 1e305;
-    bad.add(Experiment(u, d[1].y(), ts, "wild"));
+    const Dataset bad = with_wild_second(d);
     nlid::GreyBoxProblem<physics::Throttle> pb(m.physics(), m.integrator(), bad, InitialCondition::zero);
     Eigen::VectorXd r(pb.num_residuals());
     CHECK_FALSE(pb.evaluate(p, r, nullptr));
@@ -277,10 +295,7 @@ TEST_CASE("Jacobian passes in lockstep pairs equal the passes one after the othe
   m.set_parameters(throttle_truth());
   const double ts = 0.01;
   // Three records of different lengths: the first two paired, the third alone.
-  Dataset d;
-  d.add(nlid_test::simulated(m, nlid_test::steps({0.3, 0.9, -0.2, 0.5}, 60, 240), ts, Eigen::Vector2d(15.0, 0.0), 0.3, 1, "a"));
-  d.add(nlid_test::simulated(m, nlid_test::steps({0.8, 0.1, 0.6}, 35, 170), ts, Eigen::Vector2d(15.0, 0.0), 0.3, 2, "b"));
-  d.add(nlid_test::simulated(m, nlid_test::steps({0.5, 0.2}, 40, 200), ts, Eigen::Vector2d(15.0, 0.0), 0.3, 3, "c"));
+  const Dataset d = three_records(m, ts);
   Eigen::VectorXd p = throttle_truth();
   p[0] *= 1.3;
   for (const InitialCondition ic : {InitialCondition::zero, InitialCondition::estimate, InitialCondition::equilibrium}) {
@@ -309,11 +324,7 @@ TEST_CASE("Jacobian passes in lockstep pairs equal the passes one after the othe
     nlid_test::check_lockstep_jacobians(pb, theta);
   }
   SECTION("a record that diverges fails both ways") {
-    Dataset bad;
-    bad.add(d[0]);
-    Eigen::MatrixXd u = d[1].u();
-    u(50, 0) = 1e305;
-    bad.add(Experiment(u, d[1].y(), ts, "wild"));
+    const Dataset bad = with_wild_second(d);
     nlid::GreyBoxProblem<physics::Throttle> pb(m.physics(), m.integrator(), bad, InitialCondition::zero);
     nlid_test::check_lockstep_jacobians(pb, p, false);
   }

@@ -207,12 +207,12 @@ TEST_CASE("a record resized through u() or y() is refused by every model's simul
   HammersteinWiener hw(UnitGain{}, TransferFunctionBlock<1, 1, 0>{}, UnitGain{}, 0.01);
   GreyBox<physics::Throttle> g;
   for (const Experiment* e : {&shorter_y, &shorter_u}) {
-    CHECK_THROWS_WITH(a.simulate(*e), Contains("output rows (resized through u() or y()?)"));
-    CHECK_THROWS_WITH(o.simulate(*e), Contains("output rows (resized through u() or y()?)"));
-    CHECK_THROWS_WITH(n.simulate(*e, InitialCondition::measured), Contains("output rows (resized"));
-    CHECK_THROWS_WITH(hw.simulate(*e), Contains("output rows (resized"));
-    CHECK_THROWS_WITH(g.simulate(*e, InitialCondition::zero), Contains("output rows (resized"));
-    CHECK_THROWS_WITH(AnyModel(a).simulate(*e), Contains("output rows (resized"));
+    CHECK_THROWS_WITH(a.simulate(*e), Contains("input and output have different sample counts"));
+    CHECK_THROWS_WITH(o.simulate(*e), Contains("input and output have different sample counts"));
+    CHECK_THROWS_WITH(n.simulate(*e, InitialCondition::measured), Contains("input and output have different sample counts"));
+    CHECK_THROWS_WITH(hw.simulate(*e), Contains("input and output have different sample counts"));
+    CHECK_THROWS_WITH(g.simulate(*e, InitialCondition::zero), Contains("input and output have different sample counts"));
+    CHECK_THROWS_WITH(AnyModel(a).simulate(*e), Contains("input and output have different sample counts"));
   }
 }
 

@@ -12,17 +12,16 @@
 
 namespace fs = std::filesystem;
 using tool_test::q;
+using tool_test::fit;
+using tool_test::sim;
+using tool_test::codegen;
+using tool_test::diagnose;
 using tool_test::Run;
 using tool_test::slurp;
 using tool_test::work_dir;
 using tool_test::write_record;
 
 namespace {
-
-Run fit(const std::string& args) { return tool_test::run_tool(NLID_FIT_EXE, args); }
-Run sim(const std::string& args) { return tool_test::run_tool(NLID_SIM_EXE, args); }
-Run codegen(const std::string& args) { return tool_test::run_tool(NLID_CODEGEN_EXE, args); }
-Run diagnose(const std::string& args) { return tool_test::run_tool(NLID_DIAGNOSE_EXE, args); }
 
 // A record whose input is `u` everywhere (output: a noisy constant).
 fs::path constant_input_record(const std::string& name, double u, int n = 600) {

@@ -22,16 +22,15 @@
 
 namespace fs = std::filesystem;
 using tool_test::q;
+using tool_test::fit;
+using tool_test::sim;
+using tool_test::codegen;
 using tool_test::Run;
 using tool_test::slurp;
 using tool_test::work_dir;
 using tool_test::write_record;
 
 namespace {
-
-Run fit(const std::string& args) { return tool_test::run_tool(NLID_FIT_EXE, args); }
-Run sim(const std::string& args) { return tool_test::run_tool(NLID_SIM_EXE, args); }
-Run codegen(const std::string& args) { return tool_test::run_tool(NLID_CODEGEN_EXE, args); }
 
 std::vector<double> csv_column(const fs::path& p, int col) {
   std::ifstream f(p);
@@ -307,7 +306,7 @@ TEST_CASE("nlid-diagnose --save -> nlid-sim and nlid-codegen: the repaired model
   const fs::path dir = work_dir() / "dg";
   fs::create_directories(dir);
   const fs::path model = dir / "repaired.json";
-  const Run d = tool_test::run_tool(NLID_DIAGNOSE_EXE, "--baseline first_order --est " + q(est) + " --val " + q(val) +
+  const Run d = tool_test::diagnose("--baseline first_order --est " + q(est) + " --val " + q(val) +
                                                          " --starts 2 --threads 2 --quiet --save " + q(model));
   INFO(d.err);
   REQUIRE(d.code == 0);

@@ -12,55 +12,50 @@
 
 namespace fs = std::filesystem;
 using tool_test::q;
+using tool_test::diagnose;
 using tool_test::Run;
 using tool_test::slurp;
 using tool_test::work_dir;
 using tool_test::write_record;
 
-namespace {
-
-Run run(const std::string& args) { return tool_test::run_tool(NLID_DIAGNOSE_EXE, args); }
-
-}  // namespace
-
 TEST_CASE("nlid-diagnose: help and usage errors", "[tools][diagnose]") {
-  Run r = run("--help");
+  Run r = diagnose("--help");
   CHECK(r.code == 0);
   CHECK_THAT(r.out, Catch::Contains("--baseline NAME"));
-  r = run("");
+  r = diagnose("");
   CHECK(r.code == 2);
   CHECK_THAT(r.err, Catch::Contains("no arguments") && Catch::Contains("usage:"));
-  r = run("--baseline throttle --est a.csv --val b.csv --frobnicate 3");
+  r = diagnose("--baseline throttle --est a.csv --val b.csv --frobnicate 3");
   CHECK(r.code == 2);
   CHECK_THAT(r.err, Catch::Contains("unknown option '--frobnicate'"));
-  r = run("--baseline throttle --val b.csv");
+  r = diagnose("--baseline throttle --val b.csv");
   CHECK(r.code == 2);
   CHECK_THAT(r.err, Catch::Contains("at least one --est file is required"));
-  r = run("--baseline throttle --est a.csv --val b.csv --decimate zero");
+  r = diagnose("--baseline throttle --est a.csv --val b.csv --decimate zero");
   CHECK(r.code == 2);
   CHECK_THAT(r.err, Catch::Contains("--decimate needs an integer from 1 to 1000000, got 'zero'"));
-  r = run("--baseline throttle --est a.csv --val b.csv --x0 measured");
+  r = diagnose("--baseline throttle --est a.csv --val b.csv --x0 measured");
   CHECK(r.code == 2);
   CHECK_THAT(r.err, Catch::Contains("--x0 must be 'estimate' or 'zero'"));
 }
 
 TEST_CASE("nlid-diagnose: unknown baseline lists the catalogue", "[tools][diagnose]") {
-  const Run r = run("--baseline valve --est a.csv --val b.csv");
+  const Run r = diagnose("--baseline valve --est a.csv --val b.csv");
   CHECK(r.code == 2);
   CHECK_THAT(r.err, Catch::Contains("unknown physics 'valve'") && Catch::Contains("first_order") &&
                         Catch::Contains("mass_spring_damper") && Catch::Contains("rigid_body") &&
                         Catch::Contains("throttle") && Catch::Contains("two_tank"));
-  const Run e = run("--baseline first_order --est a.csv --val b.csv --effects coulomb_friction,stiction");
+  const Run e = diagnose("--baseline first_order --est a.csv --val b.csv --effects coulomb_friction,stiction");
   CHECK(e.code == 2);
   CHECK_THAT(e.err, Catch::Contains("unknown effect 'stiction'"));
 }
 
 TEST_CASE("nlid-diagnose: bad files, missing columns, data too short", "[tools][diagnose]") {
   const fs::path good = write_record("good", 400, 1u, 0);
-  Run r = run("--baseline first_order --est " + q(work_dir() / "missing.csv") + " --val " + q(good));
+  Run r = diagnose("--baseline first_order --est " + q(work_dir() / "missing.csv") + " --val " + q(good));
   CHECK(r.code == 1);
   CHECK_THAT(r.err, Catch::Contains("missing.csv"));
-  r = run("--baseline first_order --est " + q(good) + " --val " + q(good) + " --output angle");
+  r = diagnose("--baseline first_order --est " + q(good) + " --val " + q(good) + " --output angle");
   CHECK(r.code == 1);
   CHECK_THAT(r.err, Catch::Contains("angle") && Catch::Contains("available columns"));
   const fs::path bad = work_dir() / "bad.csv";
@@ -68,7 +63,7 @@ TEST_CASE("nlid-diagnose: bad files, missing columns, data too short", "[tools][
     std::ofstream f(bad);
     f << "t,u,y\n0,0,1\n0.01,0,abc\n0.02,0,1\n";
   }
-  r = run("--baseline first_order --est " + q(bad) + " --val " + q(good));
+  r = diagnose("--baseline first_order --est " + q(bad) + " --val " + q(good));
   CHECK(r.code == 1);
   CHECK_THAT(r.err, Catch::Contains("bad.csv") && Catch::Contains("row 3"));
   // (write_record holds each input level >= 30 samples: its 30-sample record has a constant input,
@@ -79,14 +74,14 @@ TEST_CASE("nlid-diagnose: bad files, missing columns, data too short", "[tools][
     f << "t,u,y\n";
     for (int k = 0; k < 30; ++k) f << k * 0.01 << "," << (k / 5) % 2 << "," << 0.5 + 0.01 * k << "\n";
   }
-  r = run("--baseline first_order --est " + q(shorty) + " --val " + q(good));
+  r = diagnose("--baseline first_order --est " + q(shorty) + " --val " + q(good));
   CHECK(r.code == 1);
   CHECK_THAT(r.err, Catch::Contains("too short") && Catch::Contains("30 samples"));
-  r = run("--baseline first_order --est " + q(good) + " --val " + q(good) + " --decimate 10");
+  r = diagnose("--baseline first_order --est " + q(good) + " --val " + q(good) + " --decimate 10");
   CHECK(r.code == 1);
   CHECK_THAT(r.err, Catch::Contains("too short") && Catch::Contains("after decimation by 10"));
   const fs::path notime = write_record("notime", 400, 3u, 0, false);
-  r = run("--baseline first_order --est " + q(notime) + " --val " + q(good));
+  r = diagnose("--baseline first_order --est " + q(notime) + " --val " + q(good));
   CHECK(r.code == 1);
   CHECK_THAT(r.err, Catch::Contains("'t'"));
 }
@@ -95,7 +90,7 @@ TEST_CASE("nlid-diagnose: names a concealed dead time and writes JSON and HTML",
   const fs::path est = write_record("est", 1500, 11u, 4);
   const fs::path val = write_record("val", 1500, 12u, 4, false);  // sample time from --ts
   const fs::path json = work_dir() / "out.json", html = work_dir() / "out.html";
-  const Run r = run("--baseline first_order --est " + q(est) + " --val " + q(val) + " --ts 0.01 --starts 2 --threads 2" +
+  const Run r = diagnose("--baseline first_order --est " + q(est) + " --val " + q(val) + " --ts 0.01 --starts 2 --threads 2" +
                     " --json " + q(json) + " --html " + q(html));
   INFO(r.err);
   REQUIRE(r.code == 0);
@@ -119,7 +114,7 @@ TEST_CASE("nlid-diagnose: names a concealed dead time and writes JSON and HTML",
 TEST_CASE("nlid-diagnose: records of 10^5 samples", "[tools][diagnose][large]") {
   const fs::path est = write_record("big_est", 100000, 21u, 0, true, "level");
   const fs::path val = write_record("big_val", 100000, 22u, 0, true, "level");
-  const Run r = run("--baseline first_order --est " + q(est) + " --val " + q(val) +
+  const Run r = diagnose("--baseline first_order --est " + q(est) + " --val " + q(val) +
                     " --output level --starts 1 --threads 2 --effects output_offset,dead_time --quiet");
   INFO(r.err);
   REQUIRE(r.code == 0);

@@ -17,15 +17,14 @@
 
 namespace fs = std::filesystem;
 using tool_test::q;
+using tool_test::fit;
+using tool_test::sim;
 using tool_test::Run;
 using tool_test::slurp;
 using tool_test::work_dir;
 using tool_test::write_record;
 
 namespace {
-
-Run fit(const std::string& args) { return tool_test::run_tool(NLID_FIT_EXE, args); }
-Run sim(const std::string& args) { return tool_test::run_tool(NLID_SIM_EXE, args); }
 
 // Column `col` of a CSV file with a header row.
 std::vector<double> column(const fs::path& p, int col) {

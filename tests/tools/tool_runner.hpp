@@ -88,4 +88,10 @@ inline fs::path write_record(const std::string& name, int n, unsigned seed, doub
 /// Quoted path for a shell command line.
 inline std::string q(const fs::path& p) { return "\"" + p.string() + "\""; }
 
+// Each tool with its command-line arguments (paths from the build: NLID_<TOOL>_EXE).
+inline Run fit(const std::string& args) { return run_tool(NLID_FIT_EXE, args); }
+inline Run sim(const std::string& args) { return run_tool(NLID_SIM_EXE, args); }
+inline Run codegen(const std::string& args) { return run_tool(NLID_CODEGEN_EXE, args); }
+inline Run diagnose(const std::string& args) { return run_tool(NLID_DIAGNOSE_EXE, args); }
+
 }  // namespace tool_test

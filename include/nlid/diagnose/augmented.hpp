@@ -673,10 +673,7 @@ void AugmentedModel<P>::check_experiment(const Experiment& e, long index) const 
               std::to_string(detail::physics_inputs(phys_)),
           where);
   require(e.size() >= 2, who + " has fewer than 2 samples", where);
-  require(e.u().rows() == e.y().rows(),
-          who + " has " + std::to_string(e.u().rows()) + " input rows but " + std::to_string(e.y().rows()) +
-              " output rows (resized through u() or y()?)",
-          where);
+  e.validate(true);  // u() and y() are mutable: a record resized through one would be read past its end
   // The simulation steps by the model's own sample time: a record at another rate would run on
   // a stretched time axis and still look plausible.
   require(std::abs(e.ts() - ts_) <= 1e-9 * ts_,

@@ -513,10 +513,7 @@ class GreyBox {
     const Location where = index >= 0 ? at_experiment(index) : Location{};
     const std::string label = "experiment " + (index >= 0 ? std::to_string(index) + " " : std::string()) +
                               (e.name().empty() ? std::string() : "('" + e.name() + "') ");
-    require(e.u().rows() == e.y().rows(),
-            label + "has " + std::to_string(e.u().rows()) + " input rows but " + std::to_string(e.y().rows()) +
-                " output rows (resized through u() or y()?)",
-            where);
+    e.validate(true);  // u() and y() are mutable: a record resized through one would be read past its end
     require(e.num_inputs() == input_dimension(),
             label + "has " + std::to_string(e.num_inputs()) + " input(s), grey-box model '" + name() +
                 "' takes " + std::to_string(input_dimension()),

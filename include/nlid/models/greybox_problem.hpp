@@ -377,6 +377,13 @@ class GreyBoxProblem {
     if (states_only) return states_width();
     return ic != InitialCondition::estimate ? params_width() : full_width();
   }
+  // f.template operator()<W>() with this problem's pass width W as a compile-time constant.
+  template <class F>
+  bool with_pass_width(F&& f) const {
+    if (states_only_) return f.template operator()<pass_width(true, InitialCondition::zero)>();
+    if (ic_ != InitialCondition::estimate) return f.template operator()<pass_width(false, InitialCondition::zero)>();
+    return f.template operator()<pass_width(false, InitialCondition::estimate)>();
+  }
 
   // Jacobian passes in lockstep pairs by default only where a dual's derivative lanes fill at
   // most one register: then a dual operation is one short dependency chain and the core has
@@ -401,12 +408,7 @@ class GreyBoxProblem {
     }
     PassSetup s;
     if (!setup_pass(e, theta, p, s)) return false;
-    constexpr int WS = pass_width(true, InitialCondition::zero);
-    constexpr int WP = pass_width(false, InitialCondition::zero);
-    constexpr int W = pass_width(false, InitialCondition::estimate);
-    if (states_only_) return passes<WS>(e, p, s, r, *J);
-    if (ic_ != InitialCondition::estimate) return passes<WP>(e, p, s, r, *J);
-    return passes<W>(e, p, s, r, *J);
+    return with_pass_width([&]<int W>() { return passes<W>(e, p, s, r, *J); });
   }
 
   // Jacobian and residuals of experiments e and e + 1 in lockstep; one after the other when
@@ -419,12 +421,7 @@ class GreyBoxProblem {
     if ((*data_)[e].ts() != (*data_)[e + 1].ts() || a.sub != b.sub) {
       return evaluate_experiment(e, theta, p, r, &J) && evaluate_experiment(e + 1, theta, p, r, &J);
     }
-    constexpr int WS = pass_width(true, InitialCondition::zero);
-    constexpr int WP = pass_width(false, InitialCondition::zero);
-    constexpr int W = pass_width(false, InitialCondition::estimate);
-    if (states_only_) return passes_pair<WS>(e, p, a, b, r, J);
-    if (ic_ != InitialCondition::estimate) return passes_pair<WP>(e, p, a, b, r, J);
-    return passes_pair<W>(e, p, a, b, r, J);
+    return with_pass_width([&]<int W>() { return passes_pair<W>(e, p, a, b, r, J); });
   }
 
   // Writes experiment e's weighted residuals (zero where the measurement is missing).

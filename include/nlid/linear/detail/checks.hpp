@@ -32,12 +32,7 @@ inline Location linear_experiment_location(long index) {
 inline void check_linear_experiment(const Experiment& e, int nu, int ny, double ts, long index,
                              const std::string& who, bool need_y) {
   const Location where = linear_experiment_location(index);
-  // u() and y() are mutable references: a record resized through one of them would be read
-  // past its end.
-  if (e.u().rows() != e.y().rows())
-    throw Error(who + ": " + linear_experiment_label(e, index) + " has " + std::to_string(e.u().rows()) +
-                    " input rows but " + std::to_string(e.y().rows()) + " output rows (resized through u() or y()?)",
-                where);
+  e.validate(true);  // u() and y() are mutable: a record resized through one would be read past its end
   if (e.num_inputs() != nu)
     throw Error(who + ": model has " + std::to_string(nu) + " input(s) but " +
                     linear_experiment_label(e, index) + " has " + std::to_string(e.num_inputs()),

@@ -74,12 +74,7 @@ inline void check_experiment(const Experiment& e, long index, int num_inputs, in
                              double model_ts, const char* model_kind) {
   const Location where = experiment_location(index);
   const std::string who = experiment_label(e, index);
-  // u() and y() are mutable references: a record resized through one of them would be read
-  // past its end or silently shortened.
-  require(e.u().rows() == e.y().rows(),
-          who + " has " + std::to_string(e.u().rows()) + " input rows but " + std::to_string(e.y().rows()) +
-              " output rows (resized through u() or y()?)",
-          where);
+  e.validate(true);  // u() and y() are mutable: a record resized through one would be read past its end
   require(e.num_outputs() == 1,
           who + " has " + std::to_string(e.num_outputs()) + " outputs; a " + model_kind +
               " model has one output (estimate one model per output)",
