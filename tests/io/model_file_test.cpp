@@ -319,6 +319,69 @@ TEST_CASE("model file: linear ARX, OE and state-space models") {
   CHECK(bit_equal(back.b(0), arx.b(0)));
 }
 
+TEST_CASE("model file: estimated linear models keep their report and standard deviations, and an edit of one copy of the coefficients is refused") {
+  // ARX data with noise, so that the estimate has a report and non-zero standard deviations.
+  std::mt19937 gen(11);
+  std::normal_distribution<double> noise(0.0, 0.05);
+  const int n = 400;
+  Eigen::MatrixXd u(n, 1), y(n, 1);
+  for (int k = 0; k < n; ++k) {
+    u(k, 0) = (k / 20) % 2 ? 1.0 : -0.5 + 0.3 * std::sin(0.3 * k);
+    y(k, 0) = (k >= 2 ? 1.2 * y(k - 1, 0) - 0.5 * y(k - 2, 0) : 0.0) + (k >= 1 ? 0.4 * u(k - 1, 0) : 0.0) + noise(gen);
+  }
+  const Dataset data(Experiment(u, y, 0.01, "noisy"));
+  const Arx a = arx(data, ArxOrders(2, 1, 1));
+  const OutputError o = oe(data, OeOrders(1, 2, 1));
+  REQUIRE((a.parameter_stddev().array() > 0).all());
+  REQUIRE((o.parameter_stddev().array() > 0).all());
+  REQUIRE_FALSE(a.report().method.empty());
+
+  const std::string pa = temp_path("arx_estimated.json"), po = temp_path("oe_estimated.json");
+  save_model(pa, a);
+  save_model(po, o);
+  const Arx a2 = load_model<Arx>(pa);
+  const OutputError o2 = load_model<OutputError>(po);
+  CHECK(bit_equal(a2.parameter_stddev(), a.parameter_stddev()));
+  CHECK(bit_equal(o2.parameter_stddev(), o.parameter_stddev()));
+  CHECK(a2.report().fit_percent == a.report().fit_percent);
+  CHECK(o2.report().iterations == o.report().iterations);
+  CHECK(a2.describe() == a.describe());  // "+/-" and the report included
+  CHECK(o2.describe() == o.describe());
+  CHECK(load_model(pa).describe() == a.describe());
+
+  // The structure holds the coefficients; "parameters" repeats them. Editing one copy only is refused.
+  const std::string text = read_text(pa);
+  Json j = read_json(pa);
+  j["parameters"]["values"][1] = 0.75;  // a2, while structure.a keeps the estimate
+  std::string msg = error_of([&] { (void)model_from_json<Arx>(j); });
+  CHECK_THAT(msg, Catch::Contains("parameter a2 is 0.75 at parameters.values[1]") && Catch::Contains("structure"));
+  j = read_json(pa);
+  j["parameters"]["names"][0] = "alpha1";
+  CHECK_THAT(error_of([&] { (void)model_from_json<Arx>(j); }),
+             Catch::Contains("do not match the structure's (a1, a2, b1)"));
+  j = read_json(pa);
+  j["parameters"]["stddev"][2] = -1.0;
+  CHECK_THAT(error_of([&] { (void)model_from_json<Arx>(j); }),
+             Catch::Contains("the standard deviation of b1 (entry 2) must be finite and >= 0") && Catch::Contains("parameters.stddev"));
+  CHECK_THAT(error_of([&] { (void)load_model(write_text("arx_count.json", edited(text, "\"values\": [", "\"values\": [1, "))); }),
+             Catch::Contains("4 values at parameters.values") && Catch::Contains("3 parameters"));
+  // Without "parameters" (a hand-written file) the structure alone defines the model.
+  j = read_json(pa);
+  j.erase("parameters");
+  CHECK(bit_equal(model_from_json<Arx>(j).parameters(), a.parameters()));
+  // State space: the same check.
+  Eigen::MatrixXd A(1, 1), B(1, 1), C(1, 1), D(1, 1);
+  A << 0.9;
+  B << 0.5;
+  C << 1.0;
+  D << 0.0;
+  const std::string ps = temp_path("ss_edit.json");
+  save_model(ps, StateSpace(A, B, C, D, 0.01));
+  j = read_json(ps);
+  j["parameters"]["values"][0] = 0.95;
+  CHECK_THAT(error_of([&] { (void)model_from_json<StateSpace>(j); }), Catch::Contains("parameter A(1,1) is 0.95"));
+}
+
 TEST_CASE("model file: doubles are exact, non-finite numbers are spelled out") {
   // Subnormal, tiny, huge, negative zero and 17-digit values survive bit for bit.
   const std::vector<double> v{0.1 + 0.2, 1.0 / 3.0, 5e-324, 1e-300, -0.0, 1.7976931348623157e308, -2.0 / 7.0};

@@ -561,6 +561,48 @@ inline std::vector<Eigen::VectorXd> read_vector_list(const JsonView& v) {
   for (std::size_t i = 0; i < v.as_array().size(); ++i) out.push_back(read_vector(v.at(i)));
   return out;
 }
+/// Linear models: "structure" holds the coefficients and "parameters" repeats them for readers
+/// (and carries the standard deviations, "stddev"). A file whose two copies disagree has had one
+/// edited and not the other; using either silently would be wrong, so it is refused, naming the
+/// first differing value. Returns the standard deviations (empty when the file has none).
+inline Eigen::VectorXd check_linear_parameters(const JsonView& file, const std::vector<std::string>& names,
+                                               const Eigen::VectorXd& th) {
+  if (!file.contains("parameters")) return {};
+  const JsonView p = file.at("parameters");
+  p.check_keys({"names", "values", "stddev"});
+  const auto n = static_cast<Eigen::Index>(names.size());
+  if (p.contains("names")) {
+    const auto got = read_string_list(p.at("names"));
+    if (got != names) {
+      std::string want;
+      for (const auto& s : names) want += (want.empty() ? "" : ", ") + s;
+      p.at("names").fail("the parameter names at " + p.at("names").path_text() +
+                         " do not match the structure's (" + want + ")");
+    }
+  }
+  const auto check_count = [&](const JsonView& v) {
+    const Eigen::VectorXd x = read_vector(v);
+    if (x.size() != n) {
+      v.fail("the file has " + std::to_string(x.size()) + " values at " + v.path_text() +
+             ", the model structure has " + std::to_string(n) + " parameters");
+    }
+    return x;
+  };
+  if (p.contains("values")) {
+    const Eigen::VectorXd v = check_count(p.at("values"));
+    for (Eigen::Index i = 0; i < n; ++i) {
+      if (!(v(i) == th(i))) {
+        p.at("values").at(static_cast<std::size_t>(i))
+            .fail("parameter " + names[static_cast<std::size_t>(i)] + " is " + Json(v(i)).dump() + " at " +
+                  p.at("values").at(static_cast<std::size_t>(i)).path_text() + " but " + Json(th(i)).dump() +
+                  " in \"structure\", which holds a linear model's coefficients: edit both, or drop \"parameters\"");
+      }
+    }
+  }
+  if (!p.contains("stddev")) return {};
+  return check_count(p.at("stddev"));
+}
+
 /// Rethrows a constructor error of a linear model located at the structure.
 template <class Fn>
 auto located(const JsonView& where, Fn&& fn) {
@@ -595,6 +637,7 @@ struct ModelSerial<Arx> {
     s["offset"] = m.offset();
     j["structure"] = std::move(s);
     j["parameters"] = detail::parameters_json(m.parameter_names(), m.parameters());
+    if ((m.parameter_stddev().array() != 0.0).any()) j["parameters"]["stddev"] = m.parameter_stddev();
     j["report"] = linear_report_to_json(m.report());
   }
   /// Builds the model.
@@ -612,6 +655,12 @@ struct ModelSerial<Arx> {
     detail::expect_channel_count(file.at("outputs"), out.size(), 1, "outputs");
     m.set_input_names(in);
     m.set_output_names(out);
+    const Eigen::VectorXd sd = detail::check_linear_parameters(file, m.parameter_names(), m.parameters());
+    if (sd.size() > 0) detail::located(file.at("parameters").at("stddev"), [&] {
+      m.set_parameter_stddev(sd);
+      return 0;
+    });
+    if (file.contains("report")) m.set_report(linear_report_from_json(file.at("report")));
     return m;
   }
   /// Replaces the prototype by the file's model.
@@ -649,6 +698,7 @@ struct ModelSerial<OutputError> {
     s["offset"] = m.offset();
     j["structure"] = std::move(s);
     j["parameters"] = detail::parameters_json(m.parameter_names(), m.parameters());
+    if ((m.parameter_stddev().array() != 0.0).any()) j["parameters"]["stddev"] = m.parameter_stddev();
     j["report"] = linear_report_to_json(m.report());
   }
   /// Builds the model.
@@ -666,6 +716,12 @@ struct ModelSerial<OutputError> {
     detail::expect_channel_count(file.at("outputs"), out.size(), 1, "outputs");
     m.set_input_names(in);
     m.set_output_names(out);
+    const Eigen::VectorXd sd = detail::check_linear_parameters(file, m.parameter_names(), m.parameters());
+    if (sd.size() > 0) detail::located(file.at("parameters").at("stddev"), [&] {
+      m.set_parameter_stddev(sd);
+      return 0;
+    });
+    if (file.contains("report")) m.set_report(linear_report_from_json(file.at("report")));
     return m;
   }
   /// Replaces the prototype by the file's model.
@@ -689,20 +745,8 @@ struct ModelSerial<StateSpace> {
     s["D"] = to_json(m.d());
     s["offset"] = m.offset();
     j["structure"] = std::move(s);
-    Eigen::VectorXd th(m.a().size() + m.b().size() + m.c().size() + m.d().size());
     std::vector<std::string> names;
-    Eigen::Index k = 0;
-    const auto add = [&](const Eigen::MatrixXd& x, const char* n) {
-      for (Eigen::Index r = 0; r < x.rows(); ++r)
-        for (Eigen::Index c = 0; c < x.cols(); ++c) {
-          th(k++) = x(r, c);
-          names.push_back(std::string(n) + "(" + std::to_string(r + 1) + "," + std::to_string(c + 1) + ")");
-        }
-    };
-    add(m.a(), "A");
-    add(m.b(), "B");
-    add(m.c(), "C");
-    add(m.d(), "D");
+    const Eigen::VectorXd th = parameter_table(m, names);
     j["parameters"] = detail::parameters_json(names, th);
     j["report"] = linear_report_to_json(m.report());
   }
@@ -733,11 +777,34 @@ struct ModelSerial<StateSpace> {
       m.set_offset(read_vector(s.at("offset"), m.num_outputs()));
       return 0;
     });
+    std::vector<std::string> names;
+    const Eigen::VectorXd th = parameter_table(m, names);
+    (void)detail::check_linear_parameters(file, names, th);
     m.set_report(linear_report_from_json(file.at("report")));
     return m;
   }
   /// Replaces the prototype by the file's model.
   static void restore(const JsonView& file, StateSpace& m, ModelFileInfo& info) { m = load(file, info); }
+
+ private:
+  /// The entries of A, B, C, D row by row, named "A(1,2)" etc.: the file's "parameters".
+  static Eigen::VectorXd parameter_table(const StateSpace& m, std::vector<std::string>& names) {
+    Eigen::VectorXd th(m.a().size() + m.b().size() + m.c().size() + m.d().size());
+    names.clear();
+    Eigen::Index k = 0;
+    const auto add = [&](const Eigen::MatrixXd& x, const char* n) {
+      for (Eigen::Index r = 0; r < x.rows(); ++r)
+        for (Eigen::Index c = 0; c < x.cols(); ++c) {
+          th(k++) = x(r, c);
+          names.push_back(std::string(n) + "(" + std::to_string(r + 1) + "," + std::to_string(c + 1) + ")");
+        }
+    };
+    add(m.a(), "A");
+    add(m.b(), "B");
+    add(m.c(), "C");
+    add(m.d(), "D");
+    return th;
+  }
 };
 
 }  // namespace nlid
