@@ -8,6 +8,8 @@
 #include <string>
 #include <vector>
 
+#include <Eigen/QR>
+
 #include "nlid/estimation.hpp"
 #include "test_problems.hpp"
 
@@ -581,4 +583,154 @@ TEST_CASE("LmScaling: the column scalings are invariant to parameter units, all 
     CHECK(x[0] == Approx(1.0).epsilon(1e-7));
     CHECK(x[1] * (units ? 1000.0 : 1.0) == Approx(1.0).epsilon(1e-7));
   }
+}
+
+namespace {
+
+// r = y − Xθ with a well-conditioned X (3 columns), and the ridge answer of
+// min ½‖y − Xθ‖² + ½λ Σ w_k(θ_k − θ̄_k)²: (XᵀX + λW)θ = Xᵀy + λWθ̄.
+struct RidgeCase {
+  Eigen::MatrixXd X;
+  Eigen::VectorXd y;
+  RidgeCase() : X(30, 3), y(30) {
+    for (int i = 0; i < 30; ++i) {
+      const double t = 0.1 * i;
+      X(i, 0) = 1.0;
+      X(i, 1) = std::sin(t);
+      X(i, 2) = t * t / 9.0;
+      y[i] = 0.5 - 2.0 * X(i, 1) + 3.0 * X(i, 2) + 0.05 * std::cos(7.0 * t);
+    }
+  }
+  Eigen::VectorXd ridge(double lambda, const Eigen::VectorXd& w, const Eigen::VectorXd& nominal) const {
+    const Eigen::MatrixXd A = X.transpose() * X + lambda * Eigen::MatrixXd(w.asDiagonal());
+    const Eigen::VectorXd b = X.transpose() * y + lambda * w.cwiseProduct(nominal);
+    return A.ldlt().solve(b);
+  }
+  template <int P>
+  auto problem() const {
+    return nlid::make_problem<P>(3, 30, [this](const auto& th, Eigen::VectorXd& r, auto* J) {
+      r = y - X * Eigen::VectorXd(th);
+      if (J) *J = -X;
+      return true;
+    });
+  }
+};
+
+}  // namespace
+
+TEST_CASE("regularization: the solution is the ridge estimate towards the nominal, with the penalty in the cost",
+          "[estimation][lm]") {
+  const RidgeCase c;
+  const double lambda = 4.0;
+  const Eigen::Vector3d w(0.0, 1.0, 2.5), nominal(9.0, -1.0, 1.0);  // the intercept is not penalised
+  const Eigen::VectorXd want = c.ridge(lambda, w, nominal);
+  const Eigen::VectorXd plain = c.X.colPivHouseholderQr().solve(c.y);
+  REQUIRE((want - plain).norm() > 0.1);  // the penalty matters here
+
+  LmOptions o;
+  o.regularization.lambda = lambda;
+  o.regularization.weights = w;
+  o.regularization.nominal = nominal;
+  o.gradient_tolerance = 1e-13;  // run to the minimum, not to a small relative decrease
+  o.function_tolerance = 0;
+  Eigen::Vector3d th = Eigen::Vector3d::Zero();  // fixed size
+  const auto s = nlid::solve_least_squares(c.problem<3>(), th, o);
+  INFO(s.message());
+  // Attainable: a cost of ≈ 5 resolves decreases down to ≈ 1e-15, i.e. θ to ≈ √(1e-15) ≈ 3e-8.
+  CHECK((th - want).norm() < 1e-7);
+  const double expected_cost = 0.5 * (c.y - c.X * want).squaredNorm() +
+                               0.5 * lambda * (w.array() * (want - nominal).array().square()).sum();
+  CHECK(std::abs(s.final_cost - expected_cost) < 1e-10 * expected_cost);
+  CHECK(std::abs(s.initial_cost - (0.5 * c.y.squaredNorm() + 0.5 * lambda * (w.array() * nominal.array().square()).sum())) < 1e-9);
+
+  Eigen::VectorXd thd = Eigen::VectorXd::Zero(3);  // Dynamic: the same iterates
+  const auto sd = nlid::solve_least_squares(c.problem<nlid::Dynamic>(), thd, o);
+  CHECK((thd - th).norm() < 1e-12);
+  CHECK(sd.iterations == s.iterations);
+
+  // Defaults: weights all 1, nominal zero.
+  LmOptions d;
+  d.regularization.lambda = lambda;
+  d.gradient_tolerance = 1e-13;
+  d.function_tolerance = 0;
+  th.setZero();
+  (void)nlid::solve_least_squares(c.problem<3>(), th, d);
+  CHECK((th - c.ridge(lambda, Eigen::Vector3d::Ones(), Eigen::Vector3d::Zero())).norm() < 1e-7);
+  // lambda 0 is off whatever the weights: the plain least-squares answer.
+  d.regularization.lambda = 0.0;
+  d.regularization.weights = w;
+  th.setZero();
+  (void)nlid::solve_least_squares(c.problem<3>(), th, d);
+  CHECK((th - plain).norm() < 1e-7);
+}
+
+TEST_CASE("regularization: the QR fallback solves the regularized step", "[estimation][lm]") {
+  // The ill-conditioned problem above (cond(J) ≈ 1e8) with b pulled towards 3: along the
+  // ill-determined direction the data's curvature (≈ 2e-12) and λ_R = 1e-12 are comparable, so
+  // the answer moves far from (1, 2), and only a step that carries the penalty rows through
+  // the QR reaches it. Reference: Householder QR of the stacked system [J; √λ_R e_b].
+  const int m = 40;
+  Eigen::VectorXd t(m), y(m);
+  for (int i = 0; i < m; ++i) {
+    t[i] = 1.0 + static_cast<double>(i) / m;
+    y[i] = (1.0 + 2.0) * t[i] + 1e-7 * 2.0 * t[i] * t[i];
+  }
+  Eigen::MatrixXd J(m, 2);
+  J.col(0) = t;
+  J.col(1) = t + 1e-7 * t.cwiseProduct(t);
+  auto problem = nlid::make_problem<2>(2, m, [&](const Eigen::Vector2d& th, Eigen::VectorXd& r,
+                                                 nlid::JacobianMatrix<2>* Jp) {
+    r = y - J * th;
+    if (Jp) *Jp = -J;
+    return true;
+  });
+  const double lr = 1e-12, nominal_b = 3.0;
+  Eigen::MatrixXd Js(m + 1, 2);
+  Js.topRows(m) = J;
+  Js.row(m) << 0.0, std::sqrt(lr);
+  Eigen::VectorXd ys(m + 1);
+  ys.head(m) = y;
+  ys[m] = std::sqrt(lr) * nominal_b;
+  const Eigen::Vector2d want = Js.householderQr().solve(ys);
+  REQUIRE(std::abs(want[1] - 2.0) > 0.05);
+
+  LmOptions o;
+  o.initial_lambda = 1e-20;
+  o.gradient_tolerance = 0;
+  o.function_tolerance = 0;
+  o.regularization.lambda = lr;
+  o.regularization.weights = Eigen::Vector2d(0.0, 1.0);
+  o.regularization.nominal = Eigen::Vector2d(0.0, nominal_b);
+  Eigen::Vector2d th(0.0, 0.0);
+  const auto s = nlid::solve_least_squares(problem, th, o);
+  INFO(s.message());
+  CHECK(s.qr_fallbacks > 0);
+  CHECK(std::abs(th[0] - want[0]) < 1e-6);
+  CHECK(std::abs(th[1] - want[1]) < 1e-6);
+}
+
+TEST_CASE("regularization: bad settings are refused naming the option and the parameter", "[estimation][lm][errors]") {
+  const RidgeCase c;
+  const auto fails = [&](auto edit) {
+    LmOptions o;
+    o.parameter_names = {"c", "gain", "curv"};
+    edit(o);
+    Eigen::Vector3d th = Eigen::Vector3d::Zero();
+    try {
+      (void)nlid::solve_least_squares(c.problem<3>(), th, o);
+    } catch (const nlid::Error& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  CHECK_THAT(fails([](LmOptions& o) { o.regularization.lambda = -1.0; }),
+             Contains("regularization.lambda must be finite and >= 0, got -1"));
+  CHECK_THAT(fails([](LmOptions& o) { o.regularization.lambda = std::numeric_limits<double>::infinity(); }),
+             Contains("regularization.lambda must be finite"));
+  CHECK_THAT(fails([](LmOptions& o) { o.regularization.weights = Eigen::Vector2d(1, 1); }),
+             Contains("regularization.weights has 2 entries, the problem has 3 parameters"));
+  CHECK_THAT(fails([](LmOptions& o) { o.regularization.weights = Eigen::Vector3d(1, -2, 1); }),
+             Contains("regularization.weights is -2 for parameter 'gain' (index 1)"));
+  CHECK_THAT(fails([](LmOptions& o) { o.regularization.nominal = Eigen::Vector3d(1, 1, std::nan("")); }),
+             Contains("regularization.nominal is nan for parameter 'curv' (index 2)"));
 }

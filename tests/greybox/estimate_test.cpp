@@ -93,6 +93,41 @@ TEST_CASE("Mass-spring-damper in millimetres", "[greybox][estimate]") {
   CHECK(m.parameter("rest") == Approx(40.0).margin(0.05));
 }
 
+TEST_CASE("Regularization is given in the parameters' own units: a strong pull acts like fixing",
+          "[greybox][estimate]") {
+  // The solver works on scaled parameters; a weight or nominal left unscaled would pull k to
+  // 170 times its scale instead of to 170.
+  GreyBox<physics::MassSpringDamper> truth;
+  truth.set_parameters(Eigen::Vector4d(8.0, 150.0, 3000.0, 40.0));
+  const Dataset d(nlid_test::simulated(truth, nlid_test::steps({0.0, 1.0, -0.5, 0.5}, 60, 360), 0.01,
+                                       Eigen::Vector2d(40.0, 0.0), 0.05, 21, "msd"));
+  GreyBox<physics::MassSpringDamper> held;
+  held.set_parameter("k", 170.0);
+  held.fix("k");
+  (void)estimate(held, d, quick(8, 2));
+
+  GreyBox<physics::MassSpringDamper> pulled;
+  auto o = quick(8, 2);
+  o.multi_start.lm.regularization.lambda = 1e8;
+  o.multi_start.lm.regularization.weights = Eigen::Vector4d(0.0, 1.0, 0.0, 0.0);
+  o.multi_start.lm.regularization.nominal = Eigen::Vector4d(0.0, 170.0, 0.0, 0.0);
+  const auto r = estimate(pulled, d, o);
+  INFO(r.report());
+  CHECK(pulled.parameter("k") == Approx(170.0).epsilon(1e-5));
+  for (const char* p : {"c", "b", "rest"}) {
+    INFO(p);
+    CHECK(pulled.parameter(p) == Approx(held.parameter(p)).epsilon(1e-3));
+  }
+  // A weak pull leaves the data in charge.
+  GreyBox<physics::MassSpringDamper> weak;
+  o.multi_start.lm.regularization.lambda = 1e-9;
+  (void)estimate(weak, d, o);
+  CHECK(weak.parameter("k") == Approx(150.0).epsilon(0.02));
+  // Sizes are the model's parameters, not the solver's (which include initial states).
+  o.multi_start.lm.regularization.weights = Eigen::VectorXd::Ones(6);
+  CHECK_THROWS_WITH(estimate(weak, d, o), Catch::Contains("regularization.weights has 6 entries; the model has 4 parameters"));
+}
+
 TEST_CASE("Rigid body with friction and input offset", "[greybox][estimate]") {
   GreyBox<physics::RigidBody> truth;
   truth.set_parameters(Eigen::Vector3d(2.0, 50.0, 0.1));

@@ -168,6 +168,74 @@ TEST_CASE("multi-experiment simulation focus with estimated initial states", "[m
   CHECK(est.report().fit_percent[1] > 99.9999);
 }
 
+TEST_CASE("regularized prediction focus is the ridge estimate of the regressors", "[models][estimate]") {
+  // A linear-in-θ NARX (LinearMap): the prediction-focus criterion is linear least squares in
+  // θ = [L1 L2 d] over the rows φ(t) = [y(t-1) u(t-1) 1], t = 1 … N-1, so the regularized
+  // estimate has a closed form.
+  using Model = nlid::Nlarx<nlid::LaggedRegressors<1, 1, 1>, nlid::LinearMap<2>>;
+  const int n = 120;
+  const Eigen::MatrixXd u = steps(n, -1.0, 1.0, 9);
+  std::mt19937 gen(4);
+  std::normal_distribution<double> noise(0.0, 0.3);
+  Eigen::VectorXd y(n);
+  y(0) = 0.0;
+  for (int t = 1; t < n; ++t) y(t) = 0.7 * y(t - 1) + 0.5 * u(t - 1, 0) + 0.2 + noise(gen);
+  const nlid::Dataset data(nlid::Experiment(u, y, 1.0, "noisy"));
+  Eigen::MatrixXd phi(n - 1, 3);
+  for (int t = 1; t < n; ++t) phi.row(t - 1) << y(t - 1), u(t - 1, 0), 1.0;
+  const Eigen::VectorXd target = y.tail(n - 1);
+
+  nlid::EstimateOptions o;
+  o.focus = nlid::Focus::prediction;
+  o.solver.function_tolerance = 0;
+  o.solver.gradient_tolerance = 1e-12;
+  const Model plain = nlid::estimate(Model{}, data, o);
+  const Eigen::VectorXd ls = (phi.transpose() * phi).ldlt().solve(phi.transpose() * target);
+  CHECK((plain.parameters() - ls).cwiseAbs().maxCoeff() < 1e-7);  // the rows are the criterion's
+
+  const double lambda = 30.0;
+  const Eigen::Vector3d w(1.0, 4.0, 0.0), nominal(0.2, 0.0, 0.0);  // the offset is free
+  o.solver.regularization.lambda = lambda;
+  o.solver.regularization.weights = w;
+  o.solver.regularization.nominal = nominal;
+  const Model ridge = nlid::estimate(Model{}, data, o);
+  const Eigen::VectorXd want = (phi.transpose() * phi + lambda * Eigen::MatrixXd(w.asDiagonal()))
+                                   .ldlt()
+                                   .solve(phi.transpose() * target + lambda * w.cwiseProduct(nominal));
+  INFO("plain " << plain.parameters().transpose() << ", ridge " << ridge.parameters().transpose() << ", want "
+                << want.transpose());
+  CHECK((want - ls).cwiseAbs().maxCoeff() > 0.05);  // the penalty moves the estimate
+  CHECK((ridge.parameters() - want).cwiseAbs().maxCoeff() < 1e-7);
+
+  o.solver.regularization.weights = Eigen::Vector2d(1.0, 1.0);
+  CHECK_THROWS_WITH(nlid::estimate(Model{}, data, o),
+                    Catch::Contains("regularization.weights has 2 entries; the model has 3 parameters"));
+}
+
+TEST_CASE("regularization leaves estimated initial states free", "[models][estimate]") {
+  // Simulation focus with initial states appended to θ: a strong pull of the model's
+  // parameters towards the truth must not pull the states towards zero.
+  using Model = nlid::Nlarx<nlid::LaggedRegressors<2, 1, 0>, nlid::LinearMap<3>>;
+  Model truth;
+  Eigen::VectorXd th(4);
+  th << 1.3, -0.45, 0.2, 0.7;
+  truth.set_parameters(th);
+  const Eigen::Vector2d x0(8.0, 7.5);
+  const Eigen::MatrixXd u = steps(300, -3.0, 3.0, 20);
+  Eigen::VectorXd y(300);
+  REQUIRE(truth.simulate<double>(u, nlid::detail::as_const_span(th), nlid::detail::as_const_span(x0),
+                                 nlid::detail::as_span(y)));
+  nlid::EstimateOptions o;
+  o.focus = nlid::Focus::simulation;
+  o.initial_condition = nlid::InitialCondition::estimate;
+  o.solver.regularization.lambda = 1e6;
+  o.solver.regularization.nominal = th;
+  const Model est = nlid::estimate(Model{}, nlid::Dataset(nlid::Experiment(u, y, 1.0, "e")), o);
+  CHECK((est.parameters() - th).cwiseAbs().maxCoeff() < 1e-6);
+  REQUIRE(est.report().initial_states.size() == 1);
+  CHECK((est.report().initial_states[0] - x0).cwiseAbs().maxCoeff() < 1e-4);
+}
+
 // Output outliers also enter an ARX model's regressors y(t-1), so one-step (prediction-focus)
 // errors are not robust to them whatever the loss; free-run errors are, since the simulation never
 // reads the measured output. Hence simulation focus here.

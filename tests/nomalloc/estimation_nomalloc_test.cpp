@@ -139,3 +139,44 @@ TEST_CASE("the QR fallback allocates nothing (static P)", "[nomalloc][estimation
   CHECK(s.qr_fallbacks > 0);
   CHECK(s.final_cost < 1e-20);
 }
+
+TEST_CASE("regularized solves allocate nothing, with the normal equations or the QR fallback (static P)",
+          "[nomalloc][estimation]") {
+  const int m = 40;
+  Eigen::VectorXd t(m), y(m), t2(m);
+  for (int i = 0; i < m; ++i) {
+    t[i] = 1.0 + static_cast<double>(i) / m;
+    t2[i] = t[i] * t[i];
+    y[i] = 3.0 * t[i] + 2e-7 * t2[i];
+  }
+  const auto make = [&](double c) {  // c = 1e-7: ill-conditioned (QR fallback); 1: well-conditioned
+    return nlid::make_problem<2>(2, m, [&t, &t2, &y, c](const Eigen::Vector2d& th, Eigen::VectorXd& r,
+                                                        nlid::JacobianMatrix<2>* J) {
+      r = y - (th[0] + th[1]) * t - (c * th[1]) * t2;
+      if (J) {
+        J->col(0) = -t;
+        J->col(1) = -t - c * t2;
+      }
+      return true;
+    });
+  };
+  for (const double c : {1e-7, 1.0}) {
+    auto problem = make(c);
+    nlid::LmOptions o;
+    o.initial_lambda = 1e-20;
+    o.regularization.lambda = 1e-12;
+    o.regularization.weights = Eigen::Vector2d(0.0, 1.0);
+    o.regularization.nominal = Eigen::Vector2d(0.0, 3.0);
+    nlid::LevenbergMarquardt<decltype(problem)> lm(o);
+    lm.setup(problem);
+    Eigen::Vector2d th(0.0, 0.0);
+    nlid::LmSummary s;
+    {
+      NoHeap guard;
+      s = lm.solve(problem, th);
+    }
+    INFO("c = " << c << ": " << s.message());
+    CHECK(s.accepted_steps > 0);
+    CHECK((s.qr_fallbacks > 0) == (c < 1e-3));
+  }
+}

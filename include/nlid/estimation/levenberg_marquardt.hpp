@@ -4,7 +4,8 @@
 ///
 /// Problem (see `concepts.hpp`, `robust_loss.hpp`):
 ///
-///     min_θ F(θ) = ½ Σᵢ ρ(rᵢ(θ)²)   subject to  l ≤ θ ≤ u,  θ_k = θ⁰_k for fixed k.
+///     min_θ F(θ) = ½ Σᵢ ρ(rᵢ(θ)²)   subject to  l ≤ θ ≤ u,  θ_k = θ⁰_k for fixed k
+///     (plus ½λ_R Σ_k R_k(θ_k − θ̄_k)² when regularized, below).
 ///
 /// Each iteration linearises r about θ, r(θ + δ) ≈ r + Jδ, and minimises the damped model
 /// (Levenberg 1944; Marquardt 1963; Moré 1978; Ljung 1999, sec. 10.2, eq. 10.40)
@@ -41,6 +42,13 @@
 /// projected gradient ‖θ − P(θ − ∇F)‖∞, which is zero exactly at KKT points.
 ///
 /// Fixed parameters are held the same way and are returned bit-for-bit unchanged.
+///
+/// Regularization (`LmOptions::regularization`; Ljung 1999, sec. 7.2 "regularization", the
+/// toolbox's `Regularization.Lambda/R/Nominal`): F gains ½λ_R Σ_k R_k (θ_k − θ̄_k)², a pull
+/// towards a nominal θ̄ that keeps over-parameterised models (many network units, short data)
+/// from fitting noise. It is exact in the quadratic model: A += λ_R R, g += λ_R R(θ − θ̄); the QR
+/// fallback stacks the rows √(λ_R R_k)·δ_k under R before the damping rows. The reported costs
+/// include the penalty.
 ///
 /// Memory. `LevenbergMarquardt<Problem>` allocates all workspace in `setup` (r, trial r, IRLS
 /// weights, the m×n Jacobian, n×n matrices); the QR fallback works in place in the Jacobian
@@ -103,6 +111,14 @@ enum class LmScaling {
   levenberg,
 };
 
+/// Quadratic regularization ½·lambda·Σ_k weights_k (θ_k − nominal_k)² added to the cost (file
+/// comment, "Regularization"). Off while `lambda` is 0.
+struct LmRegularization {
+  double lambda = 0.0;      ///< λ_R ≥ 0, in units of the cost per squared parameter unit
+  Eigen::VectorXd weights;  ///< R's diagonal: empty (all 1) or n entries ≥ 0 (0 = not penalised)
+  Eigen::VectorXd nominal;  ///< θ̄: empty (zero) or n finite entries
+};
+
 /// Options of `solve_least_squares`. Every field is validated at the start of a solve; a bad
 /// value throws `nlid::Error` whose location names the option (and the parameter, if any).
 struct LmOptions {
@@ -116,6 +132,7 @@ struct LmOptions {
   Eigen::VectorXd upper_bounds;        ///< empty (none) or n entries; +∞ allowed
   std::vector<bool> fixed;             ///< empty (none) or n flags: true = hold at initial value
   RobustLoss loss;                     ///< ρ: squared (default) or Huber
+  LmRegularization regularization;     ///< pull towards a nominal θ (default: none)
   /// Called after every step attempt; return false to stop (status `user_abort`).
   std::function<bool(const IterationReport&)> callback;
   /// Optional names of the n parameters, used in error messages (default "theta[k]").
@@ -324,6 +341,15 @@ class LmEngine {
     upper_.setConstant(n, std::numeric_limits<double>::infinity());
     if (options_.lower_bounds.size() == n) lower_ = options_.lower_bounds;
     if (options_.upper_bounds.size() == n) upper_ = options_.upper_bounds;
+    const LmRegularization& reg = options_.regularization;
+    reg_weight_.setZero(n);
+    reg_nominal_.setZero(n);
+    if (reg.lambda > 0.0) {
+      reg_weight_.setConstant(n, reg.lambda);
+      if (reg.weights.size() == n) reg_weight_ = reg.lambda * reg.weights;
+      if (reg.nominal.size() == n) reg_nominal_ = reg.nominal;
+    }
+    regularized_ = (reg_weight_.array() > 0.0).any();
     fixed_.setZero(n);
     if (!options_.fixed.empty()) {
       for (int k = 0; k < n; ++k) fixed_[k] = options_.fixed[static_cast<std::size_t>(k)] ? 1 : 0;
@@ -341,6 +367,7 @@ class LmEngine {
     R_.resize(n, n);
     tau_.resize(n);
     small_.resize(2 * n, n);
+    c_.resize(n);
     small_rhs_.resize(2 * n);
     small_tau_.resize(n);
     ldlt_.compute(Matrix::Identity(n, n));  // sizes LDLT's internal buffers now, not in solve
@@ -372,7 +399,7 @@ class LmEngine {
       throw Error("the problem cannot be evaluated at the initial parameters: " + bad_detail_,
                   at_parameter(bad_param_));
     }
-    cost_ = robust_cost(options_.loss, r_);
+    cost_ = robust_cost(options_.loss, r_) + penalty(x_);
     sum.initial_cost = cost_;
     double lambda = options_.initial_lambda;
     double nu = 2.0;
@@ -409,7 +436,7 @@ class LmEngine {
       bool ok = problem(x_trial_, r_trial_, nullptr);
       check_residual_size(r_trial_);
       ok = ok && r_trial_.allFinite();
-      const double new_cost = ok ? robust_cost(options_.loss, r_trial_) : 0.0;
+      const double new_cost = ok ? robust_cost(options_.loss, r_trial_) + penalty(x_trial_) : 0.0;
       const double actual = cost_ - new_cost;
       const double gain = ok && predicted > 0 ? actual / predicted : -1.0;
       const bool accepted = ok && predicted > 0 && actual > 0 && gain > 1e-3;
@@ -541,6 +568,38 @@ class LmEngine {
       }
     }
     validate(o.loss);
+    const LmRegularization& reg = o.regularization;
+    if (!(std::isfinite(reg.lambda) && reg.lambda >= 0)) {
+      throw Error("LmOptions::regularization.lambda must be finite and >= 0, got " + num(reg.lambda),
+                  at_parameter("regularization.lambda"));
+    }
+    check_size(reg.weights.size(), "regularization.weights");
+    check_size(reg.nominal.size(), "regularization.nominal");
+    for (Eigen::Index k = 0; k < reg.weights.size(); ++k) {
+      if (!(std::isfinite(reg.weights[k]) && reg.weights[k] >= 0)) {
+        throw Error("LmOptions::regularization.weights is " + num(reg.weights[k]) + " for parameter '" +
+                        param_name(static_cast<int>(k)) + "' (index " + std::to_string(k) + "); weights must be finite and >= 0",
+                    at_parameter(param_name(static_cast<int>(k))));
+      }
+    }
+    for (Eigen::Index k = 0; k < reg.nominal.size(); ++k) {
+      if (!std::isfinite(reg.nominal[k])) {
+        throw Error("LmOptions::regularization.nominal is " + num(reg.nominal[k]) + " for parameter '" +
+                        param_name(static_cast<int>(k)) + "' (index " + std::to_string(k) + ")",
+                    at_parameter(param_name(static_cast<int>(k))));
+      }
+    }
+  }
+
+  // ½ Σ λ_R R_k (θ_k − θ̄_k)²: the regularization part of F.
+  double penalty(const Vector& x) const {
+    if (!regularized_) return 0.0;
+    double p = 0.0;
+    for (int k = 0; k < n_; ++k) {
+      const double e = x[k] - reg_nominal_[k];
+      p += reg_weight_[k] * e * e;
+    }
+    return 0.5 * p;
   }
 
   // Copies θ into x_, checks it, projects free parameters onto the bounds.
@@ -628,6 +687,12 @@ class LmEngine {
     for (int j = 1; j < n_; ++j)
       for (int i = 0; i < j; ++i) A_(i, j) = A_(j, i);
     g_.noalias() = J_.transpose() * rw_;
+    if (regularized_) {
+      for (int k = 0; k < n_; ++k) {
+        A_(k, k) += reg_weight_[k];
+        g_[k] += reg_weight_[k] * (x_[k] - reg_nominal_[k]);
+      }
+    }
     if (options_.scaling == LmScaling::running_max || options_.scaling == LmScaling::automatic) {
       for (int k = 0; k < n_; ++k) d_[k] = std::max(d_[k], std::sqrt(A_(k, k)));
     } else if (options_.scaling == LmScaling::current) {
@@ -690,16 +755,34 @@ class LmEngine {
     }
   }
 
-  // Ĵ = J̃ D⁻¹ (held columns zeroed) = QR in place; c = Qᵀ(−r̃) kept in rw_. Destroys J_, which
-  // is not needed again before the next Jacobian evaluation.
+  // Ĵ = J̃ D⁻¹ (held columns zeroed) = QR in place; c = Qᵀ(−r̃) (first n entries, zero-padded)
+  // kept in c_. With regularization the rows √(λ_R R_k) s_k y_k = −√(λ_R R_k)(θ_k − θ̄_k) are
+  // folded in by a second QR of [R; those rows], so solve_small sees one triangle as before.
+  // Destroys J_ and rw_, which are not needed again before the next Jacobian evaluation.
   void prepare_qr() {
     for (int k = 0; k < n_; ++k) J_.col(k) *= free_[k] * s_[k];
     detail::householder_qr_in_place(J_, tau_);
     rw_ = -rw_;
     detail::apply_qt(J_, tau_, rw_);
     R_.setZero();
+    c_.setZero();
     const Eigen::Index rows = std::min<Eigen::Index>(m_, n_);
     R_.topRows(rows) = J_.topRows(rows).template triangularView<Eigen::Upper>();
+    c_.head(rows) = rw_.head(rows);
+    if (regularized_) {
+      small_.topRows(n_) = R_;
+      small_.bottomRows(n_).setZero();
+      small_rhs_.head(n_) = c_;
+      for (int k = 0; k < n_; ++k) {
+        const double w = std::sqrt(reg_weight_[k]);
+        small_(n_ + k, k) = free_[k] * w * s_[k];
+        small_rhs_[n_ + k] = -free_[k] * w * (x_[k] - reg_nominal_[k]);
+      }
+      detail::householder_qr_in_place(small_, small_tau_);
+      detail::apply_qt(small_, small_tau_, small_rhs_);
+      R_ = small_.topRows(n_).template triangularView<Eigen::Upper>();
+      c_ = small_rhs_.head(n_);
+    }
     qr_ready_ = true;
   }
 
@@ -710,8 +793,7 @@ class LmEngine {
     const double sl = std::sqrt(lambda);
     for (int k = 0; k < n_; ++k) small_(n_ + k, k) = free_[k] > 0 ? sl : 1.0;
     small_rhs_.setZero();
-    const Eigen::Index rows = std::min<Eigen::Index>(m_, n_);
-    small_rhs_.head(rows) = rw_.head(rows);
+    small_rhs_.head(n_) = c_;
     detail::householder_qr_in_place(small_, small_tau_);
     detail::apply_qt(small_, small_tau_, small_rhs_);
     y_ = small_rhs_.head(n_);
@@ -731,6 +813,11 @@ class LmEngine {
   Eigen::Index m_ = -1;
   // Bounds, fixed flags, iterate, trial, gradient, scales, free set, solution (all size n).
   Vector lower_, upper_, fixed_, x_, x_trial_, g_, d_, s_, y_, rhs_, free_;
+  // Regularization: λ_R·R_k (0 = not penalised) and θ̄; regularized_ if any weight is positive.
+  Vector reg_weight_, reg_nominal_;
+  bool regularized_ = false;
+  // QR fallback: the right-hand side paired with R_ (size n).
+  Vector c_;
   Matrix A_, Ahat_, R_;
   Vector tau_;
   SmallMatrix small_;

@@ -103,8 +103,9 @@ struct EstimateOptions {
   /// sample (models/detail/hw_sensitivity.hpp). false: always forward AD.
   bool structured_jacobian = true;
   /// Solver options of the main stage: `max_iterations`, `loss` (robust), `callback`,
-  /// `lower_bounds`/`upper_bounds`/`fixed` (sized to the model's parameters; entries for
-  /// estimated initial states are added automatically), tolerances.
+  /// `lower_bounds`/`upper_bounds`/`fixed` and `regularization` (sized to the model's
+  /// parameters; entries for estimated initial states are added automatically — free, not
+  /// penalised), tolerances. `regularization` applies to the prediction stage too.
   LmOptions solver;
 };
 
@@ -223,6 +224,18 @@ inline LmOptions extend_options(LmOptions o, int np, int extra, const std::vecto
   check(o.lower_bounds.size(), "lower_bounds");
   check(o.upper_bounds.size(), "upper_bounds");
   check(static_cast<Eigen::Index>(o.fixed.size()), "fixed");
+  check(o.regularization.weights.size(), "regularization.weights");
+  check(o.regularization.nominal.size(), "regularization.nominal");
+  // Appended unknowns (initial states) are not penalised: weight 0.
+  if (extra > 0 && o.regularization.lambda > 0) {
+    if (o.regularization.weights.size() == 0) o.regularization.weights = Eigen::VectorXd::Ones(np);
+    o.regularization.weights.conservativeResize(np + extra);
+    o.regularization.weights.tail(extra).setZero();
+  }
+  if (o.regularization.nominal.size() > 0) {
+    o.regularization.nominal.conservativeResize(np + extra);
+    o.regularization.nominal.tail(extra).setZero();
+  }
   const double inf = std::numeric_limits<double>::infinity();
   if (o.lower_bounds.size() > 0) {
     o.lower_bounds.conservativeResize(np + extra);

@@ -54,7 +54,8 @@ struct GreyBoxEstimateOptions {
   /// Multi-start settings. `num_starts = 1, num_candidates = 1` is a single LM run from the
   /// model's current values. The search box, log spacing, bounds, fixed flags, parameter names
   /// and the candidate hook are filled in from the model; set only counts, threads, tolerances
-  /// and `lm.max_iterations` / tolerances here.
+  /// and `lm.max_iterations` / tolerances / `lm.regularization` here (the last sized to the
+  /// model's parameters and in their own units; initial states are not penalised).
   MultiStartOptions multi_start = default_multi_start();
 
   /// Defaults: 24 candidates screened, 6 refined, LM up to 100 iterations.
@@ -224,6 +225,24 @@ GreyBoxEstimate estimate(GreyBox<P>& model, const Dataset& data,
       if (std::isfinite(v[i])) v[i] /= scale[i];
     }
   };
+  // Regularization is given for the model's parameters in their own units; the solver works in
+  // scaled ones (θ = s·ϑ): λR(θ − θ̄)² = λRs²(ϑ − θ̄/s)². Initial states are not penalised.
+  LmRegularization& reg = ms.lm.regularization;
+  if (reg.lambda > 0.0 || reg.weights.size() > 0 || reg.nominal.size() > 0) {
+    const auto check = [np](Eigen::Index size, const char* what) {
+      require(size == 0 || size == np,
+              std::string("grey-box estimation: ") + what + " has " + std::to_string(size) +
+                  " entries; the model has " + std::to_string(np) + " parameters",
+              at_parameter(what));
+    };
+    check(reg.weights.size(), "regularization.weights");
+    check(reg.nominal.size(), "regularization.nominal");
+    Eigen::VectorXd w = Eigen::VectorXd::Zero(n), nominal = Eigen::VectorXd::Zero(n);
+    w.head(np) = reg.weights.size() == np ? reg.weights : Eigen::VectorXd::Ones(np);
+    if (reg.nominal.size() == np) nominal.head(np) = reg.nominal;
+    reg.weights = w.cwiseProduct(scale).cwiseProduct(scale);
+    reg.nominal = nominal.cwiseQuotient(scale);
+  }
   to_scaled(ms.lm.lower_bounds);
   to_scaled(ms.lm.upper_bounds);
   to_scaled(ms.range_lower);
