@@ -258,6 +258,38 @@ TEST_CASE("model specs carry nlarx's data-driven starts", "[io]") {
                     Catch::Contains("one data-driven start"));
 }
 
+TEST_CASE("model specs carry a regularization lambda into the estimation", "[io]") {
+  using Catch::Contains;
+  CHECK(parse_model_spec("nlarx:na=2,nb=2,nk=0:sigmoidnet:3:lambda=0.5").lambda == 0.5);
+  CHECK(parse_model_spec("wiener:nb=2,nf=2,nk=1:saturation:lambda=1e-3").lambda == 1e-3);
+  CHECK(parse_model_spec("nlarx:na=2,nb=2,nk=0:sigmoidnet:3").lambda == 0.0);
+  CHECK_THROWS_WITH(parse_model_spec("linear:arx:na=1,nb=1,nk=0:lambda=1"), Contains("lambda applies to nlarx, hw"));
+  CHECK_THROWS_WITH(parse_model_spec("greybox:throttle:lambda=1"), Contains("lambda applies to nlarx, hw"));
+  CHECK_THROWS_WITH(parse_model_spec("nlarx:na=2,nb=2,nk=0:linear:lambda=-1"), Contains("is not a finite number >= 0"));
+  CHECK_THROWS_WITH(parse_model_spec("nlarx:na=2,nb=2,nk=0:linear:lambda=inf"), Contains("is not a finite number >= 0"));
+  CHECK_THROWS_WITH(parse_model_spec("nlarx:na=2,nb=2,nk=0:linear:lambda=1x"), Contains("is not a finite number >= 0"));
+  CHECK_THROWS_WITH(parse_model_spec("nlarx:na=2,nb=2,nk=0:linear:lambda=1:lambda=2"), Contains("'lambda' is given twice"));
+  // Through the fit: a linear-in-θ NARX, prediction focus, so the estimate is the ridge answer
+  // (ΦᵀΦ + λI)⁻¹Φᵀy over the rows [y(t-1) u(t-1) 1].
+  const int n = 200;
+  Eigen::MatrixXd u(n, 1), y(n, 1);
+  y(0, 0) = 1.0;
+  for (int k = 0; k < n; ++k) u(k, 0) = (k / 17) % 2 ? 1.0 : -0.4;
+  for (int k = 1; k < n; ++k) y(k, 0) = 0.6 * y(k - 1, 0) + 0.8 * u(k - 1, 0) + 0.3 + 0.05 * std::sin(1.7 * k);
+  const Dataset data(Experiment(u, y, 0.01, "steps"));
+  Eigen::MatrixXd phi(n - 1, 3);
+  for (int k = 1; k < n; ++k) phi.row(k - 1) << y(k - 1, 0), u(k - 1, 0), 1.0;
+  const Eigen::VectorXd target = y.col(0).tail(n - 1);
+  const double lambda = 50.0;
+  const Eigen::VectorXd want =
+      (phi.transpose() * phi + lambda * Eigen::MatrixXd::Identity(3, 3)).ldlt().solve(phi.transpose() * target);
+  SpecFitOptions fo;
+  fo.iterations = 200;
+  const AnyModel m = fit_model_spec(parse_model_spec("nlarx:na=1,nb=1,nk=1:linear:focus=prediction:lambda=50"), data, fo);
+  INFO(m.parameters().transpose() << " vs " << want.transpose());
+  CHECK((m.parameters() - want).cwiseAbs().maxCoeff() < 1e-6);
+}
+
 TEST_CASE("model specs refuse a key or map given twice and options that do nothing", "[io][errors]") {
   using Catch::Contains;
   CHECK_THROWS_WITH(parse_model_spec("linear:arx:na=2,na=5,nb=1,nk=0"), Contains("'na' is given twice"));

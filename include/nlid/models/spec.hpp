@@ -25,7 +25,10 @@
 /// `ic=zero|estimate|equilibrium` (initial condition during estimation), and for nlarx
 /// `starts=N` / `start_iterations=N` (N data-driven starts of the network, each refined for
 /// `start_iterations`; the best continues — `EstimateOptions::starts`, e.g. the study's nlarx5:
-/// `nlarx:na=3,nb=3,nk=0:sigmoidnet:5:starts=4,start_iterations=30` with `--iterations 90`).
+/// `nlarx:na=3,nb=3,nk=0:sigmoidnet:5:starts=4,start_iterations=30` with `--iterations 90`),
+/// and for nlarx, hw and the series families `lambda=X` (regularization towards zero,
+/// ½·X·‖θ‖² added to the criterion — `LmOptions::regularization`, the toolbox's
+/// `Regularization.Lambda`).
 ///
 /// Errors name the field and list what is accepted, e.g. "unknown model family 'wx' in model
 /// spec 'wx:…' (accepted: linear:arx, linear:oe, nlarx, hw, wh, hammerstein, wiener, greybox)".
@@ -37,6 +40,7 @@
 #include <algorithm>
 #include <cctype>
 #include <chrono>
+#include <cmath>
 #include <functional>
 #include <map>
 #include <optional>
@@ -103,6 +107,7 @@ struct ModelSpec {
   std::optional<InitialCondition> initial_condition;  ///< during estimation
   int starts = 1;                            ///< nlarx: data-driven starts (EstimateOptions::starts)
   std::optional<int> start_iterations;       ///< nlarx: iterations per start (EstimateOptions::start_iterations)
+  double lambda = 0.0;                       ///< regularization towards zero (LmRegularization::lambda)
 };
 
 /// Options of `fit_model_spec`.
@@ -262,7 +267,7 @@ inline ModelSpec parse_model_spec(const std::string& text) {
       const std::string k = kv.substr(0, eq), v = kv.substr(eq + 1);
       // A key given twice would silently take the last value: refuse it (whole-fit options
       // across the spec, the others within their field).
-      const bool whole_fit = k == "focus" || k == "ic" || k == "starts" || k == "start_iterations";
+      const bool whole_fit = k == "focus" || k == "ic" || k == "starts" || k == "start_iterations" || k == "lambda";
       std::vector<std::string>& seen = whole_fit ? fit_keys : field_keys;
       require(std::find(seen.begin(), seen.end(), k) == seen.end(),
               "model spec '" + text + "': '" + k + "' is given twice", at_parameter(k));
@@ -286,6 +291,20 @@ inline ModelSpec parse_model_spec(const std::string& text) {
                 at_parameter(k));
         if (k == "starts") s.starts = x;
         else s.start_iterations = x;
+      } else if (k == "lambda") {
+        require(s.family == "nlarx" || s.family == "hw" || s.family == "wh" || s.family == "hammerstein" ||
+                    s.family == "wiener",
+                "model spec '" + text + "': lambda applies to nlarx, hw, wh, hammerstein and wiener models", at_parameter(k));
+        std::size_t pos = 0;
+        double x = -1.0;
+        try {
+          x = std::stod(v, &pos);
+        } catch (...) {
+          pos = 0;
+        }
+        require(pos == v.size() && !v.empty() && std::isfinite(x) && x >= 0.0,
+                "'lambda=" + v + "' in model spec '" + text + "' is not a finite number >= 0", at_parameter(k));
+        s.lambda = x;
       } else if (k == "focus") {
         require(s.family == "nlarx",
                 "model spec '" + text + "': focus applies to nlarx models (the others are estimated by "
@@ -304,7 +323,7 @@ inline ModelSpec parse_model_spec(const std::string& text) {
                       at_parameter("ic"));
       } else {
         throw Error("unknown key '" + k + "' in model spec '" + text +
-                        "' (accepted: na, nb, nf, nk, units, breakpoints, degree, depth, linear, focus, ic, starts, start_iterations)",
+                        "' (accepted: na, nb, nf, nk, units, breakpoints, degree, depth, linear, focus, ic, starts, start_iterations, lambda)",
                     at_parameter(k));
       }
     }
@@ -358,6 +377,7 @@ AnyModel fit_series_spec(M model, const ModelSpec& s, const Dataset& data, const
   so.progress = o.progress;
   so.solver.callback = o.callback;
   so.solver.max_iterations = o.iterations >= 0 ? o.iterations : 200;
+  so.solver.regularization.lambda = s.lambda;
   M m = estimate(std::move(model), data, so);
   ModelFileInfo info;
   info.description = "nlid-fit --model " + s.text;
@@ -443,6 +463,7 @@ AnyModel fit_model_spec(const ModelSpec& s, const Dataset& data, const SpecFitOp
     if (o.iterations >= 0) eo.solver.max_iterations = o.iterations;
     eo.starts = s.starts;
     if (s.start_iterations) eo.start_iterations = *s.start_iterations;
+    eo.solver.regularization.lambda = s.lambda;
     if (s.family == "nlarx") {
       const auto& od = s.orders[0];
       RegressorList r = RegressorList::lagged(od.na, std::vector<int>(static_cast<std::size_t>(nu), od.nb),
