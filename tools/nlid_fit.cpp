@@ -132,11 +132,22 @@ nlid::Experiment load(const std::string& path, const Args& a) {
   return e;
 }
 
-double fit_of(const nlid::AnyModel& m, const nlid::Experiment& e, double* rmse) {
-  const Eigen::MatrixXd y = m.simulate(e);
+// One row of the fit table. A model whose free run diverges on a record (a prediction-focus
+// model can be unstable in simulation) is reported as such: the model is saved and usable for
+// prediction, and the other records are still scored.
+void print_fit_row(const char* role, const nlid::AnyModel& m, const nlid::Experiment& e) {
+  Eigen::MatrixXd y;
+  try {
+    y = m.simulate(e);
+  } catch (const nlid::DivergenceError& d) {
+    std::printf("%-12s %-30s %10s %14s  (free run not finite from sample %ld)\n", role, e.name().c_str(), "diverged", "-",
+                d.sample());
+    return;
+  }
   const Eigen::VectorXd d = y.col(0) - e.y().col(0);
-  *rmse = std::sqrt(d.squaredNorm() / static_cast<double>(d.size()));
-  return nlid::fit_percent(Eigen::VectorXd(e.y().col(0)), Eigen::VectorXd(y.col(0)));
+  const double rmse = std::sqrt(d.squaredNorm() / static_cast<double>(d.size()));
+  const double f = nlid::fit_percent(Eigen::VectorXd(e.y().col(0)), Eigen::VectorXd(y.col(0)));
+  std::printf("%-12s %-30s %10.4f %14.6g\n", role, e.name().c_str(), f, rmse);
 }
 
 }  // namespace
@@ -189,11 +200,17 @@ int main(int argc, char** argv) {
     nlid::SpecFitOptions fo;
     fo.iterations = a.iterations;
     fo.progress = [](const std::string& s) { std::cerr << "  " << s << "\n"; };
-    fo.callback = [yss](const nlid::IterationReport& r) {
+    // With regularization the cost includes the penalty, so it no longer measures the fit.
+    const bool penalised = spec.lambda > 0.0;
+    fo.callback = [yss, penalised](const nlid::IterationReport& r) {
       const double fit = yss > 0 ? 100.0 * (1.0 - std::sqrt(std::max(0.0, 2.0 * r.cost) / yss)) : 0.0;
       char buf[160];
-      std::snprintf(buf, sizeof buf, "  iteration %4d  cost %.6g  fit %.4f %%%s\n", r.iteration, r.cost, fit,
-                    r.step_accepted ? "" : "  (step rejected)");
+      if (penalised)
+        std::snprintf(buf, sizeof buf, "  iteration %4d  cost %.6g (with the lambda penalty)%s\n", r.iteration, r.cost,
+                      r.step_accepted ? "" : "  (step rejected)");
+      else
+        std::snprintf(buf, sizeof buf, "  iteration %4d  cost %.6g  fit %.4f %%%s\n", r.iteration, r.cost, fit,
+                      r.step_accepted ? "" : "  (step rejected)");
       std::cerr << buf;
       return true;
     };
@@ -207,16 +224,8 @@ int main(int argc, char** argv) {
     std::printf("model %s (%s), %zu parameters, estimated in %.2f s\n", a.model.c_str(), m.kind().c_str(),
                 static_cast<std::size_t>(m.parameters().size()), secs);
     std::printf("%-12s %-30s %10s %14s\n", "data", "experiment", "fit %", "rmse");
-    for (const auto& e : est) {
-      double r = 0;
-      const double f = fit_of(m, e, &r);
-      std::printf("%-12s %-30s %10.4f %14.6g\n", "estimation", e.name().c_str(), f, r);
-    }
-    for (const auto& e : val) {
-      double r = 0;
-      const double f = fit_of(m, e, &r);
-      std::printf("%-12s %-30s %10.4f %14.6g\n", "validation", e.name().c_str(), f, r);
-    }
+    for (const auto& e : est) print_fit_row("estimation", m, e);
+    for (const auto& e : val) print_fit_row("validation", m, e);
     std::printf("saved %s\n", a.save.c_str());
     return nlid_tools::exit_ok;
   });

@@ -2,6 +2,8 @@
 #include <catch2/catch.hpp>
 
 #include <cmath>
+#include <limits>
+#include <vector>
 
 #include "nlid/analysis/compare.hpp"
 #include "nlid/linear/arx.hpp"
@@ -18,6 +20,14 @@ struct Gain {
 struct Broken {
   Eigen::MatrixXd simulate(const nlid::Experiment& e, nlid::InitialCondition) const {
     return Eigen::MatrixXd::Zero(e.size() + 1, 1);
+  }
+};
+// Diverges on the experiment named "unstable" (at sample 7), fails otherwise on "broken".
+struct SometimesDiverging {
+  Eigen::MatrixXd simulate(const nlid::Experiment& e, nlid::InitialCondition) const {
+    if (e.name() == "unstable") throw nlid::DivergenceError("simulation of 'unstable' diverges", 7);
+    if (e.name() == "broken") throw nlid::Error("the model cannot read this record");
+    return 2.0 * e.u();
   }
 };
 struct NotAModel {
@@ -115,4 +125,22 @@ TEST_CASE("compare works on a linear model end to end", "[analysis][compare]") {
   const nlid::Experiment e(u, m.simulate(blank), 0.1, "sim");
   CHECK(nlid::compare(m, nlid::Dataset{e}).fit(0, 0) == Approx(100.0));
   CHECK(nlid::compare(m.to_state_space(), nlid::Dataset{e}).fit(0, 0) == Approx(100.0));
+}
+
+TEST_CASE("a diverging simulation is a result of compare, other errors are not", "[analysis][compare]") {
+  const nlid::Experiment a(ramp(10, 1.0), ramp(10, 2.0), 0.1, "a");
+  const nlid::Experiment unstable(ramp(10, 1.0), ramp(10, 2.0), 0.1, "unstable");
+  const nlid::CompareResult r = nlid::compare(SometimesDiverging{}, nlid::Dataset{a, unstable});
+  CHECK(r.fit_of(0) == Approx(100.0));
+  CHECK(r.fit_of(1) == -std::numeric_limits<double>::infinity());
+  REQUIRE(r.simulated.size() == 2);
+  CHECK(r.simulated[0].rows() == 10);
+  CHECK(r.simulated[1].size() == 0);
+  CHECK(r.diverged_at == std::vector<long>{-1, 7});
+  CHECK_THAT(r.table(), Catch::Contains("diverged") && Catch::Contains("(diverged at sample 7)"));
+  nlid::FitTable t;
+  t.add("m", r);
+  CHECK_THAT(t.str(), Catch::Contains("100.0 %") && Catch::Contains("diverged"));
+  const nlid::Experiment broken(ramp(10, 1.0), ramp(10, 2.0), 0.1, "broken");
+  CHECK_THROWS_WITH(nlid::compare(SometimesDiverging{}, nlid::Dataset{a, broken}), Catch::Contains("cannot read this record"));
 }

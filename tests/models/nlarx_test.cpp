@@ -3,7 +3,10 @@
 #include <catch2/catch.hpp>
 
 #include <cmath>
+#include <limits>
+#include <string>
 
+#include "nlid/analysis/compare.hpp"
 #include "nlid/models/nlarx.hpp"
 #include "nlid/nonlinearities/linear.hpp"
 #include "nlid/regressors.hpp"
@@ -190,6 +193,16 @@ TEST_CASE("bad data are reported naming the experiment", "[models][nlarx]") {
   unstable.set_parameters(th);
   const nlid::Experiment long_data(inputs(3000), Eigen::VectorXd::Zero(3000), 0.01, "long");
   CHECK_THROWS_WITH(unstable.simulate(long_data), Catch::Contains("simulation of experiment 'long' diverges"));
+  // A DivergenceError (so that compare reports the model as diverged) at the first bad sample.
+  try {
+    (void)unstable.simulate(long_data);
+    FAIL("diverging simulation returned");
+  } catch (const nlid::DivergenceError& d) {
+    CHECK(d.sample() > 100);
+    CHECK_THAT(d.what(), Catch::Contains("not finite at sample " + std::to_string(d.sample()) + ")"));
+  }
+  const nlid::CompareResult cr = nlid::compare(unstable, nlid::Dataset{long_data});
+  CHECK(cr.fit_of(0) == -std::numeric_limits<double>::infinity());
   CHECK_THROWS_WITH(unstable.set_parameters(Eigen::VectorXd::Zero(3)), Catch::Contains("has 3 values, the model has 5"));
 }
 

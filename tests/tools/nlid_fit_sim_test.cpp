@@ -144,6 +144,37 @@ TEST_CASE("nlid-fit: slices of one recording with rounded time stamps share a sa
   CHECK(fs::exists(model));
 }
 
+TEST_CASE("nlid-fit: a model whose free run diverges on a record is reported in the table and still saved",
+          "[tools][fit]") {
+  // Data of the unstable y(t) = 1.05 y(t-1) + 0.1 u(t-1): 200 samples stay finite, so the
+  // prediction-focus ARX-like model (a ≈ 1.05) simulates the estimation record, but its free run
+  // overflows on a 16000-sample validation record (1.05^k passes 1e308 near k = 14500).
+  const fs::path est = work_dir() / "growing_est.csv", val = work_dir() / "growing_val.csv";
+  {
+    std::ofstream fe(est), fv(val);
+    fe << "t,u,y\n";
+    double y = 1.0;
+    for (int k = 0; k < 200; ++k) {
+      const double u = (k / 9) % 2 ? 1.0 : -1.0;
+      fe << k * 0.01 << ',' << u << ',' << y << '\n';
+      y = 1.05 * y + 0.1 * u;
+    }
+    fv << "t,u,y\n";
+    for (int k = 0; k < 16000; ++k) fv << k * 0.01 << ",1," << std::sin(0.01 * k) << '\n';
+  }
+  const fs::path model = work_dir() / "growing.json";
+  const Run r = fit("--model nlarx:na=1,nb=1,nk=1:linear:focus=prediction --est " + q(est) + " --val " + q(val) +
+                    " --save " + q(model));
+  INFO(r.out << r.err);
+  CHECK(r.code == 0);
+  CHECK_THAT(r.out, Catch::Contains("growing_est.csv") && Catch::Contains("diverged") &&
+                        Catch::Contains("free run not finite from sample") && Catch::Contains("saved"));
+  CHECK(fs::exists(model));
+  // The estimation record itself is scored normally.
+  CHECK(r.out.find("estimation   growing_est.csv") != std::string::npos);
+  CHECK(r.out.find("diverged") > r.out.find("validation"));
+}
+
 TEST_CASE("nlid-fit: usage errors exit with 2", "[tools][fit]") {
   Run r = fit("--help");
   CHECK(r.code == 0);

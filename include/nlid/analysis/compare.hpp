@@ -12,11 +12,16 @@
 /// as a table; `FitTable` collects the results of several models into one table (models as
 /// rows, experiments as columns), the form in which the study reports its models.
 ///
-/// Errors are located: a simulation that returns the wrong shape, or an output that is constant
-/// in some experiment, throws `nlid::Error` naming the experiment.
+/// A model whose simulation diverges on an experiment is a result, not an error: its fit there
+/// is −∞ (the table prints "diverged at sample k"), as in the toolbox's compare plot, so one
+/// unstable candidate does not abort a comparison of several. Other errors are located: a
+/// simulation that returns the wrong shape, or an output that is constant in some experiment,
+/// throws `nlid::Error` naming the experiment.
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
+#include <limits>
 #include <ostream>
 #include <sstream>
 #include <string>
@@ -52,7 +57,11 @@ struct CompareResult {
   std::vector<std::string> experiment_names;  ///< one per experiment ("experiment k" if unnamed)
   std::vector<std::string> output_names;      ///< one per output channel
   Eigen::MatrixXd fit;                        ///< experiments x outputs, percent (−∞: diverged)
-  std::vector<Eigen::MatrixXd> simulated;     ///< per experiment, N x ny simulated output
+  /// Per experiment, N x ny simulated output; empty (0 x 0) where the simulation diverged.
+  std::vector<Eigen::MatrixXd> simulated;
+  /// Per experiment, the first sample (0-based) at which a model that threw
+  /// `DivergenceError` stopped being finite; −1 where it did not.
+  std::vector<long> diverged_at;
   InitialCondition initial_condition = InitialCondition::zero;  ///< policy used
 
   /// Fit of experiment `e`, output `j`; throws if out of range.
@@ -81,9 +90,12 @@ struct CompareResult {
       std::snprintf(buf, sizeof buf, "%-20s", experiment_names[e].c_str());
       os << buf;
       for (Eigen::Index j = 0; j < fit.cols(); ++j) {
-        std::snprintf(buf, sizeof buf, " %10.2f", fit(static_cast<Eigen::Index>(e), j));
+        const double f = fit(static_cast<Eigen::Index>(e), j);
+        if (f == -std::numeric_limits<double>::infinity()) std::snprintf(buf, sizeof buf, " %10s", "diverged");
+        else std::snprintf(buf, sizeof buf, " %10.2f", f);
         os << buf;
       }
+      if (e < diverged_at.size() && diverged_at[e] >= 0) os << "  (diverged at sample " << diverged_at[e] << ")";
       os << "\n";
     }
     return os.str();
@@ -109,7 +121,16 @@ CompareResult compare(const M& model, const Dataset& data,
     const std::string label =
         ex.name().empty() ? "experiment " + std::to_string(e) : ex.name();
     r.experiment_names.push_back(label);
-    Eigen::MatrixXd yhat = model.simulate(ex, ic);
+    Eigen::MatrixXd yhat;
+    try {
+      yhat = model.simulate(ex, ic);
+    } catch (const DivergenceError& d) {
+      r.fit.row(static_cast<Eigen::Index>(e)).setConstant(-std::numeric_limits<double>::infinity());
+      r.simulated.emplace_back();
+      r.diverged_at.push_back(d.sample());
+      continue;
+    }
+    r.diverged_at.push_back(-1);
     if (yhat.rows() != ex.size() || yhat.cols() != ex.num_outputs())
       throw Error("compare: model returned a " + std::to_string(yhat.rows()) + " x " +
                       std::to_string(yhat.cols()) + " output for experiment " +
@@ -174,7 +195,7 @@ class FitTable {
           if (col == k) {
             char buf[32];
             std::snprintf(buf, sizeof buf, "%.1f %%", v);
-            cell = buf;
+            cell = v == -std::numeric_limits<double>::infinity() ? std::string("diverged") : std::string(buf);
           }
         os << " | " << pad(cell, w[k], true);
       }

@@ -75,6 +75,22 @@ class Error : public std::runtime_error {
   Location where_;
 };
 
+/// A free-run simulation whose output stopped being finite (an unstable model, or one driven
+/// outside the range it was estimated on). Derived from `Error`, so code that catches `Error`
+/// still sees it; code that compares models (`compare`, the tools' fit tables) catches it
+/// alone and reports the model as diverged instead of failing the whole comparison.
+class DivergenceError : public Error {
+ public:
+  /// `sample`: 0-based index of the first sample that is not finite.
+  DivergenceError(const std::string& message, long sample, Location where = {})
+      : Error(message, std::move(where)), sample_(sample) {}
+  /// First sample (0-based) of the record at which the output is not finite.
+  [[nodiscard]] long sample() const noexcept { return sample_; }
+
+ private:
+  long sample_;
+};
+
 /// Throws `Error(message, where)` unless `condition` holds. Used at API boundaries.
 inline void require(bool condition, const std::string& message, const Location& where = {}) {
   if (!condition) throw Error(message, where);

@@ -695,9 +695,9 @@ Eigen::MatrixXd AugmentedModel<P>::simulate(const Experiment& e, const Eigen::Ve
   if (got < e.size()) {
     Location where;
     where.row = static_cast<long>(got) + 1;
-    throw Error("simulation diverged at sample " + std::to_string(got) +
-                    " (non-finite state); check the parameter values or reduce the sample time",
-                where);
+    throw DivergenceError("simulation diverged at sample " + std::to_string(got) +
+                              " (non-finite state); check the parameter values or reduce the sample time",
+                          static_cast<long>(got), where);
   }
   return y;
 }

@@ -357,13 +357,14 @@ class GreyBox {
           for (Eigen::Index j = 0; j < y.cols(); ++j) y(k, j) = yk[j];
         });
     if (got != u.rows()) {
-      throw Error("simulation of grey-box model '" + name() + "'" +
+      throw DivergenceError("simulation of grey-box model '" + name() + "'" +
                   (label.empty() ? std::string() : " on '" + label + "'") +
                   " diverged at sample " + std::to_string(got) + " (t = " +
                   detail::format_number(static_cast<double>(got) * ts) + " s after start) with " +
                   std::to_string(sub) +
                   " sub-step(s) per sample; check the parameters, or raise "
-                  "IntegratorOptions::substeps / min_substeps, or use the adaptive method");
+                  "IntegratorOptions::substeps / min_substeps, or use the adaptive method",
+                  static_cast<long>(got));
     }
     return y;
   }

@@ -358,9 +358,9 @@ class Nlarx {
         e.u().bottomRows(n - start), detail::as_const_span(theta_), detail::as_const_span(x0),
         std::span<double>(yhat.data() + start, static_cast<std::size_t>(n - start)));
     if (bad >= 0) {
-      throw Error("simulation of " + detail::experiment_label(e, -1) + " diverges (output not finite at sample " +
+      throw DivergenceError("simulation of " + detail::experiment_label(e, -1) + " diverges (output not finite at sample " +
                       std::to_string(bad + start) + ")",
-                  detail::experiment_location(-1));
+                  static_cast<long>(bad + start), detail::experiment_location(-1));
     }
     return yhat;
   }

@@ -405,9 +405,9 @@ class Series {
     const Eigen::Index bad = simulate_until(e.u(), detail::as_const_span(theta_), detail::as_const_span(x0),
                                             std::span<double>(yhat.data(), static_cast<std::size_t>(e.size())));
     if (bad >= 0) {
-      throw Error("simulation of " + detail::experiment_label(e, -1) + " diverges (output not finite at sample " +
+      throw DivergenceError("simulation of " + detail::experiment_label(e, -1) + " diverges (output not finite at sample " +
                       std::to_string(bad) + ")",
-                  detail::experiment_location(-1));
+                  static_cast<long>(bad), detail::experiment_location(-1));
     }
     return yhat;
   }
