@@ -117,13 +117,13 @@ inline nlid::Experiment read_record(const RecordOptions& o, const std::string& p
   c.inputs = inputs;
   c.outputs = outputs;
   try {
-    nlid::Experiment e = nlid::read_csv(path, c);
-    for (const std::string& n : e.notes()) {
-      const auto at = n.find(" set by the caller; the time column's step is ");
-      if (at == std::string::npos || n.rfind("sample time ", 0) != 0) continue;
-      std::cerr << tool << ": note: " << path << ": --ts " << n.substr(12, at - 12)
-                << " s overrides the sample time " << n.substr(at + 46) << " s of its time column '" << o.time
-                << "'\n";
+    nlid::CsvReadInfo info;
+    nlid::Experiment e = nlid::read_csv(path, c, info);
+    // The same test as read_csv's note: a step off --ts by more than the time tolerance.
+    const double step = info.time_column_step;
+    if (o.ts > 0.0 && std::isfinite(step) && std::abs(step - o.ts) > c.time_tolerance * o.ts) {
+      std::cerr << tool << ": note: " << path << ": --ts " << format_seconds(o.ts) << " overrides the sample time "
+                << format_seconds(step) << " of its time column '" << o.time << "'\n";
     }
     return e;
   } catch (const nlid::Error& e) {

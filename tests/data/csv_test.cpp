@@ -4,6 +4,8 @@
 #include "nlid/data/dataset.hpp"
 
 #include <catch2/catch.hpp>
+
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -237,6 +239,19 @@ TEST_CASE("read_csv options: several channels, no time column, ts override", "[d
     const nlid::Experiment o = nlid::read_csv(p, opt);
     CHECK(o.ts() == 0.2);
     CHECK_THAT(o.notes().back(), Contains("the time column's step is 0.1"));
+    // The same fact as a number, for programs (the tools' own note).
+    nlid::CsvReadInfo info;
+    (void)nlid::read_csv(p, opt, info);
+    CHECK(info.time_column_step == Approx(0.1).epsilon(1e-12));
+  }
+  SECTION("no time column: no step") {
+    nlid::CsvReadOptions o = opt;
+    o.time_column = "";
+    o.ts = 0.5;
+    nlid::CsvReadInfo info;
+    info.time_column_step = 1.0;  // overwritten
+    (void)nlid::read_csv(p, o, info);
+    CHECK(std::isnan(info.time_column_step));
   }
 }
 

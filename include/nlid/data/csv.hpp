@@ -82,6 +82,14 @@ struct CsvReadOptions {
   int max_gap = default_max_gap;
 };
 
+/// What `read_csv` learnt about a file beyond the experiment itself.
+struct CsvReadInfo {
+  /// The time column's typical (median) step in seconds; NaN without a time column or with a
+  /// single row. With `CsvReadOptions::ts` set, compare the two to see whether the override
+  /// changes the rate (the experiment's notes say so in words).
+  double time_column_step = std::numeric_limits<double>::quiet_NaN();
+};
+
 /// Options of the generic table reader.
 struct CsvTableOptions {
   char delimiter = ',';                                 ///< field separator (' ' = blank runs)
@@ -195,8 +203,9 @@ inline void write_csv_table(const std::string& path, const std::vector<std::stri
 /// Reads one experiment from a CSV file, taking the columns named in `options`. The experiment
 /// is named after the file's stem ("data1" for ".../data1.csv"); channel names are the column
 /// names. See the file comment for the accepted format and the errors.
-inline Experiment read_csv(const std::string& path, const CsvReadOptions& options = {}) {
+inline Experiment read_csv(const std::string& path, const CsvReadOptions& options, CsvReadInfo& info) {
   using detail::csv_at;
+  info = CsvReadInfo{};
   if (!(options.ts >= 0.0) || !std::isfinite(options.ts)) {
     Location l = at_parameter("ts");
     l.file = path;
@@ -229,7 +238,7 @@ inline Experiment read_csv(const std::string& path, const CsvReadOptions& option
   double t0 = 0.0;
   if (has_time) {
     std::tie(ts, t0) = detail::time_axis(t, time_col, options.decimal_point, options.ts,
-                                         options.time_tolerance, notes);
+                                         options.time_tolerance, notes, &info.time_column_step);
   } else if (ts <= 0.0) {
     Location l = at_parameter("ts");
     l.file = path;
@@ -271,6 +280,12 @@ inline Experiment read_csv(const std::string& path, const CsvReadOptions& option
   e.set_output_names(options.outputs);
   for (auto& note : notes) e.add_note(std::move(note));
   return e;
+}
+
+/// As above, without the file information.
+inline Experiment read_csv(const std::string& path, const CsvReadOptions& options = {}) {
+  CsvReadInfo info;
+  return read_csv(path, options, info);
 }
 
 /// Reads several files into one multi-experiment `Dataset` (same options for all). Errors from a

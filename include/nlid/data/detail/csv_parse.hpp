@@ -517,10 +517,11 @@ inline double time_quantum(const CsvText& t, std::size_t time_col, char decimal_
 
 /// Validates the time column and returns (ts, t0): every step is checked against the median
 /// step; `ts_override` > 0 then wins over the column's rate (a disagreement is noted), otherwise
-/// ts is inferred from the column.
+/// ts is inferred from the column. `*column_step` receives the median step (NaN with one row).
 inline std::pair<double, double> time_axis(const CsvText& t, std::size_t time_col,
                                            char decimal_point, double ts_override, double tolerance,
-                                           std::vector<std::string>& notes) {
+                                           std::vector<std::string>& notes, double* column_step) {
+  *column_step = std::numeric_limits<double>::quiet_NaN();
   const Eigen::VectorXd time = parse_column(t, time_col, decimal_point);
   const Eigen::Index n = time.size();
   const auto at_row = [&](Eigen::Index k) {
@@ -558,6 +559,7 @@ inline std::pair<double, double> time_axis(const CsvText& t, std::size_t time_co
   const auto mid = sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2);
   std::nth_element(sorted.begin(), mid, sorted.end());
   const double typical = *mid;
+  *column_step = typical;
   for (Eigen::Index k = 1; k < n; ++k) {
     const double dev = std::abs(steps(k - 1) - typical) / typical;
     if (dev > tolerance) {
