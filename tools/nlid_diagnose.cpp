@@ -214,6 +214,7 @@ int main(int argc, char** argv) {
             info.description += (i ? ", " : "") + d.model.effects()[i].label();
           info.description += ")";
         }
+        nlid::record_data_range(info, est);  // where it was fitted: nlid-codegen checks --u0 against it
         nlid::save_model(save_path, d.model, info);
         if (opt.progress) opt.progress("wrote " + save_path);
       }

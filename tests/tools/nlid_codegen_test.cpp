@@ -18,6 +18,9 @@
 #include <vector>
 
 #include "../support/c_text.hpp"
+#include "nlid/core/atomic_file.hpp"
+#include "nlid/io/json.hpp"
+#include "nlid/io/json_eigen.hpp"
 #include "tool_runner.hpp"
 
 namespace fs = std::filesystem;
@@ -258,6 +261,77 @@ TEST_CASE("nlid-codegen: a kind it does not generate, a grey box without --ts, a
   CHECK_THAT(slurp(dir / "throttle_v2.h"), Catch::Contains("void throttle_v2_step(throttle_v2_state* s"));
 }
 
+TEST_CASE("nlid-codegen: an equilibrium start outside the estimation data's range is refused with --u0 and the range named",
+          "[tools][codegen]") {
+  // Before, --x0 equilibrium --u0 50 for a sigmoid-network model fitted on inputs in [-1, 1]
+  // wrote the network's linear extrapolation as the initial state (for the throttle study's
+  // nlarx5 at u0 = 5: a steady 950 deg for a valve that stops at 90), without a word.
+  const fs::path est = write_record("ex_est", 1200, 81u, 1);
+  const fs::path dir = work_dir() / "ex";
+  fs::create_directories(dir);
+  const fs::path model = dir / "ex.json";
+  const Run f = fit("--model nlarx:na=2,nb=2,nk=1:sigmoidnet:units=3 --est " + q(est) + " --iterations 4 --save " + q(model));
+  INFO(f.err);
+  REQUIRE(f.code == 0);
+  const nlid::Json file = nlid::read_json(model.string());
+  REQUIRE(file.view().contains("data_range"));
+  const Eigen::VectorXd in_range = file.view().at("data_range").at("inputs").at(0).get<Eigen::VectorXd>();
+  REQUIRE(in_range.size() == 2);
+  CHECK(in_range(0) >= -1.0);
+  CHECK(in_range(0) < -0.5);
+  CHECK(in_range(1) <= 1.0);
+  CHECK(in_range(1) > 0.5);
+
+  Run r = codegen("--model " + q(model) + " --out " + q(dir) + " --x0 equilibrium --u0 50");
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("--u0 50 is outside the input range of the estimation data recorded in") &&
+                        Catch::Contains("(u: -0.") && Catch::Contains("its steady state there: y = ") &&
+                        Catch::Contains("--allow-extrapolation") && Catch::Contains("parameter '--u0'"));
+  CHECK_FALSE(fs::exists(dir / "ex.c"));
+  CHECK_FALSE(fs::exists(dir / "ex.h"));
+  // Below the range as well; and the switch generates it with a warning.
+  r = codegen("--model " + q(model) + " --out " + q(dir) + " --x0 equilibrium --u0 -3");
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("--u0 -3 is outside the input range"));
+  r = codegen("--model " + q(model) + " --out " + q(dir) + " --x0 equilibrium --u0 50 --allow-extrapolation");
+  INFO(r.err);
+  CHECK(r.code == 0);
+  CHECK_THAT(r.err, Catch::Contains("warning: --u0 50 is outside the input range"));
+  CHECK(fs::exists(dir / "ex.c"));
+  // Inside the range: no warning, no note.
+  r = codegen("--model " + q(model) + " --out " + q(dir) + " --x0 equilibrium --u0 0.5");
+  CHECK(r.code == 0);
+  CHECK(r.err.find("warning") == std::string::npos);
+  CHECK(r.err.find("note") == std::string::npos);
+  // The switch only goes with an equilibrium start.
+  r = codegen("--model " + q(model) + " --out " + q(dir) + " --allow-extrapolation");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("--allow-extrapolation permits an equilibrium start"));
+
+  // Inside the input range, a steady output far outside the recorded outputs (here: a range
+  // edited to [100, 101]) is refused too.
+  nlid::Json edited = nlid::read_json(model.string());
+  edited["data_range"]["outputs"] = nlid::Json::array({nlid::Json::array({100.0, 101.0})});
+  const fs::path narrow = dir / "narrow.json";
+  nlid::write_file_atomically(narrow.string(), edited.dump(2));
+  r = codegen("--model " + q(narrow) + " --out " + q(dir) + " --x0 equilibrium --u0 0.5");
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("the equilibrium for --u0 0.5 has the output y = ") &&
+                        Catch::Contains("far outside the output range of the estimation data") &&
+                        Catch::Contains("(100 to 101)"));
+
+  // A file without the range (written before nlid kept it): generated, with a note saying
+  // that --u0 was not checked.
+  nlid::Json old = nlid::read_json(model.string());
+  REQUIRE(old.erase("data_range"));
+  const fs::path unranged = dir / "unranged.json";
+  nlid::write_file_atomically(unranged.string(), old.dump(2));
+  r = codegen("--model " + q(unranged) + " --out " + q(dir) + " --x0 equilibrium --u0 50");
+  CHECK(r.code == 0);
+  CHECK_THAT(r.err, Catch::Contains("note: ") && Catch::Contains("records no range of its estimation data") &&
+                        Catch::Contains("--u0 50 is not checked"));
+}
+
 TEST_CASE("nlid-fit -> nlid-sim: every family keeps the data's channel names, and --decimate matches nlid-fit's",
           "[tools][sim]") {
   // Before, grey-box and output-error files named their channels u1/y1 whatever the data said,
@@ -314,6 +388,7 @@ TEST_CASE("nlid-diagnose --save -> nlid-sim and nlid-codegen: the repaired model
   const std::string text = slurp(model);
   CHECK_THAT(text, Catch::Contains("\"kind\": \"augmented_greybox\"") && Catch::Contains("\"effect\": \"dead_time\"") &&
                        Catch::Contains("\"name\": \"u\""));
+  CHECK_THAT(text, Catch::Contains("\"data_range\""));  // where it was fitted: nlid-codegen checks --u0 against it
 
   const fs::path simulated = dir / "sim.csv";
   const Run s = sim("--model " + q(model) + " --input " + q(val) + " --out " + q(simulated));
