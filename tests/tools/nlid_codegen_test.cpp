@@ -259,7 +259,7 @@ TEST_CASE("nlid-codegen: a kind it does not generate, a grey box without --ts, a
   r = codegen("--model " + q(dir / "throttle-v2.json") + " --out " + q(dir));
   CHECK(r.code == 0);
   CHECK(fs::exists(dir / "throttle_v2.c"));
-  CHECK_THAT(slurp(dir / "throttle_v2.h"), Catch::Contains("void throttle_v2_step(throttle_v2_state* s"));
+  CHECK_THAT(slurp(dir / "throttle_v2.h"), Catch::Contains("int throttle_v2_step(throttle_v2_state* s"));
 }
 
 TEST_CASE("nlid-codegen: an equilibrium start outside the estimation data's range is refused with --u0 and the range named",
