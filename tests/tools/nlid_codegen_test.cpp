@@ -304,6 +304,26 @@ TEST_CASE("nlid-codegen: an equilibrium start outside the estimation data's rang
   CHECK(r.code == 0);
   CHECK(r.err.find("warning") == std::string::npos);
   CHECK(r.err.find("note") == std::string::npos);
+  // The header names the range, for the caller to check or clamp the inputs against; in
+  // single precision as float literals (a driver clamping a float input with them compiles
+  // under -Wdouble-promotion -Wfloat-conversion -Werror).
+  const std::string header = slurp(dir / "ex.h");
+  CHECK_THAT(header, Catch::Contains("#define EX_INPUT0_MIN ") && Catch::Contains("#define EX_INPUT0_MAX ") &&
+                         Catch::Contains("#define EX_OUTPUT0_MIN ") && Catch::Contains("#define EX_OUTPUT0_MAX "));
+  {
+    const std::size_t at = header.find("#define EX_INPUT0_MAX ") + std::string("#define EX_INPUT0_MAX ").size();
+    CHECK(std::strtod(header.c_str() + at, nullptr) == in_range(1));
+  }
+  r = codegen("--model " + q(model) + " --out " + q(dir) + " --name ex_f --precision single");
+  REQUIRE(r.code == 0);
+  CHECK_THAT(slurp(dir / "ex_f.h"), Catch::Contains("#define EX_F_INPUT0_MIN ") && Catch::Contains("f /* u */"));
+  std::ofstream(dir / "clamp.c") << "#include \"ex_f.h\"\n"
+                                 << "ex_f_real clamp(ex_f_real u) {\n"
+                                 << "  return u < EX_F_INPUT0_MIN ? EX_F_INPUT0_MIN : (u > EX_F_INPUT0_MAX ? EX_F_INPUT0_MAX : u);\n}\n";
+  const std::string cc = "cc -std=c99 -Wall -Wextra -pedantic -Werror -Wdouble-promotion -Wfloat-conversion -c -o \"" +
+                         (dir / "clamp.o").string() + "\" \"" + (dir / "clamp.c").string() + "\" 2>\"" +
+                         (dir / "clamp.txt").string() + "\"";
+  if (std::system(cc.c_str()) != 0) FAIL("a float driver using the range macros does not compile:\n" << slurp(dir / "clamp.txt"));
   // The switch only goes with an equilibrium start.
   r = codegen("--model " + q(model) + " --out " + q(dir) + " --allow-extrapolation");
   CHECK(r.code == 2);
