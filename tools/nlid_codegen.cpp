@@ -194,11 +194,12 @@ int main(int argc, char** argv) {
                                     step);
         Eigen::MatrixXd y;
         bool simulated = false;
+        std::string no_steady_state;
         try {
           y = m.simulate(held, nlid::InitialCondition::equilibrium);
           simulated = true;
-        } catch (const nlid::Error&) {
-          // no equilibrium or another refusal: generate_c below reports it in its own words
+        } catch (const nlid::Error& e) {
+          no_steady_state = e.message();  // reported below, after the range (which may explain it)
         }
         if (simulated && y.rows() > 0 && !y.row(0).allFinite()) {
           char buf[160];
@@ -214,6 +215,9 @@ int main(int argc, char** argv) {
           throw nlid::Error(problem + " - choose --u0 within the range, or give --allow-extrapolation to generate it anyway",
                             nlid::at_parameter("--u0"));
         if (!problem.empty()) std::cerr << "nlid-codegen: warning: " << problem << " (generated: --allow-extrapolation)\n";
+        if (!simulated)
+          throw nlid::Error("no equilibrium start for --u0 " + num(u0) + " (" + model + "): " + no_steady_state,
+                            nlid::at_parameter("--u0"));
       }
       if (m.info().input_range.empty())
         std::cerr << "nlid-codegen: note: " << model << " records no range of its estimation data (written before nlid "

@@ -228,6 +228,30 @@ TEST_CASE("nlid-codegen: a non-finite equilibrium is refused, naming --u0", "[to
                         Catch::Contains("far outside the output range of the estimation data"));
 }
 
+TEST_CASE("nlid-codegen: a model without a steady state is refused with --u0 named", "[tools][codegen][bad_input]") {
+  // An ARX integrator y(t) = y(t-1) + 0.5 u(t-1) has no equilibrium for u0 != 0. Before, the
+  // refusal came from the library in its words ("[at parameter 'initial']", "use
+  // InitialCondition::zero"); now it names --u0, the file and the tool's remedy.
+  const fs::path dir = work_dir() / "integ_cg";
+  fs::create_directories(dir);
+  const fs::path model = dir / "integ.json";
+  std::ofstream(model) << R"json({"format": "nlid-model", "version": 1, "kind": "arx", "ts": 0.01,
+ "initial_condition": "zero", "created": "2026-11-26T00:00:00Z", "generator": "test", "description": "",
+ "inputs": [{"name": "u", "unit": ""}], "outputs": [{"name": "y", "unit": ""}],
+ "structure": {"a": [-1.0], "b": [[0.5]], "nk": [1], "offset": 0.0},
+ "parameters": {"names": ["a1", "b1"], "values": [-1.0, 0.5]},
+ "report": {"method": "", "focus": "", "num_experiments": 0, "num_samples": 0, "num_parameters": 2, "loss": 0,
+            "fit_percent": 0, "iterations": 0, "solver_message": ""}})json";
+  Run r = codegen("--model " + q(model) + " --out " + q(dir) + " --x0 equilibrium --u0 0.5");
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("no equilibrium start for --u0 0.5 (") && Catch::Contains("integ.json") &&
+                        Catch::Contains("integrator") && Catch::Contains("use --x0 zero") &&
+                        Catch::Contains("[at parameter '--u0']"));
+  CHECK_FALSE(fs::exists(dir / "integ.c"));
+  r = codegen("--model " + q(model) + " --out " + q(dir));
+  CHECK(r.code == 0);
+}
+
 TEST_CASE("tools: unknown last flags, repeated flags, output locations, --baseline, --decimal hints",
           "[tools][bad_input]") {
   const fs::path est = write_record("msg_est", 600, 208u, 0);
