@@ -431,3 +431,31 @@ TEST_CASE("nlid-diagnose --save -> nlid-sim and nlid-codegen: the repaired model
   REQUIRE(y_c.size() == y_nlid.size());
   CHECK(max_relative_gap(y_c, y_nlid) <= 1e-12);
 }
+
+TEST_CASE("nlid-diagnose --save records the data range as the estimation saw it like nlid-fit does", "[tools][diagnose]") {
+  // With --decimate the models are fitted on the filtered, decimated record, whose range differs
+  // from the raw file's (the anti-alias filter rings at steps); both tools record that one.
+  const fs::path est = write_record("dr_est", 1600, 13u, 4), val = write_record("dr_val", 1600, 14u, 4);
+  const fs::path dir = work_dir() / "dr";
+  fs::create_directories(dir);
+  const Run d = tool_test::diagnose("--baseline first_order --est " + q(est) + " --val " + q(val) +
+                                    " --decimate 4 --starts 1 --max-effects 1 --threads 2 --quiet --save " + q(dir / "rep.json"));
+  INFO(d.err);
+  REQUIRE(d.code == 0);
+  const Run f = fit("--model linear:arx:na=1,nb=1,nk=1 --est " + q(est) + " --decimate 4 --save " + q(dir / "arx.json"));
+  REQUIRE(f.code == 0);
+  auto range = [](const fs::path& p, const char* which) {
+    return nlid::read_json(p.string()).view().at("data_range").at(which).at(0).get<Eigen::VectorXd>();
+  };
+  const Eigen::VectorXd ri = range(dir / "rep.json", "inputs"), fi = range(dir / "arx.json", "inputs");
+  const Eigen::VectorXd ro = range(dir / "rep.json", "outputs"), fo = range(dir / "arx.json", "outputs");
+  REQUIRE(ri.size() == 2);
+  CHECK(ri(0) == fi(0));
+  CHECK(ri(1) == fi(1));
+  CHECK(ro(0) == fo(0));
+  CHECK(ro(1) == fo(1));
+  // Not the raw file's range: the filtered steps overshoot it.
+  const std::vector<double> raw = csv_column(est, 1);
+  const auto [lo, hi] = std::minmax_element(raw.begin(), raw.end());
+  CHECK((ri(0) < *lo || ri(1) > *hi));
+}
