@@ -315,6 +315,21 @@ TEST_CASE("model file: the estimation data's range is recorded by fit_model_spec
   CHECK(plain.info().output_range.empty());
   CHECK(plain.simulate(d[0]).isApprox(back.simulate(d[0])));
 
+  // Non-finite samples (a gap marked NaN in data handed over from C++) do not enter the range.
+  {
+    Experiment gap = steps(100, 0.01);
+    gap.y()(5, 0) = std::numeric_limits<double>::quiet_NaN();
+    gap.u()(7, 0) = std::numeric_limits<double>::infinity();
+    Dataset dg;
+    dg.add(gap);
+    ModelFileInfo gi;
+    record_data_range(gi, dg);
+    REQUIRE(gi.input_range.size() == 1);
+    CHECK(gi.input_range[0].upper == 0.8);
+    CHECK(std::isfinite(gi.output_range[0].lower));
+    CHECK(std::isfinite(gi.output_range[0].upper));
+  }
+
   // A malformed range is an error naming its path.
   Json bad = read_model_file(path);
   bad["data_range"] =

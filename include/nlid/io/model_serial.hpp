@@ -76,29 +76,42 @@ struct ModelFileInfo {
   std::vector<ChannelRange> input_range, output_range;
 };
 
-/// Records the range of every input and output of `data` (all experiments) in `info`.
+/// Records the range of every input and output of `data` (all experiments) in `info`, over the
+/// finite values; records nothing if a channel has none (a file never holds a non-finite range).
 inline void record_data_range(ModelFileInfo& info, const Dataset& data) {
   info.input_range.clear();
   info.output_range.clear();
-  bool first = true;
-  for (const Experiment& e : data) {
-    if (e.size() == 0) continue;
-    if (first) {
-      info.input_range.assign(static_cast<std::size_t>(e.num_inputs()), {});
-      info.output_range.assign(static_cast<std::size_t>(e.num_outputs()), {});
+  std::vector<ChannelRange> in, out;
+  std::vector<bool> seen_in, seen_out;
+  auto widen = [](std::vector<ChannelRange>& r, std::vector<bool>& seen, const Eigen::MatrixXd& v) {
+    if (r.size() < static_cast<std::size_t>(v.cols())) {
+      r.resize(static_cast<std::size_t>(v.cols()));
+      seen.resize(static_cast<std::size_t>(v.cols()), false);
     }
-    auto widen = [first](std::vector<ChannelRange>& r, const Eigen::MatrixXd& v) {
-      for (Eigen::Index c = 0; c < v.cols() && c < static_cast<Eigen::Index>(r.size()); ++c) {
-        auto& rc = r[static_cast<std::size_t>(c)];
-        const double lo = v.col(c).minCoeff(), hi = v.col(c).maxCoeff();
-        rc.lower = first ? lo : std::min(rc.lower, lo);
-        rc.upper = first ? hi : std::max(rc.upper, hi);
+    for (Eigen::Index c = 0; c < v.cols(); ++c) {
+      auto& rc = r[static_cast<std::size_t>(c)];
+      for (Eigen::Index i = 0; i < v.rows(); ++i) {
+        const double x = v(i, c);
+        if (!std::isfinite(x)) continue;
+        if (!seen[static_cast<std::size_t>(c)]) {
+          rc = {x, x};
+          seen[static_cast<std::size_t>(c)] = true;
+        }
+        rc.lower = std::min(rc.lower, x);
+        rc.upper = std::max(rc.upper, x);
       }
-    };
-    widen(info.input_range, e.u());
-    widen(info.output_range, e.y());
-    first = false;
+    }
+  };
+  for (const Experiment& e : data) {
+    widen(in, seen_in, e.u());
+    widen(out, seen_out, e.y());
   }
+  for (bool s : seen_in)
+    if (!s) return;
+  for (bool s : seen_out)
+    if (!s) return;
+  info.input_range = std::move(in);
+  info.output_range = std::move(out);
 }
 
 /// The estimation report of a grey-box estimation, in the common form kept in model files.
