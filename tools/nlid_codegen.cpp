@@ -86,7 +86,8 @@ std::string num(double v) {
 // piecewise-linear map its end segments), and its "steady state" can be a finite but absurd
 // value (950 deg for a throttle that stops at 90). `y` is the steady output (empty if unknown).
 // Returns the problem in words, or "" if there is none.
-std::string extrapolation_problem(const nlid::AnyModel& m, const std::string& model, double u0, const Eigen::VectorXd& y) {
+std::string extrapolation_problem(const nlid::AnyModel& m, const std::string& model, double u0, bool u0_given,
+                                  const Eigen::VectorXd& y) {
   const auto& ir = m.info().input_range;
   const auto& outr = m.info().output_range;
   const auto in_names = m.input_names(), out_names = m.output_names();
@@ -101,7 +102,7 @@ std::string extrapolation_problem(const nlid::AnyModel& m, const std::string& mo
   }
   for (std::size_t i = 0; i < ir.size() && static_cast<int>(i) < m.num_inputs(); ++i) {
     if (!ir[i].contains(u0))
-      return "--u0 " + num(u0) + " is outside the input range of the estimation data recorded in " + model + " (" +
+      return "--u0 " + num(u0) + (u0_given ? "" : " (the default)") + " is outside the input range of the estimation data recorded in " + model + " (" +
              name(in_names, i, "u") + ": " + num(ir[i].lower) + " to " + num(ir[i].upper) +
              "): the model was not fitted there, so its equilibrium is an extrapolation" + steady;
   }
@@ -210,7 +211,7 @@ int main(int argc, char** argv) {
                             nlid::at_parameter("--u0"));
         }
         const Eigen::VectorXd y0 = simulated && y.rows() > 0 ? Eigen::VectorXd(y.row(0).transpose()) : Eigen::VectorXd();
-        const std::string problem = extrapolation_problem(m, model, u0, y0);
+        const std::string problem = extrapolation_problem(m, model, u0, u0_given, y0);
         if (!problem.empty() && !allow_extrapolation)
           throw nlid::Error(problem + " - choose --u0 within the range, or give --allow-extrapolation to generate it anyway",
                             nlid::at_parameter("--u0"));

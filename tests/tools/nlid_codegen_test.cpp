@@ -324,6 +324,30 @@ TEST_CASE("nlid-codegen: an equilibrium start outside the estimation data's rang
                          (dir / "clamp.o").string() + "\" \"" + (dir / "clamp.c").string() + "\" 2>\"" +
                          (dir / "clamp.txt").string() + "\"";
   if (std::system(cc.c_str()) != 0) FAIL("a float driver using the range macros does not compile:\n" << slurp(dir / "clamp.txt"));
+  // Without --u0 the default 0 is checked too; the message says it was the default. (A model
+  // fitted on inputs that stay above 0.5: the same record shifted up by 1.5.)
+  {
+    const fs::path shifted = dir / "shifted.csv";
+    std::ifstream in(est);
+    std::ofstream out(shifted);
+    std::string line;
+    std::getline(in, line);
+    out << line << "\n";
+    while (std::getline(in, line)) {
+      std::stringstream cells(line);
+      std::string t, uu, yy;
+      std::getline(cells, t, ',');
+      std::getline(cells, uu, ',');
+      std::getline(cells, yy, ',');
+      out << t << "," << std::stod(uu) + 1.5 << "," << yy << "\n";
+    }
+    out.close();
+    const fs::path up = dir / "up.json";
+    REQUIRE(fit("--model nlarx:na=1,nb=1,nk=1:linear --est " + q(shifted) + " --save " + q(up)).code == 0);
+    r = codegen("--model " + q(up) + " --out " + q(dir) + " --x0 equilibrium");
+    CHECK(r.code == 1);
+    CHECK_THAT(r.err, Catch::Contains("--u0 0 (the default) is outside the input range"));
+  }
   // The switch only goes with an equilibrium start.
   r = codegen("--model " + q(model) + " --out " + q(dir) + " --allow-extrapolation");
   CHECK(r.code == 2);
