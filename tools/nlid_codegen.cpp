@@ -134,8 +134,7 @@ int main(int argc, char** argv) {
         std::cout << kUsage;
         return nlid_tools::exit_ok;
       }
-      if (k == "--allow-extrapolation") {  // a switch: no value
-        once(k);
+      if (k == "--allow-extrapolation") {  // a switch: no value (given twice, it means the same)
         allow_extrapolation = true;
         continue;
       }
