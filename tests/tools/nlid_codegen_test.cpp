@@ -299,6 +299,9 @@ TEST_CASE("nlid-codegen: an equilibrium start outside the estimation data's rang
   CHECK(r.code == 0);
   CHECK_THAT(r.err, Catch::Contains("warning: --u0 50 is outside the input range"));
   CHECK(fs::exists(dir / "ex.c"));
+  // A switch given twice means the same (not "given twice; it takes one value").
+  r = codegen("--model " + q(model) + " --out " + q(dir) + " --x0 equilibrium --u0 50 --allow-extrapolation --allow-extrapolation");
+  CHECK(r.code == 0);
   // Inside the range: no warning, no note.
   r = codegen("--model " + q(model) + " --out " + q(dir) + " --x0 equilibrium --u0 0.5");
   CHECK(r.code == 0);
