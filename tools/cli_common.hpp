@@ -155,6 +155,7 @@ inline std::string translate(std::string s) {
       {"DiagnoseOptions::decimate", "--decimate"},
       {"DiagnoseOptions::starts", "--starts"},
       {"LmOptions::max_iterations", "--iterations"},
+      {"use InitialCondition::zero or ::estimate", "use --x0 zero"},
       {"CodegenOptions::equilibrium_input", "--u0"},
       {"equilibrium_input", "--u0"},
   };

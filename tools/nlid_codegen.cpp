@@ -2,7 +2,8 @@
 // or any C code base.
 //
 //   nlid-codegen --model model.json --out DIR [--name NAME] [--ts T] [--substeps N]
-//                [--x0 zero|equilibrium] [--u0 V] [--precision double|single]
+//                [--x0 zero|equilibrium] [--u0 V] [--allow-extrapolation]
+//                [--precision double|single]
 //
 // Kinds: nlarx, hammerstein_wiener, series, greybox, augmented_greybox (the repaired model of
 // nlid-diagnose --save), arx and output_error. Writes DIR/NAME.h and DIR/NAME.c (atomically; DIR must exist): NAME_init, NAME_step,
@@ -10,7 +11,9 @@
 // a C identifier. The generated step reproduces `nlid-sim` on the same model to the last bits
 // (same operations in the same order). Grey-box models are continuous: --ts sets the sample
 // time of the generated step (required for them). --x0 equilibrium makes NAME_init start in
-// the steady state for the constant input --u0 (default 0). Exit status (cli_common.hpp) 0 on success, 1 on a
+// the steady state for the constant input --u0 (default 0); a --u0 outside the input range of
+// the estimation data recorded in the model file, or a steady output far outside its output
+// range, is refused (the model extrapolates there) unless --allow-extrapolation is given. Exit status (cli_common.hpp) 0 on success, 1 on a
 // bad file or model (a model kind that is not generated, no or a non-finite equilibrium, a
 // missing --out directory — the message says which), 2 on a bad command line. --precision single writes float code (no double anywhere) for FPUs
 // without double arithmetic; it computes the model in float rounding, not nlid's bits.
@@ -31,7 +34,8 @@
 namespace {
 constexpr const char* kUsage =
     "usage: nlid-codegen --model model.json --out DIR [--name NAME] [--ts T] [--substeps N]\n"
-    "                    [--x0 zero|equilibrium] [--u0 V] [--precision double|single]\n"
+    "                    [--x0 zero|equilibrium] [--u0 V] [--allow-extrapolation]\n"
+    "                    [--precision double|single]\n"
     "  --model FILE     a model file (nlid-fit --save, or save() in C++)\n"
     "  --out DIR        existing directory for NAME.h and NAME.c\n"
     "  --name NAME      C identifier prefixing every generated name (default: the file's stem)\n"
@@ -39,7 +43,9 @@ constexpr const char* kUsage =
     "                   sampled models: must equal the model's if given)\n"
     "  --substeps N     grey box: integrator sub-steps per sample (default: the model's rule)\n"
     "  --x0 MODE        NAME_init state: zero (default) or equilibrium for the input --u0\n"
-    "  --u0 V           constant input of the equilibrium (default 0)\n"
+    "  --u0 V           constant input of the equilibrium (default 0); it must lie in the input\n"
+    "                   range of the estimation data recorded in the model file\n"
+    "  --allow-extrapolation  generate an equilibrium start outside that range (a warning)\n"
     "  --precision P    double (default: nlid's numbers to the last bit) or single (float\n"
     "                   throughout, for FPUs without double; float rounding)\n"
     "Generated kinds: nlarx, hammerstein_wiener, series (wh, wiener, hammerstein), greybox,\n"
@@ -68,6 +74,50 @@ std::string identifier_from(const std::string& path) {
   if (s.rfind("nlid_", 0) == 0) s = "m_" + s;  // "nlid_" is reserved for generated helpers
   return s;
 }
+
+std::string num(double v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.6g", v);
+  return b;
+}
+
+// Checks an equilibrium start against the estimation data's range recorded in the model file:
+// outside it the model extrapolates (a sigmoid network continues its linear term, a
+// piecewise-linear map its end segments), and its "steady state" can be a finite but absurd
+// value (950 deg for a throttle that stops at 90). `y` is the steady output (empty if unknown).
+// Returns the problem in words, or "" if there is none.
+std::string extrapolation_problem(const nlid::AnyModel& m, const std::string& model, double u0, bool u0_given,
+                                  const Eigen::VectorXd& y) {
+  const auto& ir = m.info().input_range;
+  const auto& outr = m.info().output_range;
+  const auto in_names = m.input_names(), out_names = m.output_names();
+  auto name = [](const std::vector<std::string>& names, std::size_t i, const char* fallback) {
+    return i < names.size() && !names[i].empty() ? names[i] : fallback + std::to_string(i + 1);
+  };
+  std::string steady;
+  if (y.size() > 0) {
+    steady = " (its steady state there: " + name(out_names, 0, "y") + " = " + num(y(0));
+    if (outr.size() > 0) steady += "; the estimation data's output range is " + num(outr[0].lower) + " to " + num(outr[0].upper);
+    steady += ")";
+  }
+  for (std::size_t i = 0; i < ir.size() && static_cast<int>(i) < m.num_inputs(); ++i) {
+    if (!ir[i].contains(u0))
+      return "--u0 " + num(u0) + (u0_given ? "" : " (the default)") + " is outside the input range of the estimation data recorded in " + model + " (" +
+             name(in_names, i, "u") + ": " + num(ir[i].lower) + " to " + num(ir[i].upper) +
+             "): the model was not fitted there, so its equilibrium is an extrapolation" + steady;
+  }
+  // Inside the input range, a steady output far outside the outputs seen (more than 10 % of
+  // their range beyond either end) is a spurious equilibrium of the fitted map.
+  for (Eigen::Index k = 0; k < y.size() && k < static_cast<Eigen::Index>(outr.size()); ++k) {
+    const nlid::ChannelRange& r = outr[static_cast<std::size_t>(k)];
+    const double margin = 0.1 * (r.upper - r.lower);
+    if (y(k) < r.lower - margin || y(k) > r.upper + margin)
+      return "the equilibrium for --u0 " + num(u0) + " has the output " + name(out_names, static_cast<std::size_t>(k), "y") +
+             " = " + num(y(k)) + ", far outside the output range of the estimation data recorded in " + model + " (" +
+             num(r.lower) + " to " + num(r.upper) + "): the fitted model's steady state there is not one the data showed";
+  }
+  return "";
+}
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -75,7 +125,7 @@ int main(int argc, char** argv) {
   return nlid_tools::guarded_main("nlid-codegen", kUsage, "", stage, sizes, [&]() -> int {
     std::string model, out, name, x0 = "zero", precision = "double";
     double ts = 0.0, u0 = 0.0;
-    bool u0_given = false;
+    bool u0_given = false, allow_extrapolation = false;
     int substeps = 0;
     nlid_tools::OnceOnly once;
     for (int i = 1; i < argc; ++i) {
@@ -83,6 +133,10 @@ int main(int argc, char** argv) {
       if (k == "-h" || k == "--help") {
         std::cout << kUsage;
         return nlid_tools::exit_ok;
+      }
+      if (k == "--allow-extrapolation") {  // a switch: no value (given twice, it means the same)
+        allow_extrapolation = true;
+        continue;
       }
       const bool known = k == "--model" || k == "--out" || k == "--name" || k == "--x0" || k == "--precision" ||
                          k == "--ts" || k == "--u0" || k == "--substeps";
@@ -108,6 +162,8 @@ int main(int argc, char** argv) {
     if (precision != "double" && precision != "single")
       throw UsageError("--precision must be double or single, got '" + precision + "'");
     if (u0_given && x0 != "equilibrium") throw UsageError("--u0 sets the input of --x0 equilibrium; give both");
+    if (allow_extrapolation && x0 != "equilibrium")
+      throw UsageError("--allow-extrapolation permits an equilibrium start (--x0 equilibrium) outside the data range");
     const std::string stem = name.empty() ? identifier_from(model) : name;
     const std::string h_path = (std::filesystem::path(out) / (stem + ".h")).string();
     const std::string c_path = (std::filesystem::path(out) / (stem + ".c")).string();
@@ -138,11 +194,12 @@ int main(int argc, char** argv) {
                                     step);
         Eigen::MatrixXd y;
         bool simulated = false;
+        std::string no_steady_state;
         try {
           y = m.simulate(held, nlid::InitialCondition::equilibrium);
           simulated = true;
-        } catch (const nlid::Error&) {
-          // no equilibrium or another refusal: generate_c below reports it in its own words
+        } catch (const nlid::Error& e) {
+          no_steady_state = e.message();  // reported below, after the range (which may explain it)
         }
         if (simulated && y.rows() > 0 && !y.row(0).allFinite()) {
           char buf[160];
@@ -152,7 +209,20 @@ int main(int argc, char** argv) {
                                                "the model's operating range",
                             nlid::at_parameter("--u0"));
         }
+        const Eigen::VectorXd y0 = simulated && y.rows() > 0 ? Eigen::VectorXd(y.row(0).transpose()) : Eigen::VectorXd();
+        const std::string problem = extrapolation_problem(m, model, u0, u0_given, y0);
+        if (!problem.empty() && !allow_extrapolation)
+          throw nlid::Error(problem + " - choose --u0 within the range, or give --allow-extrapolation to generate it anyway",
+                            nlid::at_parameter("--u0"));
+        if (!problem.empty()) std::cerr << "nlid-codegen: warning: " << problem << " (generated: --allow-extrapolation)\n";
+        if (!simulated)
+          throw nlid::Error("no equilibrium start for --u0 " + num(u0) + " (" + model + "): " + no_steady_state,
+                            nlid::at_parameter("--u0"));
       }
+      if (m.info().input_range.empty())
+        std::cerr << "nlid-codegen: note: " << model << " records no range of its estimation data (written before nlid "
+                  << "kept it, or saved without record_data_range), so --u0 " << num(u0)
+                  << " is not checked against the inputs the model was fitted on\n";
     }
     stage = "generating C for " + model;
     nlid::CodegenOptions o;

@@ -214,6 +214,9 @@ int main(int argc, char** argv) {
             info.description += (i ? ", " : "") + d.model.effects()[i].label();
           info.description += ")";
         }
+        // Where it was fitted, as the estimation saw the data (after --decimate's filter, as
+        // nlid-fit records it): nlid-codegen checks --u0 against it, nlid-sim notes inputs beyond.
+        nlid::record_data_range(info, opt.decimate > 1 ? nlid::decimate(est, opt.decimate, opt.decimate_options) : est);
         nlid::save_model(save_path, d.model, info);
         if (opt.progress) opt.progress("wrote " + save_path);
       }

@@ -117,6 +117,23 @@ int main(int argc, char** argv) {
     nlid::Experiment named = run;
     named.set_t0(e.t0());
     named.set_input_names(e.input_names());
+    // Outside the inputs the model was fitted on it extrapolates (a sigmoid network continues its
+    // linear term: the study's nlarx5 gives 950 deg at u = 5). Say so, once, with where and how far.
+    for (std::size_t c = 0; c < m.info().input_range.size() && static_cast<Eigen::Index>(c) < e.u().cols(); ++c) {
+      const nlid::ChannelRange& r = m.info().input_range[c];
+      const auto col = e.u().col(static_cast<Eigen::Index>(c));
+      Eigen::Index first = -1;
+      for (Eigen::Index i = 0; i < col.size() && first < 0; ++i)
+        if (!r.contains(col(i))) first = i;
+      if (first < 0) continue;
+      char buf[320];
+      std::snprintf(buf, sizeof buf,
+                    "nlid-sim: note: the input leaves the range of the model's estimation data (%.6g to %.6g) from "
+                    "sample %ld on (t = %.10g s; the input spans %.6g to %.6g): the model extrapolates there\n",
+                    r.lower, r.upper, static_cast<long>(first), e.t0() + static_cast<double>(first) * e.ts(), col.minCoeff(),
+                    col.maxCoeff());
+      std::cerr << buf;
+    }
     stage = "simulating " + model;
     sizes = std::to_string(e.size()) + " samples";
     const Eigen::MatrixXd y =

@@ -8,8 +8,12 @@
 
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
+#include <fstream>
 #include <limits>
+#include <sstream>
 #include <string>
+#include <vector>
 
 // Before the custom regressor's lambda (nlid::max on TraceScalar). The three generators this file
 // uses, not the umbrella: it also holds the run-time, series, linear and diagnosis generators.
@@ -265,4 +269,147 @@ TEST_CASE("codegen rejects bad names, missing sample times and the adaptive inte
   CHECK_THROWS_WITH(nlid::generate_c(g, o), Catch::Contains("Dormand-Prince"));
   const nlid::GeneratedCode none{};
   CHECK_THROWS_WITH(none.write("/nonexistent/dir"), Catch::Contains("does not exist"));
+}
+
+namespace {
+
+// Steps generated code over `u` (one input per line, "nan"/"inf" allowed) and returns, per
+// sample, NAME_step's return value and y[0].
+struct CheckedRun {
+  std::vector<int> status;
+  std::vector<double> y;
+};
+CheckedRun run_checked(const nlid::GeneratedCode& g, const std::vector<double>& u, const std::string& tag, bool single) {
+  const std::filesystem::path dir = nlid_test::scratch_dir() / ("checked_" + tag);
+  std::filesystem::create_directories(dir);
+  g.write(dir.string());
+  const std::string n = g.name;
+  std::ofstream(dir / "driver.c") << "#include <stdio.h>\n#include \"" << n << ".h\"\n"
+                                  << "int main(int argc, char** argv) {\n  " << n << "_real u[1], y[1];\n  double v;\n  "
+                                  << n << "_state s;\n  FILE* in = argc > 1 ? fopen(argv[1], \"r\") : NULL;\n"
+                                  << "  if (!in) return 2;\n  " << n << "_init(&s);\n"
+                                  << "  while (fscanf(in, \"%lf\", &v) == 1) {\n    int r;\n    u[0] = (" << n << "_real)v;\n"
+                                  << "    r = " << n << "_step(&s, u, y);\n    printf(\"%d %.17g\\n\", r, (double)y[0]);\n  }\n"
+                                  << "  fclose(in);\n  return 0;\n}\n";
+  {
+    std::ofstream in(dir / "u.txt");
+    for (double v : u) {
+      char b[40];
+      std::snprintf(b, sizeof b, "%.17g\n", v);
+      in << b;
+    }
+  }
+  const std::string exe = (dir / "driver").string();
+  const std::string cmd = std::string("cc -std=c99 -O2 -ffp-contract=off -Wall -Wextra -pedantic -Werror ") +
+                          (single ? "-Wdouble-promotion -Wfloat-conversion " : "") + "-o \"" + exe + "\" \"" +
+                          (dir / "driver.c").string() + "\" \"" + (dir / (n + ".c")).string() + "\" -lm > \"" +
+                          (dir / "cc.log").string() + "\" 2>&1";
+  if (std::system(cmd.c_str()) != 0) {
+    std::ifstream log(dir / "cc.log");
+    std::stringstream ss;
+    ss << log.rdbuf();
+    FAIL("generated code does not compile:\n" << ss.str());
+  }
+  REQUIRE(std::system(("\"" + exe + "\" \"" + (dir / "u.txt").string() + "\" > \"" + (dir / "y.txt").string() + "\"").c_str()) == 0);
+  CheckedRun r;
+  std::ifstream out(dir / "y.txt");
+  std::string line;
+  while (std::getline(out, line)) {
+    std::istringstream l(line);
+    int st = -1;
+    std::string yv;
+    l >> st >> yv;
+    r.status.push_back(st);
+    r.y.push_back(std::strtod(yv.c_str(), nullptr));
+  }
+  return r;
+}
+
+}  // namespace
+
+TEST_CASE("generated step refuses a non-finite input and keeps its state so that one bad sample does not poison it",
+          "[codegen]") {
+  // Before, a single NaN input (a failed sensor read) entered the lag window / filter registers
+  // / integrator state and every later output was NaN until the caller re-initialised. Now
+  // NAME_step returns 1 for that sample and leaves the state as it was: the run with the bad
+  // samples inserted equals the clean run on every good sample, bit for bit.
+  const nlid::Experiment e3 = throttle(3);
+  const int n = 400;
+  std::vector<double> clean(e3.u().col(0).data(), e3.u().col(0).data() + n);
+  std::vector<double> bad;
+  std::vector<bool> inserted;
+  for (int t = 0; t < n; ++t) {
+    if (t == 150 || t == 250 || t == 260) {
+      bad.push_back(t == 150 ? std::numeric_limits<double>::quiet_NaN()
+                             : (t == 250 ? std::numeric_limits<double>::infinity() : -std::numeric_limits<double>::infinity()));
+      inserted.push_back(true);
+    }
+    bad.push_back(clean[static_cast<std::size_t>(t)]);
+    inserted.push_back(false);
+  }
+  // Three kinds of state: a lag window (nlarx), filter registers (Hammerstein-Wiener), an
+  // integrated physical state (grey box, whose output y = g(x) stays finite on a NaN input).
+  using Model = nlid::Nlarx<nlid::LaggedRegressors<2, 2, 0>, nlid::SigmoidNet<4, 3>>;
+  Model nl(nlid::LaggedRegressors<2, 2, 0>{}, nlid::SigmoidNet<4, 3>{}, e3.ts());
+  {
+    const Eigen::MatrixXd X = nl.regressor_values(e3);
+    Eigen::VectorXd theta(nl.num_parameters());
+    nl.nonlinearity().initialize(X, e3.y().col(0).tail(X.rows()), std::span<double>(theta.data(), theta.size()));
+    nl.set_parameters(theta);
+  }
+  using Block = nlid::TransferFunctionBlock<2, 2, 0>;
+  nlid::HammersteinWiener<nlid::PwLinear<3>, Block, nlid::Saturation> hw(nlid::PwLinear<3>{}, Block{}, nlid::Saturation{},
+                                                                        e3.ts());
+  {
+    Eigen::VectorXd th(hw.num_parameters());
+    std::vector<double> pw(6);
+    const std::vector<double> bx{-0.5, 0.2, 1.0}, by{-5.0, 10.0, 40.0};
+    hw.input_nonlinearity().theta_from_breakpoints(bx, by, pw);
+    for (int i = 0; i < 6; ++i) th(i) = pw[static_cast<std::size_t>(i)];
+    th.segment(6, 4) << 0.05, 0.02, -1.5, 0.56;
+    th.tail(2) << 15.0, 90.0;
+    hw.set_parameters(th);
+  }
+  nlid::GreyBox<nlid::physics::Throttle> grey;
+  {
+    Eigen::VectorXd p(7);
+    p << 30.0, 400.0, 4e4, 64000.0, 15.0, 90.0, 10.0;
+    grey.set_parameters(p);
+  }
+  for (const bool single : {false, true}) {
+    nlid::CodegenOptions o;
+    o.ts = e3.ts();
+    o.equilibrium_input = Eigen::VectorXd::Constant(1, clean[0]);
+    if (single) o.precision = nlid::codegen::Precision::single_precision;
+    const std::string p = single ? "_f" : "";
+    o.name = "guard_nlarx" + p;
+    const nlid::GeneratedCode g1 = nlid::generate_c(nl, o);
+    o.name = "guard_hw" + p;
+    const nlid::GeneratedCode g2 = nlid::generate_c(hw, o);
+    o.name = "guard_grey" + p;
+    const nlid::GeneratedCode g3 = nlid::generate_c(grey, o);
+    for (const nlid::GeneratedCode* g : {&g1, &g2, &g3}) {
+      INFO(g->name);
+      CHECK(g->header.find("int " + g->name + "_step(") != std::string::npos);
+      const CheckedRun ok = run_checked(*g, clean, g->name + "_clean", single);
+      const CheckedRun r = run_checked(*g, bad, g->name + "_bad", single);
+      REQUIRE(ok.y.size() == clean.size());
+      REQUIRE(r.y.size() == bad.size());
+      for (int s : ok.status) CHECK(s == 0);
+      std::size_t k = 0;
+      int refused = 0;
+      for (std::size_t t = 0; t < bad.size(); ++t) {
+        if (inserted[t]) {
+          CHECK(r.status[t] == 1);
+          refused += r.status[t];
+          continue;
+        }
+        INFO("sample " << k);
+        REQUIRE(r.status[t] == 0);
+        REQUIRE(r.y[t] == ok.y[k]);  // same state as without the bad samples
+        ++k;
+      }
+      CHECK(refused == 3);
+    }
+  }
 }

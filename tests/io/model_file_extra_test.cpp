@@ -302,3 +302,71 @@ TEST_CASE("model specs refuse a key or map given twice and options that do nothi
   CHECK(parse_model_spec("wh:nb=4,nf=3,nk=0:poly1d:9:nb=4,nf=3,nk=0").orders.size() == 2);
   CHECK(parse_model_spec("hw:nb=3,nf=3,nk=0:in=pwlinear:10:out=pwlinear:breakpoints=10").nonlinearities.size() == 2);
 }
+
+TEST_CASE("model file: the estimation data's range is recorded by fit_model_spec and round-trips (optional in older files)",
+          "[io]") {
+  // Two records: the range is over both; a spec fit records it, the file keeps it, a reload
+  // and a re-save keep it, and a file without it (every file written before) still loads.
+  Dataset d;
+  d.add(steps(300, 0.01));
+  Experiment wide = steps(200, 0.01);
+  wide.u()(17, 0) = -0.25;
+  wide.y()(40, 0) = 31.5;
+  d.add(wide);
+  AnyModel m = fit_model_spec(parse_model_spec("nlarx:na=1,nb=1,nk=0:linear"), d);
+  REQUIRE(m.info().input_range.size() == 1);
+  REQUIRE(m.info().output_range.size() == 1);
+  CHECK(m.info().input_range[0].lower == -0.25);
+  CHECK(m.info().input_range[0].upper == 0.8);
+  CHECK(m.info().output_range[0].lower == std::min(d[0].y().minCoeff(), d[1].y().minCoeff()));
+  CHECK(m.info().output_range[0].upper == 31.5);
+  CHECK(m.info().input_range[0].contains(0.8));
+  CHECK_FALSE(m.info().input_range[0].contains(0.81));
+  const std::string path = temp_path("ranged.json");
+  m.save(path);
+  const AnyModel back = load_model(path);
+  REQUIRE(back.info().input_range.size() == 1);
+  CHECK(back.info().input_range[0].lower == -0.25);
+  CHECK(back.info().output_range[0].upper == 31.5);
+  ModelFileInfo typed_info;
+  (void)load_model<Nlarx<LaggedRegressors<1, 1, 0>, LinearMap<2>>>(path, &typed_info);
+  REQUIRE(typed_info.output_range.size() == 1);
+  CHECK(typed_info.output_range[0].lower == m.info().output_range[0].lower);
+  // Re-saved by a program that loaded it: still there.
+  const std::string again = temp_path("ranged_again.json");
+  back.save(again);
+  CHECK(load_model(again).info().input_range.size() == 1);
+
+  // A file without the member (older files): loads, with no range.
+  Json j = read_model_file(path);
+  REQUIRE(j.erase("data_range"));
+  const std::string old = temp_path("unranged.json");
+  write_file_atomically(old, j.dump(2));
+  const AnyModel plain = load_model(old);
+  CHECK(plain.info().input_range.empty());
+  CHECK(plain.info().output_range.empty());
+  CHECK(plain.simulate(d[0]).isApprox(back.simulate(d[0])));
+
+  // Non-finite samples (a gap marked NaN in data handed over from C++) do not enter the range.
+  {
+    Experiment gap = steps(100, 0.01);
+    gap.y()(5, 0) = std::numeric_limits<double>::quiet_NaN();
+    gap.u()(7, 0) = std::numeric_limits<double>::infinity();
+    Dataset dg;
+    dg.add(gap);
+    ModelFileInfo gi;
+    record_data_range(gi, dg);
+    REQUIRE(gi.input_range.size() == 1);
+    CHECK(gi.input_range[0].upper == 0.8);
+    CHECK(std::isfinite(gi.output_range[0].lower));
+    CHECK(std::isfinite(gi.output_range[0].upper));
+  }
+
+  // A malformed range is an error naming its path.
+  Json bad = read_model_file(path);
+  bad["data_range"] =
+      Json::object({{"inputs", Json::array({Json::array({1.0, 0.0})})}, {"outputs", Json::array()}});
+  const std::string bad_path = temp_path("bad_range.json");
+  write_file_atomically(bad_path, bad.dump(2));
+  CHECK_THROWS_WITH(load_model(bad_path), Catch::Contains("data_range.inputs[0]") && Catch::Contains("lower <= upper"));
+}

@@ -229,7 +229,7 @@ TEST_CASE("model file: every nonlinearity and compile-time types round-trip exac
     th.tail(2) << 0.02, 0.09;
     hw.set_parameters(th);
     const std::string p = temp_path("hw.json");
-    save_model(p, hw, ModelFileInfo{{}, {}, InitialCondition::zero, "nlhw2", {}, {}});
+    save_model(p, hw, ModelFileInfo{{}, {}, InitialCondition::zero, "nlhw2", {}, {}, {}, {}});
     const AnyModel any = load_model(p);
     CHECK(any.kind() == "hammerstein_wiener");
     CHECK(bit_equal(any.simulate(e), hw.simulate(e, InitialCondition::zero)));

@@ -216,7 +216,39 @@ TEST_CASE("nlid-codegen: a non-finite equilibrium is refused, naming --u0", "[to
   r = codegen("--model " + q(model) + " --out " + q(dir) + " --x0 equilibrium --u0 inf");
   CHECK(r.code == 2);
   CHECK_THAT(r.err, Catch::Contains("--u0 needs a finite number"));
+  r = codegen("--model " + q(model) + " --out " + q(dir) + " --x0 equilibrium --u0 0");
+  INFO(r.err);
+  CHECK(r.code == 0);
+  // This barely converged output-error fit has a pole near 1 and a static gain near 10^5: its
+  // steady state for u = 0.5 is y = 4e4 on data whose outputs stay within -0.8 ... 1.8. Before,
+  // that was written into NAME_x0 without a word; now it is refused as far outside the data.
   r = codegen("--model " + q(model) + " --out " + q(dir) + " --x0 equilibrium --u0 0.5");
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("the equilibrium for --u0 0.5 has the output y = ") &&
+                        Catch::Contains("far outside the output range of the estimation data"));
+}
+
+TEST_CASE("nlid-codegen: a model without a steady state is refused with --u0 named", "[tools][codegen][bad_input]") {
+  // An ARX integrator y(t) = y(t-1) + 0.5 u(t-1) has no equilibrium for u0 != 0. Before, the
+  // refusal came from the library in its words ("[at parameter 'initial']", "use
+  // InitialCondition::zero"); now it names --u0, the file and the tool's remedy.
+  const fs::path dir = work_dir() / "integ_cg";
+  fs::create_directories(dir);
+  const fs::path model = dir / "integ.json";
+  std::ofstream(model) << R"json({"format": "nlid-model", "version": 1, "kind": "arx", "ts": 0.01,
+ "initial_condition": "zero", "created": "2026-11-26T00:00:00Z", "generator": "test", "description": "",
+ "inputs": [{"name": "u", "unit": ""}], "outputs": [{"name": "y", "unit": ""}],
+ "structure": {"a": [-1.0], "b": [[0.5]], "nk": [1], "offset": 0.0},
+ "parameters": {"names": ["a1", "b1"], "values": [-1.0, 0.5]},
+ "report": {"method": "", "focus": "", "num_experiments": 0, "num_samples": 0, "num_parameters": 2, "loss": 0,
+            "fit_percent": 0, "iterations": 0, "solver_message": ""}})json";
+  Run r = codegen("--model " + q(model) + " --out " + q(dir) + " --x0 equilibrium --u0 0.5");
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("no equilibrium start for --u0 0.5 (") && Catch::Contains("integ.json") &&
+                        Catch::Contains("integrator") && Catch::Contains("use --x0 zero") &&
+                        Catch::Contains("[at parameter '--u0']"));
+  CHECK_FALSE(fs::exists(dir / "integ.c"));
+  r = codegen("--model " + q(model) + " --out " + q(dir));
   CHECK(r.code == 0);
 }
 

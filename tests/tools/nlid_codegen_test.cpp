@@ -18,6 +18,9 @@
 #include <vector>
 
 #include "../support/c_text.hpp"
+#include "nlid/core/atomic_file.hpp"
+#include "nlid/io/json.hpp"
+#include "nlid/io/json_eigen.hpp"
 #include "tool_runner.hpp"
 
 namespace fs = std::filesystem;
@@ -156,11 +159,12 @@ TEST_CASE("nlid-codegen: C from nlid-fit's model files reproduces nlid-sim for e
       REQUIRE(y_c.size() == y_nlid.size());
       CHECK(max_relative_gap(y_c, y_nlid) <= 1e-12);
 
-      // From the equilibrium of the record's first input: nlid-sim --x0 equilibrium.
+      // From the equilibrium of the record's first input: nlid-sim --x0 equilibrium. (That input,
+      // 0.995, lies beyond the estimation record's inputs, so nlid-codegen needs the switch.)
       char u0[64];
       std::snprintf(u0, sizeof u0, "%.17g", u[0]);
       const Run ge = codegen("--model " + q(model) + " --out " + q(dir) + " --name eq_model --x0 equilibrium --u0 " + u0 +
-                             " " + c.codegen_options);
+                             " --allow-extrapolation " + c.codegen_options);
       INFO(ge.err);
       REQUIRE(ge.code == 0);
       const Run se = sim("--model " + q(model) + " --input " + q(val) + " --x0 equilibrium --out " + q(simulated));
@@ -255,7 +259,125 @@ TEST_CASE("nlid-codegen: a kind it does not generate, a grey box without --ts, a
   r = codegen("--model " + q(dir / "throttle-v2.json") + " --out " + q(dir));
   CHECK(r.code == 0);
   CHECK(fs::exists(dir / "throttle_v2.c"));
-  CHECK_THAT(slurp(dir / "throttle_v2.h"), Catch::Contains("void throttle_v2_step(throttle_v2_state* s"));
+  CHECK_THAT(slurp(dir / "throttle_v2.h"), Catch::Contains("int throttle_v2_step(throttle_v2_state* s"));
+}
+
+TEST_CASE("nlid-codegen: an equilibrium start outside the estimation data's range is refused with --u0 and the range named",
+          "[tools][codegen]") {
+  // Before, --x0 equilibrium --u0 50 for a sigmoid-network model fitted on inputs in [-1, 1]
+  // wrote the network's linear extrapolation as the initial state (for the throttle study's
+  // nlarx5 at u0 = 5: a steady 950 deg for a valve that stops at 90), without a word.
+  const fs::path est = write_record("ex_est", 1200, 81u, 1);
+  const fs::path dir = work_dir() / "ex";
+  fs::create_directories(dir);
+  const fs::path model = dir / "ex.json";
+  const Run f = fit("--model nlarx:na=2,nb=2,nk=1:sigmoidnet:units=3 --est " + q(est) + " --iterations 4 --save " + q(model));
+  INFO(f.err);
+  REQUIRE(f.code == 0);
+  const nlid::Json file = nlid::read_json(model.string());
+  REQUIRE(file.view().contains("data_range"));
+  const Eigen::VectorXd in_range = file.view().at("data_range").at("inputs").at(0).get<Eigen::VectorXd>();
+  REQUIRE(in_range.size() == 2);
+  CHECK(in_range(0) >= -1.0);
+  CHECK(in_range(0) < -0.5);
+  CHECK(in_range(1) <= 1.0);
+  CHECK(in_range(1) > 0.5);
+
+  Run r = codegen("--model " + q(model) + " --out " + q(dir) + " --x0 equilibrium --u0 50");
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("--u0 50 is outside the input range of the estimation data recorded in") &&
+                        Catch::Contains("(u: -0.") && Catch::Contains("its steady state there: y = ") &&
+                        Catch::Contains("--allow-extrapolation") && Catch::Contains("parameter '--u0'"));
+  CHECK_FALSE(fs::exists(dir / "ex.c"));
+  CHECK_FALSE(fs::exists(dir / "ex.h"));
+  // Below the range as well; and the switch generates it with a warning.
+  r = codegen("--model " + q(model) + " --out " + q(dir) + " --x0 equilibrium --u0 -3");
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("--u0 -3 is outside the input range"));
+  r = codegen("--model " + q(model) + " --out " + q(dir) + " --x0 equilibrium --u0 50 --allow-extrapolation");
+  INFO(r.err);
+  CHECK(r.code == 0);
+  CHECK_THAT(r.err, Catch::Contains("warning: --u0 50 is outside the input range"));
+  CHECK(fs::exists(dir / "ex.c"));
+  // A switch given twice means the same (not "given twice; it takes one value").
+  r = codegen("--model " + q(model) + " --out " + q(dir) + " --x0 equilibrium --u0 50 --allow-extrapolation --allow-extrapolation");
+  CHECK(r.code == 0);
+  // Inside the range: no warning, no note.
+  r = codegen("--model " + q(model) + " --out " + q(dir) + " --x0 equilibrium --u0 0.5");
+  CHECK(r.code == 0);
+  CHECK(r.err.find("warning") == std::string::npos);
+  CHECK(r.err.find("note") == std::string::npos);
+  // The header names the range, for the caller to check or clamp the inputs against; in
+  // single precision as float literals (a driver clamping a float input with them compiles
+  // under -Wdouble-promotion -Wfloat-conversion -Werror).
+  const std::string header = slurp(dir / "ex.h");
+  CHECK_THAT(header, Catch::Contains("#define EX_INPUT0_MIN ") && Catch::Contains("#define EX_INPUT0_MAX ") &&
+                         Catch::Contains("#define EX_OUTPUT0_MIN ") && Catch::Contains("#define EX_OUTPUT0_MAX "));
+  {
+    const std::size_t at = header.find("#define EX_INPUT0_MAX ") + std::string("#define EX_INPUT0_MAX ").size();
+    CHECK(std::strtod(header.c_str() + at, nullptr) == in_range(1));
+  }
+  r = codegen("--model " + q(model) + " --out " + q(dir) + " --name ex_f --precision single");
+  REQUIRE(r.code == 0);
+  CHECK_THAT(slurp(dir / "ex_f.h"), Catch::Contains("#define EX_F_INPUT0_MIN ") && Catch::Contains("f /* u */"));
+  std::ofstream(dir / "clamp.c") << "#include \"ex_f.h\"\n"
+                                 << "ex_f_real clamp(ex_f_real u) {\n"
+                                 << "  return u < EX_F_INPUT0_MIN ? EX_F_INPUT0_MIN : (u > EX_F_INPUT0_MAX ? EX_F_INPUT0_MAX : u);\n}\n";
+  const std::string cc = "cc -std=c99 -Wall -Wextra -pedantic -Werror -Wdouble-promotion -Wfloat-conversion -c -o \"" +
+                         (dir / "clamp.o").string() + "\" \"" + (dir / "clamp.c").string() + "\" 2>\"" +
+                         (dir / "clamp.txt").string() + "\"";
+  if (std::system(cc.c_str()) != 0) FAIL("a float driver using the range macros does not compile:\n" << slurp(dir / "clamp.txt"));
+  // Without --u0 the default 0 is checked too; the message says it was the default. (A model
+  // fitted on inputs that stay above 0.5: the same record shifted up by 1.5.)
+  {
+    const fs::path shifted = dir / "shifted.csv";
+    std::ifstream in(est);
+    std::ofstream out(shifted);
+    std::string line;
+    std::getline(in, line);
+    out << line << "\n";
+    while (std::getline(in, line)) {
+      std::stringstream cells(line);
+      std::string t, uu, yy;
+      std::getline(cells, t, ',');
+      std::getline(cells, uu, ',');
+      std::getline(cells, yy, ',');
+      out << t << "," << std::stod(uu) + 1.5 << "," << yy << "\n";
+    }
+    out.close();
+    const fs::path up = dir / "up.json";
+    REQUIRE(fit("--model nlarx:na=1,nb=1,nk=1:linear --est " + q(shifted) + " --save " + q(up)).code == 0);
+    r = codegen("--model " + q(up) + " --out " + q(dir) + " --x0 equilibrium");
+    CHECK(r.code == 1);
+    CHECK_THAT(r.err, Catch::Contains("--u0 0 (the default) is outside the input range"));
+  }
+  // The switch only goes with an equilibrium start.
+  r = codegen("--model " + q(model) + " --out " + q(dir) + " --allow-extrapolation");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("--allow-extrapolation permits an equilibrium start"));
+
+  // Inside the input range, a steady output far outside the recorded outputs (here: a range
+  // edited to [100, 101]) is refused too.
+  nlid::Json edited = nlid::read_json(model.string());
+  edited["data_range"]["outputs"] = nlid::Json::array({nlid::Json::array({100.0, 101.0})});
+  const fs::path narrow = dir / "narrow.json";
+  nlid::write_file_atomically(narrow.string(), edited.dump(2));
+  r = codegen("--model " + q(narrow) + " --out " + q(dir) + " --x0 equilibrium --u0 0.5");
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("the equilibrium for --u0 0.5 has the output y = ") &&
+                        Catch::Contains("far outside the output range of the estimation data") &&
+                        Catch::Contains("(100 to 101)"));
+
+  // A file without the range (written before nlid kept it): generated, with a note saying
+  // that --u0 was not checked.
+  nlid::Json old = nlid::read_json(model.string());
+  REQUIRE(old.erase("data_range"));
+  const fs::path unranged = dir / "unranged.json";
+  nlid::write_file_atomically(unranged.string(), old.dump(2));
+  r = codegen("--model " + q(unranged) + " --out " + q(dir) + " --x0 equilibrium --u0 50");
+  CHECK(r.code == 0);
+  CHECK_THAT(r.err, Catch::Contains("note: ") && Catch::Contains("records no range of its estimation data") &&
+                        Catch::Contains("--u0 50 is not checked"));
 }
 
 TEST_CASE("nlid-fit -> nlid-sim: every family keeps the data's channel names, and --decimate matches nlid-fit's",
@@ -314,6 +436,7 @@ TEST_CASE("nlid-diagnose --save -> nlid-sim and nlid-codegen: the repaired model
   const std::string text = slurp(model);
   CHECK_THAT(text, Catch::Contains("\"kind\": \"augmented_greybox\"") && Catch::Contains("\"effect\": \"dead_time\"") &&
                        Catch::Contains("\"name\": \"u\""));
+  CHECK_THAT(text, Catch::Contains("\"data_range\""));  // where it was fitted: nlid-codegen checks --u0 against it
 
   const fs::path simulated = dir / "sim.csv";
   const Run s = sim("--model " + q(model) + " --input " + q(val) + " --out " + q(simulated));
@@ -334,4 +457,32 @@ TEST_CASE("nlid-diagnose --save -> nlid-sim and nlid-codegen: the repaired model
   const std::vector<double> y_c = run_generated(dir, "repaired", csv_column(val, 1));
   REQUIRE(y_c.size() == y_nlid.size());
   CHECK(max_relative_gap(y_c, y_nlid) <= 1e-12);
+}
+
+TEST_CASE("nlid-diagnose --save records the data range as the estimation saw it like nlid-fit does", "[tools][diagnose]") {
+  // With --decimate the models are fitted on the filtered, decimated record, whose range differs
+  // from the raw file's (the anti-alias filter rings at steps); both tools record that one.
+  const fs::path est = write_record("dr_est", 1600, 13u, 4), val = write_record("dr_val", 1600, 14u, 4);
+  const fs::path dir = work_dir() / "dr";
+  fs::create_directories(dir);
+  const Run d = tool_test::diagnose("--baseline first_order --est " + q(est) + " --val " + q(val) +
+                                    " --decimate 4 --starts 1 --max-effects 1 --threads 2 --quiet --save " + q(dir / "rep.json"));
+  INFO(d.err);
+  REQUIRE(d.code == 0);
+  const Run f = fit("--model linear:arx:na=1,nb=1,nk=1 --est " + q(est) + " --decimate 4 --save " + q(dir / "arx.json"));
+  REQUIRE(f.code == 0);
+  auto range = [](const fs::path& p, const char* which) {
+    return nlid::read_json(p.string()).view().at("data_range").at(which).at(0).get<Eigen::VectorXd>();
+  };
+  const Eigen::VectorXd ri = range(dir / "rep.json", "inputs"), fi = range(dir / "arx.json", "inputs");
+  const Eigen::VectorXd ro = range(dir / "rep.json", "outputs"), fo = range(dir / "arx.json", "outputs");
+  REQUIRE(ri.size() == 2);
+  CHECK(ri(0) == fi(0));
+  CHECK(ri(1) == fi(1));
+  CHECK(ro(0) == fo(0));
+  CHECK(ro(1) == fo(1));
+  // Not the raw file's range: the filtered steps overshoot it.
+  const std::vector<double> raw = csv_column(est, 1);
+  const auto [lo, hi] = std::minmax_element(raw.begin(), raw.end());
+  CHECK((ri(0) < *lo || ri(1) > *hi));
 }

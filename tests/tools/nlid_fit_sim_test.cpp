@@ -78,6 +78,42 @@ TEST_CASE("nlid-fit + nlid-sim: a nonlinear ARX model of a known first-order lag
   CHECK(fit_pct > 98.5);
 }
 
+TEST_CASE("nlid-sim notes where the input leaves the range the model was fitted on", "[tools][sim]") {
+  // The model file records its estimation data's range; a record whose input goes beyond it is
+  // simulated (nlid-sim reproduces the model, extrapolation included) with a note on stderr.
+  const fs::path est = tool_test::write_record("range_est", 800, 91u, 1);
+  const fs::path model = tool_test::work_dir() / "range.json";
+  REQUIRE(fit("--model nlarx:na=1,nb=1,nk=1:sigmoidnet:units=2 --est " + q(est) + " --iterations 3 --save " + q(model)).code == 0);
+  Run s = sim("--model " + q(model) + " --input " + q(est) + " --out " + q(tool_test::work_dir() / "range_y.csv"));
+  CHECK(s.code == 0);
+  CHECK(s.err.find("note") == std::string::npos);
+  // The same record with the input tripled from row 300 on.
+  const fs::path wide = tool_test::work_dir() / "range_wide.csv";
+  {
+    std::ifstream in(est);
+    std::ofstream out(wide);
+    std::string line;
+    std::getline(in, line);
+    out << line << "\n";
+    for (int row = 0; std::getline(in, line); ++row) {
+      std::stringstream cells(line);
+      std::string t, u, y;
+      std::getline(cells, t, ',');
+      std::getline(cells, u, ',');
+      std::getline(cells, y, ',');
+      out << t << "," << (row >= 300 ? 3.0 : 1.0) * std::stod(u) << "," << y << "\n";
+    }
+  }
+  s = sim("--model " + q(model) + " --input " + q(wide) + " --out " + q(tool_test::work_dir() / "range_y.csv"));
+  INFO(s.err);
+  CHECK(s.code == 0);
+  CHECK_THAT(s.err, Catch::Contains("note: the input leaves the range of the model's estimation data") &&
+                        Catch::Contains("the model extrapolates there"));
+  const std::size_t at = s.err.find("from sample ");
+  REQUIRE(at != std::string::npos);
+  CHECK(std::stol(s.err.substr(at + 12)) >= 300);  // not before the tripled part
+}
+
 TEST_CASE("nlid-fit: unknown specs say what is accepted, bad files and columns are located", "[tools][fit]") {
   const fs::path good = write_record("fit_good", 400, 33u, 0);
   const fs::path model = work_dir() / "m.json";

@@ -188,7 +188,7 @@ GeneratedCode generate_c(const AugmentedModel<P>& model, const CodegenOptions& o
            codegen::emit_c(f_fric, {"out[0]"}, "  ") + "  return out[0];\n}\n\n";
   }
   const std::string X = "s->x";
-  src += "void " + name + "_step(" + name + "_state* s, const " + R + "* u, " + R + "* y) {\n";
+  src += codegen::model_step_head(name);
   src += "  const " + R + " h = " + M + "_SAMPLE_TIME / " + M + "_SUBSTEPS;\n";
   src += "  const " + R + " half = " + codegen::c_literal(0.5) + " * h, sixth = h / " + codegen::c_literal(6.0) + ";\n";
   src += "  const int first = " + X + "[" + std::to_string(i_first) + "] != " + codegen::c_literal(0.0) + ";\n";
@@ -233,7 +233,7 @@ GeneratedCode generate_c(const AugmentedModel<P>& model, const CodegenOptions& o
   g.name = name;
   g.paths = f_dx.paths;
   g.header = codegen::ascii_text(codegen::make_header(m));
-  g.source = codegen::ascii_text(src);
+  g.source = codegen::ascii_text(src + "\n" + codegen::checked_step_function(name));
   return g;
 }
 

@@ -10,6 +10,11 @@
 ///     NAME_init(&s);                       // x = NAME_x0: zero, or an equilibrium chosen at generation
 ///     for (;;) { NAME_step(&s, u, y); }    // one sample: y(t) from x(t), u(t); then x(t+1)
 ///
+/// NAME_step returns 0, or 1 when an input, an output or the next state is not finite (a NaN
+/// from a failed sensor, an input so far outside the model's range that it overflows): then the
+/// state is left as it was — one bad sample does not poison the state for good, as it would in
+/// a lag window or a filter register — and y holds what the model gives for that input.
+///
 /// plus `NAME_set_state(&s, x)`, `NAME_parameters()` (the estimated values, read-only) and the
 /// macros NAME_NUM_STATES / _INPUTS / _OUTPUTS / _PARAMS and NAME_SAMPLE_TIME. The code is C99
 /// with <math.h> only, no allocation, no globals but `static const` tables, re-entrant (all
@@ -303,7 +308,10 @@ inline std::string make_header(const ModelShape& m) {
   h += "/* Sets the state to x (" + M + "_NUM_STATES values, layout above). */\nvoid " + m.name + "_set_state(" +
        m.name + "_state* s, const " + c_real() + "* x);\n";
   h += "/* One sample: outputs y (" + M + "_NUM_OUTPUTS) at time t from the state and inputs u (" + M +
-       "_NUM_INPUTS) at t;\n   then advances the state to t + 1. */\nvoid " + m.name + "_step(" + m.name +
+       "_NUM_INPUTS) at t;\n   then advances the state to t + 1. Returns 0; returns 1 and leaves the state as it was\n"
+       "   when an input, an output or the next state is not finite (NaN/inf: a sensor fault, an input\n"
+       "   that overflows the model), so one bad sample does not corrupt the state (y then holds what\n"
+       "   the model gives for that input, e.g. NaN). Compile without -ffast-math (it drops the check). */\nint " + m.name + "_step(" + m.name +
        "_state* s, const " + c_real() + "* u, " + c_real() + "* y);\n";
   h += "/* The estimated parameters (" + M + "_NUM_PARAMS values, read-only). */\nconst " + c_real() + "* " + m.name +
        "_parameters(void);\n\n";
@@ -365,17 +373,43 @@ inline std::vector<std::string> targets(const std::string& base, int n) {
   return t;
 }
 
+/// Opening line of the model's own one-sample step: a static function `NAME_advance` that the
+/// public `NAME_step` (`checked_step_function`) calls on a copy of the state.
+inline std::string model_step_head(const std::string& name) {
+  return "static void " + name + "_advance(" + name + "_state* s, const " + c_real() + "* u, " + c_real() + "* y) {\n";
+}
+
+/// The public `NAME_step`: `NAME_advance` on a copy of the state, kept only when the inputs,
+/// the outputs and the next state are all finite (returns 0; otherwise 1, state unchanged).
+/// `isfinite` is C99's <math.h> macro (compile without -ffinite-math-only / -ffast-math, which
+/// let the compiler assume it true).
+inline std::string checked_step_function(const std::string& name) {
+  const std::string M = macro(name), R = c_real();
+  return "/* One sample (see " + name + ".h): the model's step on a copy of the state, kept only when the\n"
+         "   inputs, the outputs and the next state are all finite; otherwise the state stays as it was. */\n"
+         "int " + name + "_step(" + name + "_state* s, const " + R + "* u, " + R + "* y) {\n"
+         "  " + name + "_state next = *s;\n  int i, ok = 1;\n"
+         "  " + name + "_advance(&next, u, y);\n"
+         "  for (i = 0; i < " + M + "_NUM_INPUTS; ++i) ok = ok && isfinite(u[i]);\n"
+         "  for (i = 0; i < " + M + "_NUM_OUTPUTS; ++i) ok = ok && isfinite(y[i]);\n"
+         "  for (i = 0; i < " + M + "_NUM_STATES; ++i) ok = ok && isfinite(next.x[i]);\n"
+         "  if (!ok) return 1;\n"
+         "  *s = next;\n"
+         "  return 0;\n"
+         "}\n";
+}
+
 /// A step function for a one-step map traced as [y; x_next]: computes into y and xn, then
 /// copies xn into the state (so every new state value is computed from the old ones).
 inline std::string discrete_step_function(const ModelShape& m, const TracedFunction& f) {
   std::vector<std::string> t = targets("y", m.ny);
   for (int i = 0; i < m.nx; ++i) t.push_back("xn[" + std::to_string(i) + "]");
-  std::string s = "void " + m.name + "_step(" + m.name + "_state* s, const " + c_real() + "* u, " + c_real() + "* y) {\n";
+  std::string s = model_step_head(m.name);
   if (m.nx > 0) s += "  " + c_real() + " xn[" + std::to_string(m.nx) + "];\n  int i;\n";
   s += "  (void)s;\n  (void)u;\n";
   s += emit_c(f, t, "  ");
   if (m.nx > 0) s += "  for (i = 0; i < " + std::to_string(m.nx) + "; ++i) s->x[i] = xn[i];\n";
-  return s + "}\n";
+  return s + "}\n\n" + checked_step_function(m.name);
 }
 
 }  // namespace codegen

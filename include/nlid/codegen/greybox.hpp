@@ -129,7 +129,7 @@ GeneratedCode generate_c(const GreyBox<P>& model, const CodegenOptions& options)
            codegen::emit_c(fd, codegen::targets("dx", nx), "  ") + "}\n\n";
     src += "/* y = g(x, u, p) */\nstatic void " + name + "_output(const " + R + "* x, const " + R + "* u, " + R + "* y) {\n  (void)x;\n  (void)u;\n" +
            codegen::emit_c(fg, codegen::targets("y", ny), "  ") + "}\n\n";
-    src += "void " + name + "_step(" + name + "_state* s, const " + R + "* u, " + R + "* y) {\n";
+    src += codegen::model_step_head(name);
     src += "  const " + R + " h = " + M + "_SAMPLE_TIME / " + M + "_SUBSTEPS;\n";
     src += "  " + R + " k1[" + N + "], k2[" + N + "], k3[" + N + "], k4[" + N + "], tmp[" + N + "];\n  int i, j;\n";
     src += "  " + name + "_output(s->x, u, y);\n";
@@ -154,7 +154,7 @@ GeneratedCode generate_c(const GreyBox<P>& model, const CodegenOptions& options)
     g.name = name;
     g.paths = fd.paths;
     g.header = codegen::ascii_text(codegen::make_header(m));
-    g.source = codegen::ascii_text(src);
+    g.source = codegen::ascii_text(src + "\n" + codegen::checked_step_function(name));
     return g;
   }
 }

@@ -110,8 +110,8 @@ inline GeneratedCode generate_c(const Arx& model, const CodegenOptions& options 
   GeneratedCode g;
   g.name = m.name;
   g.header = codegen::ascii_text(codegen::make_header(m));
-  g.source = codegen::ascii_text(codegen::make_source_prelude(m, {}) + "void " + m.name + "_step(" + m.name +
-                                 "_state* s, const " + codegen::c_real() + "* u, " + codegen::c_real() + "* y) {\n  (void)s;\n" + body + "}\n");
+  g.source = codegen::ascii_text(codegen::make_source_prelude(m, {}) + codegen::model_step_head(m.name) + "  (void)s;\n" +
+                                 body + "}\n\n" + codegen::checked_step_function(m.name));
   return g;
 }
 
@@ -201,8 +201,8 @@ inline GeneratedCode generate_c(const OutputError& model, const CodegenOptions& 
   GeneratedCode g;
   g.name = m.name;
   g.header = codegen::ascii_text(codegen::make_header(m));
-  g.source = codegen::ascii_text(codegen::make_source_prelude(m, {}) + "void " + m.name + "_step(" + m.name +
-                                 "_state* s, const " + codegen::c_real() + "* u, " + codegen::c_real() + "* y) {\n  (void)s;\n" + body + "}\n");
+  g.source = codegen::ascii_text(codegen::make_source_prelude(m, {}) + codegen::model_step_head(m.name) + "  (void)s;\n" +
+                                 body + "}\n\n" + codegen::checked_step_function(m.name));
   return g;
 }
 

@@ -12,12 +12,14 @@
 ///     "structure"         kind-specific: regressors + nonlinearity, blocks, physics, polynomials
 ///     "parameters"        {"names": [...], "values": [...]} — θ, exact
 ///     "report"            what the estimation did (fit, iterations, cost, status, time)
+///     "data_range"        optional: [min, max] of each input and output in the estimation data
 ///
 /// `ModelSerial<M>`: `kind`; `save(j, model, info)` fills those members; `load(j, info)` builds an
 /// M from a file (for the types whose structure can be rebuilt from text); `restore(j, model,
 /// info)` checks that a prototype has the file's structure and copies the rest into it (for
 /// models holding C++ lambdas, e.g. custom regressors or user physics).
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <optional>
@@ -30,6 +32,7 @@
 
 #include "nlid/core/error.hpp"
 #include "nlid/core/initial_condition.hpp"
+#include "nlid/data/dataset.hpp"
 #include "nlid/io/json.hpp"
 #include "nlid/io/json_eigen.hpp"
 #include "nlid/io/nonlinearity_serial.hpp"
@@ -50,6 +53,14 @@ namespace nlid {
 /// What a model file holds besides the model object itself: channel units, the default
 /// initial-condition policy, a description, the creation time, and (for models that do not keep
 /// one, e.g. grey-box) the estimation report.
+/// [lower, upper] of one channel in the data a model was estimated on.
+struct ChannelRange {
+  double lower = 0.0;  ///< smallest value in the estimation data
+  double upper = 0.0;  ///< largest value in the estimation data
+  /// True if `v` lies in [lower, upper].
+  [[nodiscard]] bool contains(double v) const { return v >= lower && v <= upper; }
+};
+
 struct ModelFileInfo {
   std::vector<std::string> input_units;   ///< one per input, or empty
   std::vector<std::string> output_units;  ///< one per output, or empty
@@ -58,7 +69,50 @@ struct ModelFileInfo {
   std::string description;                ///< free text (e.g. "nlarx5 of the throttle study")
   std::string created;                    ///< ISO 8601 UTC time; filled by save when empty
   std::optional<EstimationReport> report;  ///< report of a model that holds none itself
+  /// Range of each input / output in the estimation data (empty: not recorded): where the model
+  /// was fitted. Outside it a nonlinear model extrapolates (a sigmoid network continues its
+  /// linear term, a piecewise-linear map its end segments); nlid-codegen refuses an equilibrium
+  /// start there. Filled by `record_data_range` (nlid-fit and nlid-diagnose --save do).
+  std::vector<ChannelRange> input_range, output_range;
 };
+
+/// Records the range of every input and output of `data` (all experiments) in `info`, over the
+/// finite values; records nothing if a channel has none (a file never holds a non-finite range).
+inline void record_data_range(ModelFileInfo& info, const Dataset& data) {
+  info.input_range.clear();
+  info.output_range.clear();
+  std::vector<ChannelRange> in, out;
+  std::vector<bool> seen_in, seen_out;
+  auto widen = [](std::vector<ChannelRange>& r, std::vector<bool>& seen, const Eigen::MatrixXd& v) {
+    if (r.size() < static_cast<std::size_t>(v.cols())) {
+      r.resize(static_cast<std::size_t>(v.cols()));
+      seen.resize(static_cast<std::size_t>(v.cols()), false);
+    }
+    for (Eigen::Index c = 0; c < v.cols(); ++c) {
+      auto& rc = r[static_cast<std::size_t>(c)];
+      for (Eigen::Index i = 0; i < v.rows(); ++i) {
+        const double x = v(i, c);
+        if (!std::isfinite(x)) continue;
+        if (!seen[static_cast<std::size_t>(c)]) {
+          rc = {x, x};
+          seen[static_cast<std::size_t>(c)] = true;
+        }
+        rc.lower = std::min(rc.lower, x);
+        rc.upper = std::max(rc.upper, x);
+      }
+    }
+  };
+  for (const Experiment& e : data) {
+    widen(in, seen_in, e.u());
+    widen(out, seen_out, e.y());
+  }
+  for (bool s : seen_in)
+    if (!s) return;
+  for (bool s : seen_out)
+    if (!s) return;
+  info.input_range = std::move(in);
+  info.output_range = std::move(out);
+}
 
 /// The estimation report of a grey-box estimation, in the common form kept in model files.
 [[nodiscard]] inline EstimationReport estimation_report(const GreyBoxEstimate& g) {
@@ -161,6 +215,36 @@ inline void write_common(Json& j, double ts, const std::vector<std::string>& in,
       if (report->initial_condition == to_string(c)) ic = c;
   }
   j["initial_condition"] = to_string(ic);
+  if (!info.input_range.empty() || !info.output_range.empty()) {
+    auto ranges = [](const std::vector<ChannelRange>& r) {
+      Json::Array a;
+      for (const ChannelRange& c : r) a.push_back(Json::array({c.lower, c.upper}));
+      return Json(std::move(a));
+    };
+    j["data_range"] = Json::object({{"inputs", ranges(info.input_range)}, {"outputs", ranges(info.output_range)}});
+  }
+}
+
+/// Reads the optional "data_range" member (a top-level annotation: older readers ignore it).
+inline void read_data_range(const JsonView& file, ModelFileInfo& info) {
+  info.input_range.clear();
+  info.output_range.clear();
+  if (!file.contains("data_range")) return;
+  const JsonView d = file.at("data_range");
+  d.check_keys({"inputs", "outputs"});
+  auto read = [&](const char* key, std::vector<ChannelRange>& r) {
+    if (!d.contains(key)) return;
+    const JsonView list = d.at(key);
+    for (std::size_t i = 0; i < list.as_array().size(); ++i) {
+      const JsonView item = list.at(i);
+      const Eigen::VectorXd v = read_vector(item, 2);
+      if (!v.allFinite() || !(v(0) <= v(1)))
+        item.fail("a data range at " + item.path_text() + " must be [lower, upper] with finite lower <= upper");
+      r.push_back({v(0), v(1)});
+    }
+  };
+  read("inputs", info.input_range);
+  read("outputs", info.output_range);
 }
 
 /// Reads the common members into `info`; returns ts and the channel names.
@@ -171,6 +255,7 @@ inline double read_common(const JsonView& file, ModelFileInfo& info, std::vector
   in = read_channels(file.at("inputs"), info.input_units);
   out = read_channels(file.at("outputs"), info.output_units);
   info.initial_condition = read_initial_condition(file.at("initial_condition"));
+  read_data_range(file, info);
   return ts;
 }
 

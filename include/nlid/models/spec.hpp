@@ -428,12 +428,10 @@ AnyModel make_model(const ModelSpec& s, int num_inputs = 1) {
   return AnyModel(make_greybox(s.physics));
 }
 
-/// Estimates the model a spec describes on `data` (one or more experiments) and returns it
-/// estimated, with the spec as the file description. Estimators: arx/oe of the linear layer,
-/// `estimate` (models/estimate.hpp) for nlarx and hw, the series estimator for wh, hammerstein
-/// and wiener, the grey-box estimator for greybox. Throws `nlid::Error` on data that do not fit.
+namespace detail {
+/// fit_model_spec without the data range (below).
 template <int = 0>  // compiled where called, as make_model
-AnyModel fit_model_spec(const ModelSpec& s, const Dataset& data, const SpecFitOptions& o = {}) {
+AnyModel fit_model_spec_kind(const ModelSpec& s, const Dataset& data, const SpecFitOptions& o) {
   register_series_model_kind();
   require(data.size() > 0, "no estimation data", at_parameter("data"));
   const int nu = data.num_inputs();
@@ -495,5 +493,17 @@ AnyModel fit_model_spec(const ModelSpec& s, const Dataset& data, const SpecFitOp
   (void)estimate(g, data, go);
   return AnyModel(std::move(g), info);
 }
+}  // namespace detail
 
+/// Estimates the model a spec describes on `data` (one or more experiments) and returns it
+/// estimated, with the spec as the file description and the range of every channel in `data`
+/// (`ModelFileInfo::input_range`, `output_range`). Estimators: arx/oe of the linear layer,
+/// `estimate` (models/estimate.hpp) for nlarx and hw, the series estimator for wh, hammerstein
+/// and wiener, the grey-box estimator for greybox. Throws `nlid::Error` on data that do not fit.
+template <int = 0>  // compiled where called, as make_model
+AnyModel fit_model_spec(const ModelSpec& s, const Dataset& data, const SpecFitOptions& o = {}) {
+  AnyModel m = detail::fit_model_spec_kind(s, data, o);
+  record_data_range(m.info(), data);  // where the model was fitted (ModelFileInfo::input_range)
+  return m;
+}
 }  // namespace nlid
