@@ -6,6 +6,7 @@
 // single-precision versions must contain no double and stay within float rounding of it.
 #include <catch2/catch.hpp>
 
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -138,6 +139,28 @@ TEST_CASE("tracing: folding, parameters, branch exploration and limits", "[codeg
                     Catch::Contains("more than 8 paths"));
   // A traced signal used outside a trace is an error.
   CHECK_THROWS_WITH(TraceScalar::signal("u[0]") + 1.0, Catch::Contains("outside a trace"));
+}
+
+TEST_CASE("tracing: each math function emits its own C function, two-argument ones in argument order", "[codegen]") {
+  using nlid::TraceScalar;
+  const auto f = nlid::codegen::trace_paths([] {
+    const TraceScalar a = TraceScalar::signal("u[0]"), b = TraceScalar::signal("u[1]");
+    return std::vector<TraceScalar>{nlid::atan2(a, b), nlid::hypot(a, b), nlid::pow(a, b), nlid::cbrt(a),
+                                    nlid::sqrt(a), nlid::expm1(a), nlid::log1p(a), nlid::log10(a),
+                                    nlid::erf(a), nlid::tanh(a), nlid::fabs(a)};
+  });
+  const std::string code =
+      nlid::codegen::emit_c(f, {"y[0]", "y[1]", "y[2]", "y[3]", "y[4]", "y[5]", "y[6]", "y[7]", "y[8]", "y[9]", "y[10]"});
+  INFO(code);
+  for (const char* call : {"atan2(u[0], u[1])", "hypot(u[0], u[1])", "pow(u[0], u[1])", "cbrt(u[0])", "sqrt(u[0])",
+                           "expm1(u[0])", "log1p(u[0])", "log10(u[0])", "erf(u[0])", "tanh(u[0])", "fabs(u[0])"}) {
+    CAPTURE(call);
+    CHECK(code.find(call) != std::string::npos);
+  }
+  // On literals the same functions fold to the C library's values.
+  CHECK(nlid::atan2(TraceScalar(1.0), TraceScalar(-2.0)).value() == std::atan2(1.0, -2.0));
+  CHECK(nlid::cbrt(TraceScalar(-27.0)).value() == std::cbrt(-27.0));
+  CHECK(nlid::cbrt(TraceScalar(-27.0)).value() == Approx(-3.0).epsilon(1e-15));
 }
 
 TEST_CASE("generated C of an nlarx with a custom regressor and a sigmoid net matches nlid to 1e-12", "[codegen]") {

@@ -391,6 +391,15 @@ TEST_CASE("read_csv applies the non-finite policy", "[data][csv]") {
   interp.max_gap = 2;
   err = error_of([&] { (void)nlid::read_csv(p, interp); });
   CHECK_THAT(err.what(), Contains("gap of 3 missing values (rows 3-5) is longer than max_gap = 2"));
+  // The limit is inclusive: a gap of exactly max_gap values is filled, one more is refused.
+  interp.max_gap = 3;
+  const nlid::Experiment at_limit = nlid::read_csv(p, interp);
+  CHECK(at_limit.y()(2, 0) == Approx(2.0));
+  CHECK(at_limit.y()(3, 0) == Approx(3.0));
+  CHECK_FALSE(at_limit.has_missing());
+  interp.max_gap = 0;
+  err = error_of([&] { (void)nlid::read_csv(p, interp); });
+  CHECK_THAT(err.what(), Contains("gap of 3 missing values (rows 3-5) is longer than max_gap = 0"));
 
   interp.max_gap = 10;
   err = error_of(

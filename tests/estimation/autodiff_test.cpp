@@ -4,6 +4,7 @@
 #include <catch2/catch.hpp>
 
 #include <cmath>
+#include <span>
 #include <string>
 #include <thread>
 #include <vector>
@@ -155,6 +156,39 @@ TEST_CASE("check_jacobian accepts a correct analytic Jacobian and locates a wron
   REQUIRE(nlid::numeric_jacobian(make(0.0), th, J));
   CHECK(J.rows() == m);
   CHECK(J(0, 0) == Approx(1.0));
+}
+
+namespace {
+// r = (θ³, θ²): J = (3θ², 2θ). Central differences are exact for the square and off by h² for the
+// cube; a one-sided difference would be off by ~h·f''/2 (≈ 1e-4 here).
+struct CubeSquare {
+  static constexpr int num_params = 1;
+  int num_parameters() const { return 1; }
+  Eigen::Index num_residuals() const { return 2; }
+  template <class T>
+  bool residuals(std::span<const T> th, std::span<T> r) const {
+    r[0] = th[0] * th[0] * th[0];
+    r[1] = th[0] * th[0];
+    return true;
+  }
+};
+}  // namespace
+
+TEST_CASE("NumericDiffProblem and numeric_jacobian are central differences: known derivatives to 1e-8",
+          "[estimation][numeric_diff]") {
+  const Eigen::Matrix<double, 1, 1> th(3.0);
+  NumericDiffProblem nd(CubeSquare{});
+  Eigen::VectorXd r(2);
+  nlid::JacobianMatrix<1> J(2, 1);
+  REQUIRE(nd.evaluate(th, r, &J));
+  CHECK(r[0] == 27.0);
+  CHECK(r[1] == 9.0);
+  CHECK(J(0, 0) == Approx(27.0).epsilon(0).margin(1e-8));
+  CHECK(J(1, 0) == Approx(6.0).epsilon(0).margin(1e-8));
+  nlid::JacobianMatrix<1> Jn;
+  REQUIRE(nlid::numeric_jacobian(AutoDiffProblem(CubeSquare{}), th, Jn));
+  CHECK(Jn(0, 0) == Approx(27.0).epsilon(0).margin(1e-8));
+  CHECK(Jn(1, 0) == Approx(6.0).epsilon(0).margin(1e-8));
 }
 
 TEST_CASE("FunctionProblem validates its sizes", "[estimation][problem]") {

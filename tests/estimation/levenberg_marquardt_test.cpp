@@ -3,8 +3,10 @@
 // fallback on an ill-conditioned problem, and validation errors that name the option.
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -304,6 +306,73 @@ TEST_CASE("steps into a region where evaluate() fails are rejected, not propagat
   CHECK_THROWS_WITH(nlid::solve_least_squares(problem, bad),
                     Contains("cannot be evaluated at the initial parameters") &&
                         Contains("evaluate() returned false"));
+}
+
+namespace {
+// r = e^θ − 2.2 from θ = 0: the Gauss–Newton step (≈ 1.2) overshoots the minimum ln 2.2 ≈ 0.79,
+// so the first step decreases the cost by only ~13 % of the model's prediction.
+struct ExpOvershoot {
+  static constexpr int num_params = 1;
+  int num_parameters() const { return 1; }
+  Eigen::Index num_residuals() const { return 1; }
+  template <class T>
+  bool residuals(std::span<const T> th, std::span<T> r) const {
+    using std::exp;
+    r[0] = exp(th[0]) - 2.2;
+    return true;
+  }
+};
+}  // namespace
+
+TEST_CASE("LM damping follows the gain ratio: known first steps, accepted at a small gain, nu doubling",
+          "[estimation][lm]") {
+  // One parameter, J(0) = 1 so the scale D = 1: the damped step from θ = 0 is δ = 1.2 / (1 + λ₀),
+  // the model decrease m(0) − m(δ) = 1.2δ − δ²/2, and the gain ratio ϱ ≈ 0.135 — small but above
+  // the acceptance threshold 1e-3, so the step is taken and λ is scaled by
+  // max(1/3, 1 − (2ϱ − 1)³) (Nielsen's update).
+  AutoDiffProblem problem(ExpOvershoot{});
+  std::vector<nlid::IterationReport> trace;
+  LmOptions o;
+  o.callback = [&](const nlid::IterationReport& r) {
+    trace.push_back(r);
+    return true;
+  };
+  Eigen::Matrix<double, 1, 1> th(0.0);
+  const auto s = nlid::solve_least_squares(problem, th, o);
+  INFO(s.message());
+  CHECK(s.converged());
+  CHECK(th[0] == Approx(std::log(2.2)).epsilon(1e-10));
+  REQUIRE(trace.size() >= 2);
+  const double l0 = o.initial_lambda;
+  const double delta = 1.2 / (1.0 + l0);
+  const double predicted = 1.2 * delta - 0.5 * delta * delta;
+  const double new_cost = 0.5 * std::pow(std::exp(delta) - 2.2, 2);
+  const double gain = (0.72 - new_cost) / predicted;
+  REQUIRE(gain > 0.1);
+  REQUIRE(gain < 0.2);
+  CHECK(trace[0].lambda == l0);
+  CHECK(trace[0].cost == Approx(0.72));
+  CHECK(trace[1].step_accepted);
+  CHECK(trace[1].step_norm == Approx(delta).epsilon(1e-12));
+  CHECK(trace[1].cost == Approx(new_cost).epsilon(1e-12));
+  // The report carries the damping after the attempt (the one the next step uses).
+  const double t = 2.0 * gain - 1.0;
+  CHECK(trace[1].lambda == Approx(l0 * std::max(1.0 / 3.0, 1.0 - t * t * t)).epsilon(1e-9));
+
+  // Rejected steps multiply λ by ν = 2, 4, 8, …: from θ = 20 the undamped step of LogFit lands
+  // below 0, where evaluate() fails, for many attempts in a row.
+  AutoDiffProblem logfit(LogFit{});
+  trace.clear();
+  o.initial_lambda = 1e-12;
+  Eigen::Matrix<double, 1, 1> th2(20.0);
+  const auto s2 = nlid::solve_least_squares(logfit, th2, o);
+  INFO(s2.message());
+  CHECK(s2.converged());
+  REQUIRE(trace.size() >= 4);
+  for (int i = 1; i <= 3; ++i) CHECK_FALSE(trace[static_cast<std::size_t>(i)].step_accepted);
+  CHECK(trace[1].lambda == Approx(2e-12));
+  CHECK(trace[2].lambda == Approx(8e-12));
+  CHECK(trace[3].lambda == Approx(64e-12));
 }
 
 TEST_CASE("a solve that never moves from its start is reported as stalled, not converged",

@@ -55,6 +55,18 @@ TEST_CASE("robust cost and IRLS weights", "[estimation][robust]") {
   CHECK(w[2] * w[2] * r[2] == Approx(1.0));
 }
 
+TEST_CASE("robust_scale is 1.4826 times the median absolute deviation, even and odd lengths",
+          "[estimation][robust]") {
+  // Even length: median 1.5 (mean of the middle pair), deviations 1.5 0.5 0.5 8.5, MAD 1.
+  Eigen::VectorXd even(4);
+  even << 10.0, 0.0, 2.0, 1.0;
+  CHECK(nlid::robust_scale(even) == Approx(1.482602218505602));
+  // Odd length: median 2, deviations 2 1 0 8 9, MAD 2.
+  Eigen::VectorXd odd(5);
+  odd << 11.0, 0.0, 2.0, 10.0, 1.0;
+  CHECK(nlid::robust_scale(odd) == Approx(2.0 * 1.482602218505602));
+}
+
 TEST_CASE("robust_scale ignores outliers, validation names the field", "[estimation][robust]") {
   Eigen::VectorXd r(101);
   for (int i = 0; i < 101; ++i) r[i] = 0.2 * std::sin(0.37 * i * i);

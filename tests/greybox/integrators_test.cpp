@@ -61,6 +61,27 @@ TEST_CASE("Dormand-Prince propagated solution is fifth order", "[greybox][integr
   CHECK(std::log2(e1 / e2) == Approx(5.0).margin(0.3));
 }
 
+TEST_CASE("Dormand-Prince step's embedded error estimate is the fourth-order solution's local error", "[greybox][integrators]") {
+  // err = y5 − y4, so y4 = x − err; y5 is an order more accurate, so y4's true local error is
+  // ≈ −err, and both fall by 2^5 when h is halved (local error of a 4th-order method: O(h^5)).
+  Oscillator f;
+  auto one_step = [&](double h, double& true_y4_error) {
+    nlid::DormandPrinceStepper<V2> s;
+    V2 x(1.0, 0.0), err;
+    s.step(f, x, h, err);
+    const V2 exact(std::cos(f.w * h), -f.w * std::sin(f.w * h));
+    true_y4_error = ((x - err) - exact).norm();
+    CHECK((x - exact).norm() < 0.25 * err.norm());  // the propagated 5th-order solution is better
+    return err.norm();
+  };
+  double t1 = 0, t2 = 0;
+  const double e1 = one_step(0.2, t1);
+  const double e2 = one_step(0.1, t2);
+  CHECK(e1 == Approx(t1).epsilon(0.1));
+  CHECK(e2 == Approx(t2).epsilon(0.1));
+  CHECK(std::log2(e1 / e2) == Approx(5.0).margin(0.3));
+}
+
 TEST_CASE("Dormand-Prince adaptive error follows the tolerance", "[greybox][integrators]") {
   Oscillator f;
   for (double tol : {1e-4, 1e-7, 1e-10}) {

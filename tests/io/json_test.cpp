@@ -113,6 +113,19 @@ TEST_CASE("Json numbers: integers exact, doubles shortest round trip, bit-exact"
   }
 }
 
+TEST_CASE("Json numbers that underflow read as a zero of their own sign") {
+  const double pos = nlid::Json::parse("1e-400").as_number();
+  const double neg = nlid::Json::parse("-1e-400").as_number();
+  const double neg_frac = nlid::Json::parse("-0.5e-330").as_number();
+  CHECK(pos == 0.0);
+  CHECK_FALSE(std::signbit(pos));
+  CHECK(neg == 0.0);
+  CHECK(std::signbit(neg));
+  CHECK(std::signbit(neg_frac));
+  // The smallest subnormal is not an underflow and stays exact.
+  CHECK(nlid::Json::parse("-4.9406564584124654e-324").as_number() == -std::numeric_limits<double>::denorm_min());
+}
+
 TEST_CASE("Json refuses integers a double cannot hold and non-finite numbers, naming the path") {
   CHECK_THROWS_WITH(nlid::Json(9007199254740993LL), Catch::Contains("cannot be stored exactly"));
   CHECK_NOTHROW(nlid::Json(-9007199254740992LL));

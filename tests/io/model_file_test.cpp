@@ -289,6 +289,44 @@ TEST_CASE("model file: grey-box throttle by catalogue name, parameter table and 
   CHECK_THAT(error_of([&] { (void)load_model(bad); }), Catch::Contains("pendulum"));
 }
 
+TEST_CASE("model file: a grey box's integrator options round-trip field by field") {
+  // Every field differs from its default and from the others, so a field written or read under
+  // another's key cannot go unnoticed.
+  GreyBox<physics::Throttle> g;
+  IntegratorOptions o;
+  o.method = IntegratorMethod::dormand_prince;
+  o.substeps = 7;
+  o.min_substeps = 3;
+  o.max_substeps = 900;
+  o.stability_target = 0.75;
+  o.relative_tolerance = std::nextafter(1e-7, 1.0);
+  o.absolute_tolerance = std::nextafter(3e-10, 1.0);
+  o.max_adaptive_steps = 12345;
+  g.set_integrator(o);
+  const std::string path = temp_path("greybox_integrator.json");
+  save_model(path, g);
+  for (int typed = 0; typed < 2; ++typed) {
+    CAPTURE(typed);
+    IntegratorOptions r;
+    if (typed == 1) {
+      r = load_model<GreyBox<physics::Throttle>>(path).integrator();
+    } else {
+      const AnyModel any = load_model(path);
+      const auto* dyn = any.target<DynamicGreyBox>();
+      REQUIRE(dyn != nullptr);
+      r = dyn->integrator();
+    }
+    CHECK(r.method == IntegratorMethod::dormand_prince);
+    CHECK(r.substeps == 7);
+    CHECK(r.min_substeps == 3);
+    CHECK(r.max_substeps == 900);
+    CHECK(r.stability_target == 0.75);
+    CHECK(r.relative_tolerance == o.relative_tolerance);
+    CHECK(r.absolute_tolerance == o.absolute_tolerance);
+    CHECK(r.max_adaptive_steps == 12345);
+  }
+}
+
 TEST_CASE("model file: linear ARX, OE and state-space models") {
   const Experiment e = test_experiment(300, 5);
   Experiment small = e;

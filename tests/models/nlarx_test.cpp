@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <limits>
+#include <span>
 #include <string>
 
 #include "nlid/analysis/compare.hpp"
@@ -162,6 +163,37 @@ TEST_CASE("one-step prediction is F on measured regressors, long horizons give t
   REQUIRE(m.simulate<double>(u.middleRows(t - 2, 3), nlid::detail::as_const_span(m.parameters()),
                              nlid::detail::as_const_span(x0), nlid::detail::as_span(buf)));
   CHECK(p3(t, 0) == buf(2));
+}
+
+TEST_CASE("measured_state holds the past outputs and inputs in lag order, and continues the prediction", "[models][nlarx]") {
+  // Orders [2 2 1]: regressors y(t-1), y(t-2), u(t-1), u(t-2), so the state holds two past
+  // outputs and two past inputs (the test model above has no input state).
+  using Lagged = nlid::Nlarx<nlid::LaggedRegressors<2, 2, 1>, nlid::LinearMap<4>>;
+  Lagged m(nlid::LaggedRegressors<2, 2, 1>{}, nlid::LinearMap<4>{}, 0.01);
+  Eigen::VectorXd theta(5);
+  theta << 0.9, -0.3, 0.5, 0.2, 0.1;
+  m.set_parameters(theta);
+  REQUIRE(m.state_dimension() == 4);
+  Eigen::MatrixXd u(12, 1);
+  Eigen::VectorXd y(12);
+  for (int k = 0; k < 12; ++k) {
+    u(k, 0) = 10.0 * k;
+    y(k) = k;
+  }
+  const Eigen::VectorXd x5 = m.measured_state(u, y, 5);
+  CHECK(x5 == Eigen::Vector4d(4.0, 3.0, 40.0, 30.0));  // y(4), y(3), u(4), u(3)
+  // One step from the measured state at t is the one-step prediction at t.
+  const nlid::Experiment e(u, y, 0.01, "ramps");
+  const Eigen::MatrixXd p1 = m.predict(e, 1);
+  for (int t = 2; t < 12; ++t) {
+    const Eigen::VectorXd x0 = m.measured_state(u, y, t);
+    double yt = 0;
+    REQUIRE(m.simulate<double>(u.middleRows(t, 1), nlid::detail::as_const_span(m.parameters()),
+                               nlid::detail::as_const_span(x0), std::span<double>(&yt, 1)));
+    CAPTURE(t);
+    CHECK(yt == Approx(0.9 * y(t - 1) - 0.3 * y(t - 2) + 0.5 * u(t - 1, 0) + 0.2 * u(t - 2, 0) + 0.1).epsilon(1e-14));
+    CHECK(yt == Approx(p1(t, 0)).epsilon(1e-14));
+  }
 }
 
 TEST_CASE("equilibrium initial condition starts the model at rest", "[models][nlarx]") {

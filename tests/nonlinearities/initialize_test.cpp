@@ -180,6 +180,16 @@ TEST_CASE("Saturation initialisation recovers the limits of clamped data", "[non
   CHECK(t1[1] == Approx(70.0).margin(1e-9));
   CHECK(t1[0] <= X.minCoeff() + 1e-9);
 
+  // Data no saturation explains (y = −x): the least-squares scans give crossed limits (lower
+  // 0.35 above upper −0.35), which collapse to their midpoint — the constant map g = 0, the
+  // mean of y and the best constant fit.
+  Eigen::MatrixXd Xd(21, 1);
+  for (int i = 0; i < 21; ++i) Xd(i, 0) = -1.0 + 0.1 * i;
+  const Eigen::VectorXd yd = -Xd.col(0);
+  const auto td = init(f, Xd, yd);
+  CHECK(td[0] == Approx(0.0).margin(1e-12));
+  CHECK(td[1] == Approx(0.0).margin(1e-12));
+
   // Given initial limits (prior knowledge) are used as they are.
   nlid::Saturation g(15, 90);
   const auto tg = init(g, X, y1);
@@ -198,6 +208,18 @@ TEST_CASE("DeadZone initialisation recovers the zero interval", "[nonlinearities
   const auto th = init(f, X, y);
   CHECK(th[0] == Approx(-0.4).margin(0.02));
   CHECK(th[1] == Approx(0.9).margin(0.02));
+}
+
+TEST_CASE("DeadZone initialisation collapses crossed limits to their midpoint", "[nonlinearities][initialize]") {
+  // y = 2x is steeper than any dead zone: the least-squares scans give a lower limit 0.35 above
+  // the upper limit −0.35, which collapse to their midpoint 0 (no dead band: g = x).
+  Eigen::MatrixXd X(21, 1);
+  for (int i = 0; i < 21; ++i) X(i, 0) = -1.0 + 0.1 * i;
+  const Eigen::VectorXd y = 2.0 * X.col(0);
+  nlid::DeadZone f;
+  const auto th = init(f, X, y);
+  CHECK(th[0] == Approx(0.0).margin(1e-12));
+  CHECK(th[1] == Approx(0.0).margin(1e-12));
 }
 
 TEST_CASE("Poly1d initialisation is exact on badly scaled inputs", "[nonlinearities][initialize]") {

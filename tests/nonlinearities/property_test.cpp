@@ -182,6 +182,34 @@ TEMPLATE_TEST_CASE("dual derivatives in x match central differences", "[nonlinea
   }
 }
 
+// The hand-written gradient (used by Nlarx's structured simulation Jacobian) against forward AD
+// of operator(), for every type that has one.
+TEMPLATE_TEST_CASE("analytic gradient equals the dual derivatives in theta and x", "[nonlinearities][property]",
+                   (nlid::SigmoidNet<2, 3>), (nlid::SigmoidNet<3, 2, false>), (nlid::SigmoidNet<Dynamic, Dynamic>)) {
+  Setup<TestType> s;
+  const int p = s.f.num_parameters();
+  const int m = s.f.input_dimension();
+  using D = nlid::DynamicDual<double>;
+  for (const auto& x : s.points) {
+    std::vector<D> td, xd;
+    for (int i = 0; i < p; ++i) td.push_back(D::variable(s.theta[static_cast<std::size_t>(i)], i, p + m));
+    for (int j = 0; j < m; ++j) xd.push_back(D::variable(x[static_cast<std::size_t>(j)], p + j, p + m));
+    const D g = s.f(std::span<const D>(xd), std::span<const D>(td));
+    std::vector<double> g_theta(static_cast<std::size_t>(p)), g_x(static_cast<std::size_t>(m));
+    const double v = s.f.gradient(std::span<const double>(x), std::span<const double>(s.theta), std::span<double>(g_theta),
+                                  std::span<double>(g_x));
+    CHECK(v == s.value(x, s.theta));  // bitwise operator()'s value
+    for (int i = 0; i < p; ++i) {
+      INFO("parameter " << s.f.parameter_names()[static_cast<std::size_t>(i)]);
+      CHECK(g_theta[static_cast<std::size_t>(i)] == Approx(g.v(i)).epsilon(1e-12).margin(1e-14));
+    }
+    for (int j = 0; j < m; ++j) {
+      INFO("input " << j);
+      CHECK(g_x[static_cast<std::size_t>(j)] == Approx(g.v(p + j)).epsilon(1e-12).margin(1e-14));
+    }
+  }
+}
+
 TEMPLATE_TEST_CASE("float evaluation tracks double", "[nonlinearities][property]", NLID_ALL_NONLINEARITIES) {
   Setup<TestType> s;
   const std::vector<float> tf(s.theta.begin(), s.theta.end());

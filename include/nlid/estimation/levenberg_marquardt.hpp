@@ -88,7 +88,7 @@ struct IterationReport {
   int iteration;         ///< 0 for the start, then 1, 2, … (accepted and rejected attempts)
   double cost;           ///< F(θ) at the current (last accepted) θ
   double step_norm;      ///< ‖Δθ‖₂ of the step just tried (0 at iteration 0)
-  double lambda;         ///< damping λ the step was computed with
+  double lambda;         ///< damping λ after this attempt (the next step's; initial λ at iteration 0)
   double gradient_norm;  ///< projected gradient ‖θ − P(θ − ∇F)‖∞ at the current θ
   bool step_accepted;    ///< whether the step was taken (true at iteration 0)
 };
