@@ -583,3 +583,27 @@ TEST_CASE("Long records: 1e5 samples simulate and differentiate in bounded time"
   CHECK(t_sim < 5.0);
   CHECK(t_jac < 20.0);
 }
+
+TEST_CASE("Sub-steps of a fixed-step method: a known answer for Euler and RK4 on a first-order lag",
+          "[greybox][integrators]") {
+  // tau*y' = -(y - offset) + gain*u, u = 1: with h = ts/n each sub-step multiplies the distance to
+  // the rest value y* = offset + gain by (1 - h/tau) for Euler and by the degree-4 Taylor
+  // polynomial of exp(-h/tau) for RK4, so y(k) = y* + (y0 - y*)·q^(n·k) exactly (to rounding).
+  GreyBox<nlid::physics::FirstOrder> m;
+  m.set_parameters(Eigen::Vector3d(0.5, 2.0, 1.0));
+  const double ts = 0.1, ystar = 3.0, y0 = 1.0;
+  const Eigen::MatrixXd u = Eigen::MatrixXd::Ones(30, 1);
+  for (const auto method : {nlid::IntegratorMethod::euler, nlid::IntegratorMethod::rk4}) {
+    for (const int n : {1, 4}) {
+      nlid::IntegratorOptions o;
+      o.method = method;
+      o.substeps = n;
+      m.set_integrator(o);
+      const double z = -(ts / n) / 0.5;
+      const double q = method == nlid::IntegratorMethod::euler ? 1.0 + z : 1.0 + z + z * z / 2 + z * z * z / 6 + z * z * z * z / 24;
+      const Eigen::MatrixXd y = m.simulate(u, ts, Eigen::VectorXd::Constant(1, y0));
+      INFO((method == nlid::IntegratorMethod::euler ? "euler" : "rk4") << ", " << n << " sub-steps");
+      for (int k = 0; k < 30; ++k) CHECK(y(k, 0) == Approx(ystar + (y0 - ystar) * std::pow(q, n * k)).epsilon(1e-12));
+    }
+  }
+}
