@@ -191,7 +191,7 @@ TEST_CASE("regularized prediction focus is the ridge estimate of the regressors"
   o.solver.gradient_tolerance = 1e-12;
   const Model plain = nlid::estimate(Model{}, data, o);
   const Eigen::VectorXd ls = (phi.transpose() * phi).ldlt().solve(phi.transpose() * target);
-  CHECK((plain.parameters() - ls).cwiseAbs().maxCoeff() < 1e-7);  // the rows are the criterion's
+  CHECK((plain.parameters() - ls).cwiseAbs().maxCoeff() < 1e-6);  // the rows are the criterion's
 
   const double lambda = 30.0;
   const Eigen::Vector3d w(1.0, 4.0, 0.0), nominal(0.2, 0.0, 0.0);  // the offset is free
@@ -205,7 +205,7 @@ TEST_CASE("regularized prediction focus is the ridge estimate of the regressors"
   INFO("plain " << plain.parameters().transpose() << ", ridge " << ridge.parameters().transpose() << ", want "
                 << want.transpose());
   CHECK((want - ls).cwiseAbs().maxCoeff() > 0.05);  // the penalty moves the estimate
-  CHECK((ridge.parameters() - want).cwiseAbs().maxCoeff() < 1e-7);
+  CHECK((ridge.parameters() - want).cwiseAbs().maxCoeff() < 1e-6);  // the cost resolves θ to ≈ 1e-8
 
   o.solver.regularization.weights = Eigen::Vector2d(1.0, 1.0);
   CHECK_THROWS_WITH(nlid::estimate(Model{}, data, o),
