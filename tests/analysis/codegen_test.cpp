@@ -322,18 +322,7 @@ CheckedRun run_checked(const nlid::GeneratedCode& g, const std::vector<double>& 
       in << b;
     }
   }
-  const std::string exe = (dir / "driver").string();
-  const std::string cmd = std::string("cc -std=c99 -O2 -ffp-contract=off -Wall -Wextra -pedantic -Werror ") +
-                          (single ? "-Wdouble-promotion -Wfloat-conversion " : "") + "-o \"" + exe + "\" \"" +
-                          (dir / "driver.c").string() + "\" \"" + (dir / (n + ".c")).string() + "\" -lm > \"" +
-                          (dir / "cc.log").string() + "\" 2>&1";
-  if (std::system(cmd.c_str()) != 0) {
-    std::ifstream log(dir / "cc.log");
-    std::stringstream ss;
-    ss << log.rdbuf();
-    FAIL("generated code does not compile:\n" << ss.str());
-  }
-  REQUIRE(std::system(("\"" + exe + "\" \"" + (dir / "u.txt").string() + "\" > \"" + (dir / "y.txt").string() + "\"").c_str()) == 0);
+  nlid_test::compile_and_run_driver(dir, n, single);
   CheckedRun r;
   std::ifstream out(dir / "y.txt");
   std::string line;

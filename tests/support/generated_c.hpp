@@ -25,6 +25,23 @@
 
 namespace nlid_test {
 
+/// Compiles `dir`/driver.c with `dir`/NAME.c (warnings are errors; single precision also with
+/// -Wdouble-promotion -Wfloat-conversion) and runs it on `dir`/u.txt into `dir`/y.txt.
+inline void compile_and_run_driver(const std::filesystem::path& dir, const std::string& n, bool single) {
+  const std::string exe = (dir / "driver").string();
+  const std::string cmd = std::string("cc -std=c99 -O2 -ffp-contract=off -Wall -Wextra -pedantic -Werror ") +
+                          (single ? "-Wdouble-promotion -Wfloat-conversion " : "") + "-o \"" + exe + "\" \"" +
+                          (dir / "driver.c").string() + "\" \"" + (dir / (n + ".c")).string() + "\" -lm > \"" +
+                          (dir / "cc.log").string() + "\" 2>&1";
+  if (std::system(cmd.c_str()) != 0) {
+    std::ifstream log(dir / "cc.log");
+    std::stringstream ss;
+    ss << log.rdbuf();
+    FAIL("generated code does not compile:\n" << ss.str());
+  }
+  REQUIRE(std::system(("\"" + exe + "\" \"" + (dir / "u.txt").string() + "\" > \"" + (dir / "y.txt").string() + "\"").c_str()) == 0);
+}
+
 /// Outputs (first output channel) of the generated model on the inputs `u` (N × n_u).
 inline Eigen::VectorXd run_generated_c(const nlid::GeneratedCode& g, const Eigen::MatrixXd& u, const std::string& tag,
                                        bool single = false) {
@@ -48,18 +65,7 @@ inline Eigen::VectorXd run_generated_c(const nlid::GeneratedCode& g, const Eigen
         in << b;
       }
   }
-  const std::string exe = (dir / "driver").string();
-  const std::string cmd = std::string("cc -std=c99 -O2 -ffp-contract=off -Wall -Wextra -pedantic -Werror ") +
-                          (single ? "-Wdouble-promotion -Wfloat-conversion " : "") + "-o \"" + exe + "\" \"" +
-                          (dir / "driver.c").string() + "\" \"" + (dir / (n + ".c")).string() + "\" -lm > \"" +
-                          (dir / "cc.log").string() + "\" 2>&1";
-  if (std::system(cmd.c_str()) != 0) {
-    std::ifstream log(dir / "cc.log");
-    std::stringstream ss;
-    ss << log.rdbuf();
-    FAIL("generated code does not compile:\n" << ss.str());
-  }
-  REQUIRE(std::system(("\"" + exe + "\" \"" + (dir / "u.txt").string() + "\" > \"" + (dir / "y.txt").string() + "\"").c_str()) == 0);
+  compile_and_run_driver(dir, n, single);
   std::ifstream out(dir / "y.txt");
   std::vector<double> ys;
   for (double v; out >> v;) ys.push_back(v);
