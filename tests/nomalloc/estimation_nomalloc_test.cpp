@@ -109,23 +109,38 @@ TEST_CASE("bounded, fixed and Huber solves allocate nothing (static P)", "[nomal
   CHECK(th[0] == 1.8);
 }
 
-TEST_CASE("the QR fallback allocates nothing (static P)", "[nomalloc][estimation]") {
-  const int m = 40;
-  Eigen::VectorXd t(m), y(m), t2(m);
-  for (int i = 0; i < m; ++i) {
-    t[i] = 1.0 + static_cast<double>(i) / m;
-    t2[i] = t[i] * t[i];
-    y[i] = 3.0 * t[i] + 2e-7 * t2[i];
-  }
-  auto problem = nlid::make_problem<2>(2, m, [&](const Eigen::Vector2d& th, Eigen::VectorXd& r,
-                                                 nlid::JacobianMatrix<2>* J) {
-    r = y - (th[0] + th[1]) * t - (1e-7 * th[1]) * t2;
-    if (J) {
-      J->col(0) = -t;
-      J->col(1) = -t - 1e-7 * t2;
+namespace {
+
+// y = 3t + 2e-7 t², fitted as (a + b)t + c·b t²: with c = 1e-7 the two columns are nearly
+// collinear (cond(J) ≈ 1e8, the LDLT path gives way to the QR fallback); with c = 1 they are not.
+struct NearlyCollinear {
+  static constexpr int m = 40;
+  Eigen::VectorXd t{m}, y{m}, t2{m};
+  NearlyCollinear() {
+    for (int i = 0; i < m; ++i) {
+      t[i] = 1.0 + static_cast<double>(i) / m;
+      t2[i] = t[i] * t[i];
+      y[i] = 3.0 * t[i] + 2e-7 * t2[i];
     }
-    return true;
-  });
+  }
+  auto problem(double c) const {
+    return nlid::make_problem<2>(2, m, [this, c](const Eigen::Vector2d& th, Eigen::VectorXd& r,
+                                                 nlid::JacobianMatrix<2>* J) {
+      r = y - (th[0] + th[1]) * t - (c * th[1]) * t2;
+      if (J) {
+        J->col(0) = -t;
+        J->col(1) = -t - c * t2;
+      }
+      return true;
+    });
+  }
+};
+
+}  // namespace
+
+TEST_CASE("the QR fallback allocates nothing (static P)", "[nomalloc][estimation]") {
+  const NearlyCollinear data;
+  auto problem = data.problem(1e-7);
   nlid::LmOptions o;
   o.initial_lambda = 1e-20;
   nlid::LevenbergMarquardt<decltype(problem)> lm(o);
@@ -142,26 +157,9 @@ TEST_CASE("the QR fallback allocates nothing (static P)", "[nomalloc][estimation
 
 TEST_CASE("regularized solves allocate nothing, with the normal equations or the QR fallback (static P)",
           "[nomalloc][estimation]") {
-  const int m = 40;
-  Eigen::VectorXd t(m), y(m), t2(m);
-  for (int i = 0; i < m; ++i) {
-    t[i] = 1.0 + static_cast<double>(i) / m;
-    t2[i] = t[i] * t[i];
-    y[i] = 3.0 * t[i] + 2e-7 * t2[i];
-  }
-  const auto make = [&](double c) {  // c = 1e-7: ill-conditioned (QR fallback); 1: well-conditioned
-    return nlid::make_problem<2>(2, m, [&t, &t2, &y, c](const Eigen::Vector2d& th, Eigen::VectorXd& r,
-                                                        nlid::JacobianMatrix<2>* J) {
-      r = y - (th[0] + th[1]) * t - (c * th[1]) * t2;
-      if (J) {
-        J->col(0) = -t;
-        J->col(1) = -t - c * t2;
-      }
-      return true;
-    });
-  };
+  const NearlyCollinear data;
   for (const double c : {1e-7, 1.0}) {
-    auto problem = make(c);
+    auto problem = data.problem(c);
     nlid::LmOptions o;
     o.initial_lambda = 1e-20;
     o.regularization.lambda = 1e-12;
