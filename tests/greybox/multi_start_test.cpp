@@ -193,3 +193,55 @@ TEST_CASE("Multi-start option errors name the option", "[multi_start][errors]") 
   ob.range_upper = Eigen::VectorXd::Constant(1, 1.0);
   CHECK_THROWS_WITH(nlid::multi_start(bad, t1, ob), Catch::Contains("cannot be evaluated"));
 }
+
+TEST_CASE("lm_cost is the solver's criterion: robust loss plus regularization", "[multi_start]") {
+  const Eigen::Vector2d r(1.0, 2.0), th(1.0, 3.0);
+  nlid::LmOptions o;
+  CHECK(nlid::lm_cost(o, r, th) == 2.5);
+  o.regularization.lambda = 2.0;
+  CHECK(nlid::lm_cost(o, r, th) == Approx(2.5 + 10.0));  // ½·2·(1 + 9)
+  o.regularization.weights = Eigen::Vector2d(1.0, 0.5);
+  o.regularization.nominal = Eigen::Vector2d(0.0, 1.0);
+  CHECK(nlid::lm_cost(o, r, th) == Approx(2.5 + 3.0));  // ½·2·(1·1 + 0.5·4)
+  o.loss = nlid::RobustLoss::huber(1.5);
+  // Huber with δ = 1.5: r = 1 is inside (ρ = 1), r = 2 outside (ρ = 2·1.5·2 − 1.5² = 3.75).
+  CHECK(nlid::lm_cost(o, r, th) == Approx(0.5 * (1.0 + 3.75) + 3.0));
+}
+
+TEST_CASE("Screening ranks candidates by the solver's own cost", "[multi_start]") {
+  // A strong pull of ω towards 2 (a local minimum of the residuals) changes which candidate is
+  // best: the refined start must be the best by the regularized cost, not by ½‖r‖².
+  const SineFit s;
+  const auto pb = s.problem();
+  auto o = sine_options();
+  o.num_starts = 1;
+  o.include_initial = false;
+  o.num_threads = 1;
+  o.lm.max_iterations = 0;
+  o.lm.regularization.lambda = 50.0;
+  o.lm.regularization.weights = Eigen::Vector2d(0.0, 1.0);
+  o.lm.regularization.nominal = Eigen::Vector2d(0.0, 2.0);
+  o.lm.loss = nlid::RobustLoss::huber(0.5);
+  std::vector<Eigen::VectorXd> seen;
+  o.prepare = [&](Eigen::VectorXd& th) { seen.push_back(th); };
+  Eigen::VectorXd theta(2);
+  theta << 1.0, 2.0;
+  const auto res = nlid::multi_start(pb, theta, o);
+  REQUIRE(seen.size() == 64u);
+  std::size_t best_plain = 0, best_solver = 0;
+  std::vector<double> plain, solver;
+  for (const Eigen::VectorXd& th : seen) {
+    Eigen::VectorXd rr(pb.num_residuals());
+    REQUIRE(pb.evaluate(th, rr, nullptr));
+    plain.push_back(0.5 * rr.squaredNorm());
+    solver.push_back(nlid::lm_cost(o.lm, rr, th));
+  }
+  best_plain = static_cast<std::size_t>(std::min_element(plain.begin(), plain.end()) - plain.begin());
+  best_solver = static_cast<std::size_t>(std::min_element(solver.begin(), solver.end()) - solver.begin());
+  REQUIRE(best_plain != best_solver);  // otherwise this test could not tell the criteria apart
+  REQUIRE(res.starts.size() == 1u);
+  CHECK(res.starts[0].start == seen[best_solver]);
+  CHECK(res.starts[0].start_cost == Approx(solver[best_solver]).epsilon(1e-12));
+  // The start cost is the solver's initial cost: one criterion in the whole report.
+  CHECK(res.starts[0].start_cost == Approx(res.starts[0].summary.initial_cost).epsilon(1e-12));
+}

@@ -139,6 +139,28 @@ struct LmOptions {
   std::vector<std::string> parameter_names;
 };
 
+/// The cost F(θ) a solve with these options minimises, for residuals r at θ: ½ Σ ρ(r_i²) of the
+/// robust loss plus the regularization penalty. Lets a caller rank points by the solver's own
+/// criterion (multi-start screening) so that the ranking and the solves' final costs agree.
+/// Regularization weights or nominal values whose size is not θ's are treated as the solver
+/// treats empty ones (all 1, zero); the solve itself refuses them.
+template <class RDerived, class TDerived>
+double lm_cost(const LmOptions& o, const Eigen::MatrixBase<RDerived>& r, const Eigen::MatrixBase<TDerived>& theta) {
+  double c = robust_cost(o.loss, r);
+  const LmRegularization& reg = o.regularization;
+  if (reg.lambda > 0.0) {
+    const Eigen::Index n = theta.size();
+    double p = 0.0;
+    for (Eigen::Index k = 0; k < n; ++k) {
+      const double w = reg.weights.size() == n ? reg.weights[k] : 1.0;
+      const double e = theta[k] - (reg.nominal.size() == n ? reg.nominal[k] : 0.0);
+      p += w * e * e;
+    }
+    c += 0.5 * reg.lambda * p;
+  }
+  return c;
+}
+
 /// Why the solver stopped. Each comment states the exact criterion (n_free = non-fixed count;
 /// norms over non-fixed parameters; ε-terms as written).
 enum class LmStatus {

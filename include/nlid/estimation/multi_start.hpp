@@ -15,8 +15,9 @@
 ///     gets the same number of points. Parameters that are fixed or have no finite range keep
 ///     their value in every candidate. An optional `prepare` hook adjusts each candidate (e.g.
 ///     re-guesses initial states that depend on the physical parameters).
-///  2. Screening. The cost F(θ) = ½‖r(θ)‖² of every candidate is evaluated (cheap: no Jacobian);
-///     candidates that cannot be evaluated are dropped.
+///  2. Screening. The cost F(θ) of every candidate is evaluated (cheap: no Jacobian) — the
+///     solver's own criterion (`lm_cost`: robust loss and regularization of `lm` included), so
+///     the ranking agrees with the final costs; candidates that cannot be evaluated are dropped.
 ///  3. Refinement. Levenberg–Marquardt runs from the `num_starts` best candidates (θ⁽⁰⁾ always
 ///     among them when `include_initial`), in parallel on `num_threads` threads.
 ///  4. The lowest final cost wins; ties go to the earlier candidate, so the result does not
@@ -305,7 +306,7 @@ MultiStartSummary multi_start(const P& problem, Eigen::Matrix<double, P::num_par
     Eigen::VectorXd r(problem.num_residuals());
     const Vec tv = th;
     if (tv.allFinite() && problem.evaluate(tv, r, nullptr) && r.allFinite()) {
-      cost[static_cast<std::size_t>(c)] = 0.5 * r.squaredNorm();
+      cost[static_cast<std::size_t>(c)] = lm_cost(o.lm, r, tv);
     }
   });
   MultiStartSummary sum;
