@@ -3,6 +3,9 @@
 #include <catch2/catch.hpp>
 
 #include <cmath>
+#include <limits>
+#include <string>
+#include <vector>
 
 #include "linear_test_util.hpp"
 #include "nlid/analysis/fit.hpp"
@@ -95,6 +98,25 @@ TEST_CASE("ARX on noisy data: estimates within their standard deviations", "[lin
     CHECK(std::abs(err(k)) < 4.0 * sd(k));
   }
   CHECK(m.report().loss == Approx(0.04).epsilon(0.1));  // V estimates the noise variance 0.2^2
+}
+
+TEST_CASE("ARX parameter standard deviations: set, and refused when malformed", "[linear][arx][errors]") {
+  Arx a = siso_truth();
+  const std::vector<std::string> names = a.parameter_names();
+  Eigen::VectorXd sd = Eigen::VectorXd::LinSpaced(a.num_parameters(), 0.0, 0.3);
+  a.set_parameter_stddev(sd);
+  CHECK(a.parameter_stddev() == sd);
+  CHECK_THROWS_WITH(a.set_parameter_stddev(Eigen::VectorXd::Zero(a.num_parameters() + 1)),
+                    Catch::Contains("Arx: " + std::to_string(a.num_parameters() + 1) + " standard deviations for " +
+                                    std::to_string(a.num_parameters()) + " parameters"));
+  Eigen::VectorXd bad = sd;
+  bad(1) = std::numeric_limits<double>::quiet_NaN();
+  CHECK_THROWS_WITH(a.set_parameter_stddev(bad),
+                    Catch::Contains("Arx: the standard deviation of " + names[1] + " (entry 1) must be finite and >= 0"));
+  bad = sd;
+  bad(0) = -1e-3;
+  CHECK_THROWS_WITH(a.set_parameter_stddev(bad), Catch::Contains("of " + names[0] + " (entry 0)"));
+  CHECK(a.parameter_stddev() == sd);  // a refused vector leaves the old one
 }
 
 TEST_CASE("ARX one-step prediction of noise-free data equals the measurement", "[linear][arx]") {

@@ -3,6 +3,7 @@
 #include <catch2/catch.hpp>
 
 #include <cmath>
+#include <limits>
 
 #include "linear_test_util.hpp"
 #include "nlid/linear/output_error.hpp"
@@ -171,4 +172,16 @@ TEST_CASE("OE rejects bad orders and data with located messages", "[linear][oe]"
   const OutputError two({vec({1.0}), vec({1.0})}, {vec({-0.5}), vec({-0.5})}, {0, 0}, 0.01);
   const Experiment e2(Eigen::MatrixXd::Random(20, 2), Eigen::MatrixXd::Random(20, 1), 0.01);
   CHECK_THROWS_WITH(two.simulate(e2, InitialCondition::measured), Catch::Contains("one input only"));
+}
+
+TEST_CASE("OE parameter standard deviations: set, and refused when malformed", "[linear][oe][errors]") {
+  OutputError o = truth_220();
+  const Eigen::VectorXd sdo = Eigen::VectorXd::Constant(o.num_parameters(), 0.5);
+  o.set_parameter_stddev(sdo);
+  CHECK(o.parameter_stddev() == sdo);
+  Eigen::VectorXd bado = sdo;
+  bado(3) = std::numeric_limits<double>::infinity();
+  CHECK_THROWS_WITH(o.set_parameter_stddev(bado),
+                    Catch::Contains("OutputError: the standard deviation of " + o.parameter_names()[3] + " (entry 3)"));
+  CHECK_THROWS_WITH(o.set_parameter_stddev(Eigen::VectorXd::Zero(1)), Catch::Contains("OutputError: 1 standard deviations"));
 }

@@ -227,15 +227,7 @@ class OutputError {
   /// Replaces the parameter standard deviations (a model file restores them); one finite,
   /// non-negative value per entry of `parameters()`.
   void set_parameter_stddev(Eigen::VectorXd sd) {
-    require(sd.size() == num_parameters(),
-            "OutputError: " + std::to_string(sd.size()) + " standard deviations for " +
-                std::to_string(num_parameters()) + " parameters",
-            at_parameter("stddev"));
-    for (Eigen::Index i = 0; i < sd.size(); ++i)
-      require(std::isfinite(sd(i)) && sd(i) >= 0.0,
-              "OutputError: the standard deviation of " + parameter_names()[static_cast<std::size_t>(i)] +
-                  " (entry " + std::to_string(i) + ") must be finite and >= 0",
-              at_parameter(parameter_names()[static_cast<std::size_t>(i)]));
+    detail::check_parameter_stddev(sd, parameter_names(), "OutputError");
     stddev_ = std::move(sd);
   }
 

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <string>
+#include <vector>
 
 #include <Eigen/Core>
 
@@ -64,6 +65,21 @@ inline void check_linear_experiment(const Experiment& e, int nu, int ny, double 
   };
   check_finite(e.u(), "input");
   if (need_y) check_finite(e.y(), "output");
+}
+
+// Standard deviations for a linear model's parameters: one per parameter, each finite and >= 0
+// (`who` names the model, `names` its parameters; a bad entry is located at its parameter).
+inline void check_parameter_stddev(const Eigen::VectorXd& sd, const std::vector<std::string>& names,
+                                   const std::string& who) {
+  if (sd.size() != static_cast<Eigen::Index>(names.size()))
+    throw Error(who + ": " + std::to_string(sd.size()) + " standard deviations for " +
+                    std::to_string(names.size()) + " parameters",
+                at_parameter("stddev"));
+  for (Eigen::Index i = 0; i < sd.size(); ++i)
+    if (!(std::isfinite(sd(i)) && sd(i) >= 0.0))
+      throw Error(who + ": the standard deviation of " + names[static_cast<std::size_t>(i)] + " (entry " +
+                      std::to_string(i) + ") must be finite and >= 0",
+                  at_parameter(names[static_cast<std::size_t>(i)]));
 }
 
 }  // namespace nlid::detail
