@@ -1,7 +1,8 @@
 #pragma once
 /// @file
 /// Umbrella header of the data layer: experiments and data sets, CSV input/output, filters and
-/// preprocessing (offsets, trends, time windows, decimation, resampling).
+/// preprocessing (offsets, trends, time windows, decimation, resampling), input design (PRBS,
+/// band-limited noise, multisines, amplitude-modulated steps).
 ///
 /// Typical use, as in the throttle study (decimate 1 kHz records to 100 Hz, merge two for
 /// estimation):
@@ -15,5 +16,6 @@
 #include "nlid/data/dataset.hpp"     // IWYU pragma: export
 #include "nlid/data/experiment.hpp"  // IWYU pragma: export
 #include "nlid/data/filter.hpp"      // IWYU pragma: export
+#include "nlid/data/input_design.hpp"  // IWYU pragma: export
 #include "nlid/data/preprocess.hpp"  // IWYU pragma: export
 #include "nlid/data/resample.hpp"    // IWYU pragma: export
