@@ -43,12 +43,12 @@ double power_above(Eigen::VectorXd x, double edge) {
 TEST_CASE("PRBS registers have the maximal period for every length", "[data][input_design]") {
   for (int bits = 2; bits <= nlid::prbs_max_bits; ++bits) {
     const std::uint32_t start = (std::uint32_t{1} << bits) - 1u;
-    std::uint32_t s = start;
-    long long period = 0;
-    do {
-      s = nlid::prbs_next_state(bits, s);
+    std::uint32_t s = nlid::prbs_next_state(bits, start);  // the checked entry point once,
+    long long period = 1;                                   // then the kernel prbs() runs
+    while (s != start && period <= (1ll << bits)) {
+      s = nlid::detail::prbs_step(bits, s);
       ++period;
-    } while (s != start && period <= (1ll << bits));
+    }
     INFO("bits = " << bits);
     CHECK(period == (1ll << bits) - 1);
   }

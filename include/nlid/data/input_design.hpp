@@ -138,15 +138,23 @@ inline constexpr std::uint32_t prbs_masks[] = {0x0,      0x0,     0x3,      0x5,
 /// Largest register length `prbs` accepts (period 2^24 − 1 = 16 777 215 chips).
 inline constexpr int prbs_max_bits = 24;
 
+namespace detail {
+inline void check_prbs_bits(int bits) {
+  if (bits < 2 || bits > prbs_max_bits)
+    throw Error("prbs: bits must be in 2 ... " + std::to_string(prbs_max_bits) + ", got " + std::to_string(bits),
+                at_parameter("bits"));
+}
+inline std::uint32_t prbs_step(int bits, std::uint32_t state) {
+  const std::uint32_t fb = static_cast<std::uint32_t>(std::popcount(state & prbs_masks[bits]) & 1);
+  return ((state << 1) | fb) & ((std::uint32_t{1} << bits) - 1u);
+}
+}  // namespace detail
+
 /// One step of the maximum-length register of `bits` bits (2 … 24) used by `prbs`: returns the
 /// next state. Starting from any nonzero state it returns there after exactly 2^bits − 1 steps.
 inline std::uint32_t prbs_next_state(int bits, std::uint32_t state) {
-  require(bits >= 2 && bits <= prbs_max_bits,
-          "prbs: bits must be in 2 ... " + std::to_string(prbs_max_bits) + ", got " + std::to_string(bits),
-          at_parameter("bits"));
-  const std::uint32_t full = (std::uint32_t{1} << bits) - 1u;
-  const std::uint32_t fb = static_cast<std::uint32_t>(std::popcount(state & detail::prbs_masks[bits]) & 1);
-  return ((state << 1) | fb) & full;
+  detail::check_prbs_bits(bits);
+  return detail::prbs_step(bits, state);
 }
 
 /// Maximum-length PRBS: `periods` periods of 2^bits − 1 chips, each chip held for `hold` samples
@@ -155,7 +163,7 @@ inline std::uint32_t prbs_next_state(int bits, std::uint32_t state) {
 /// `levels.high` when the register's newest bit is 1. Per period: 2^(bits−1) high chips and
 /// 2^(bits−1) − 1 low ones.
 [[nodiscard]] inline Eigen::VectorXd prbs(int bits, int periods = 1, InputLevels levels = {}, int hold = 1) {
-  (void)prbs_next_state(bits, 1u);  // checks bits
+  detail::check_prbs_bits(bits);
   require(periods >= 1, "prbs: periods must be >= 1, got " + std::to_string(periods), at_parameter("periods"));
   require(hold >= 1, "prbs: hold must be >= 1 sample, got " + std::to_string(hold), at_parameter("hold"));
   detail::check_levels(levels);
@@ -167,7 +175,7 @@ inline std::uint32_t prbs_next_state(int bits, std::uint32_t state) {
   std::uint32_t s = (std::uint32_t{1} << bits) - 1u;
   Eigen::Index k = 0;
   for (long long c = 0; c < chips * periods; ++c) {
-    s = prbs_next_state(bits, s);
+    s = detail::prbs_step(bits, s);
     const double v = (s & 1u) ? levels.high : levels.low;
     for (int h = 0; h < hold; ++h) u[k++] = v;
   }
