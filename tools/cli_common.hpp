@@ -58,6 +58,19 @@ inline int parse_int(const std::string& flag, const std::string& v, int lo, int 
   return static_cast<int>(parse_integer(flag, v, lo, hi));
 }
 
+/// A finite floating-point option value; anything else is a usage error naming the option.
+inline double parse_number(const std::string& flag, const std::string& v) {
+  std::size_t pos = 0;
+  double x = std::numeric_limits<double>::quiet_NaN();
+  try {
+    x = std::stod(v, &pos);
+  } catch (...) {
+    pos = 0;
+  }
+  if (v.empty() || pos != v.size() || !std::isfinite(x)) throw UsageError(flag + " needs a finite number, got '" + v + "'");
+  return x;
+}
+
 /// Options that take one value: a second occurrence is an error (it used to win silently).
 class OnceOnly {
  public:

@@ -53,17 +53,7 @@ constexpr const char* kUsage =
 
 using nlid_tools::UsageError;
 
-double parse_number(const std::string& opt, const std::string& v) {
-  std::size_t pos = 0;
-  double x = NAN;
-  try {
-    x = std::stod(v, &pos);
-  } catch (...) {
-    pos = 0;
-  }
-  if (v.empty() || pos != v.size() || !std::isfinite(x)) throw UsageError(opt + " needs a finite number, got '" + v + "'");
-  return x;
-}
+using nlid_tools::parse_number;
 
 // "throttle-nlarx5.json" -> "throttle_nlarx5": the default prefix of the generated names.
 std::string identifier_from(const std::string& path) {

@@ -1,0 +1,246 @@
+// nlid-input: designs an input signal for an identification experiment and writes it as CSV
+// (columns t and the input), ready for the test rig's signal player and, with the measured
+// output added, for nlid-fit.
+//
+//   nlid-input --signal prbs --bits B [--periods P] [--hold H] --ts T [--levels LO,HI] --out u.csv
+//   nlid-input --signal random-steps --samples N --hold MIN,MAX --ts T [--levels LO,HI] [--seed S]
+//   --out u.csv nlid-input --signal random-binary|random-gaussian --samples N --ts T [--band LO,HI]
+//   [--levels LO,HI] [--seed S] --out u.csv nlid-input --signal multisine --period N [--periods P]
+//   [--band LO,HI] [--lines all|odd|random-odd]
+//              [--phases schroeder|random] [--seed S] --ts T [--levels LO,HI] --out u.csv
+//
+// Signals, levels and bands as in nlid/data/input_design.hpp (docs/data.md, "Input design"):
+// bands are fractions of the Nyquist frequency; --levels are the two values of a binary signal,
+// mean ∓ one standard deviation of a Gaussian one, minimum and maximum otherwise. A summary
+// (length, duration, what the signal covers) goes to stderr. The file is written atomically.
+// Exit status (cli_common.hpp): 0 on success, 1 if the file cannot be written, 2 on a bad
+// command line (an option that does not apply to the chosen signal included).
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <iostream>
+#include <limits>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "cli_common.hpp"
+#include "nlid/core/atomic_file.hpp"
+#include "nlid/core/error.hpp"
+#include "nlid/data/input_design.hpp"
+
+namespace {
+
+constexpr const char* kUsage =
+    "usage: nlid-input --signal KIND --ts T --out u.csv [options]\n"
+    "  --signal prbs             maximum-length binary sequence: --bits B (2..24) [--periods P] "
+    "[--hold H]\n"
+    "  --signal random-steps     amplitude-modulated steps (APRBS): --samples N --hold MIN,MAX "
+    "[--seed S]\n"
+    "  --signal random-binary    sign of band-limited noise: --samples N [--band LO,HI] [--seed "
+    "S]\n"
+    "  --signal random-gaussian  band-limited Gaussian noise: --samples N [--band LO,HI] [--seed "
+    "S]\n"
+    "  --signal multisine        --period N [--periods P] [--band LO,HI] [--lines "
+    "all|odd|random-odd]\n"
+    "                            [--phases schroeder|random] [--seed S]\n"
+    "  --levels LO,HI   binary: the two values; gaussian: mean -/+ one standard deviation;\n"
+    "                   multisine, random-steps: minimum and maximum (default -1,1)\n"
+    "  --band LO,HI     excited band as fractions of the Nyquist frequency (default 0,1)\n"
+    "  --column NAME    name of the input column (default u)\n";
+
+using nlid_tools::UsageError;
+
+// "LO,HI" as two finite numbers.
+std::pair<double, double> parse_pair(const std::string& flag, const std::string& v) {
+  const auto comma = v.find(',');
+  if (comma == std::string::npos || v.find(',', comma + 1) != std::string::npos)
+    throw UsageError(flag + " needs two numbers separated by a comma (LO,HI), got '" + v + "'");
+  return {nlid_tools::parse_number(flag, v.substr(0, comma)),
+          nlid_tools::parse_number(flag, v.substr(comma + 1))};
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string stage = "reading the command line", sizes;
+  return nlid_tools::guarded_main("nlid-input", kUsage, "", stage, sizes, [&]() -> int {
+    // Which options each signal takes (besides --signal, --ts, --out, --levels, --column).
+    const std::map<std::string, std::vector<std::string>> applies = {
+        {"prbs", {"--bits", "--periods", "--hold"}},
+        {"random-steps", {"--samples", "--hold", "--seed"}},
+        {"random-binary", {"--samples", "--band", "--seed"}},
+        {"random-gaussian", {"--samples", "--band", "--seed"}},
+        {"multisine", {"--period", "--periods", "--band", "--lines", "--phases", "--seed"}},
+    };
+    const std::vector<std::string> common = {"--signal", "--ts", "--out", "--levels", "--column"};
+    std::map<std::string, std::string> opt;
+    nlid_tools::OnceOnly once;
+    for (int i = 1; i < argc; ++i) {
+      const std::string k = argv[i];
+      if (k == "-h" || k == "--help") {
+        std::cout << kUsage;
+        return nlid_tools::exit_ok;
+      }
+      bool known = std::find(common.begin(), common.end(), k) != common.end();
+      for (const auto& [s, keys] : applies)
+        known = known || std::find(keys.begin(), keys.end(), k) != keys.end();
+      if (!known) throw UsageError("unknown option '" + k + "'");
+      if (i + 1 >= argc) throw UsageError("option " + k + " needs a value");
+      once(k);
+      opt[k] = argv[++i];
+    }
+    auto has = [&](const std::string& k) { return opt.count(k) > 0; };
+    if (!has("--signal") || !has("--ts") || !has("--out"))
+      throw UsageError("--signal, --ts and --out are required");
+    const std::string signal = opt["--signal"];
+    const auto it = applies.find(signal);
+    if (it == applies.end())
+      throw UsageError(
+          "--signal must be prbs, random-steps, random-binary, random-gaussian or multisine, got "
+          "'" +
+          signal + "'");
+    for (const auto& [k, v] : opt) {
+      if (std::find(common.begin(), common.end(), k) != common.end()) continue;
+      if (std::find(it->second.begin(), it->second.end(), k) == it->second.end())
+        throw UsageError("option " + k + " does not apply to --signal " + signal);
+    }
+    const double ts = nlid_tools::parse_number("--ts", opt["--ts"]);
+    if (!(ts > 0.0))
+      throw UsageError("--ts needs a positive sample time in seconds, got '" + opt["--ts"] + "'");
+    nlid::InputLevels levels;
+    if (has("--levels")) {
+      const auto [lo, hi] = parse_pair("--levels", opt["--levels"]);
+      if (!(lo < hi)) throw UsageError("--levels needs LO < HI, got '" + opt["--levels"] + "'");
+      levels = {lo, hi};
+    }
+    nlid::InputBand band;
+    if (has("--band")) {
+      const auto [lo, hi] = parse_pair("--band", opt["--band"]);
+      if (!(lo >= 0.0 && lo < hi && hi <= 1.0))
+        throw UsageError(
+            "--band needs 0 <= LO < HI <= 1 (fractions of the Nyquist frequency), got '" +
+            opt["--band"] + "'");
+      band = {lo, hi};
+    }
+    const std::string column = has("--column") ? opt["--column"] : "u";
+    if (column.empty() || column == "t" || column.find_first_of(",;\"\n\r\t") != std::string::npos)
+      throw UsageError("--column needs a plain name other than 't', got '" + column + "'");
+    const auto seed = static_cast<std::uint64_t>(
+        has("--seed") ? nlid_tools::parse_integer("--seed", opt["--seed"], 0,
+                                                  std::numeric_limits<long>::max())
+                      : 1);
+    auto required = [&](const std::string& k) {
+      if (!has(k)) throw UsageError("--signal " + signal + " needs " + k);
+      return opt[k];
+    };
+    const std::string out = opt["--out"];
+    nlid_tools::check_output_file("--out", out);
+
+    Eigen::VectorXd u;
+    std::string what;
+    // The generators' errors all come from option values (a band without DFT lines, …): a bad
+    // command line, exit 2, with the generator's message.
+    try {
+      if (signal == "prbs") {
+        const int bits =
+            nlid_tools::parse_int("--bits", required("--bits"), 2, nlid::prbs_max_bits);
+        const int periods =
+            has("--periods") ? nlid_tools::parse_int("--periods", opt["--periods"], 1, 1000000) : 1;
+        const int hold =
+            has("--hold") ? nlid_tools::parse_int("--hold", opt["--hold"], 1, 1000000) : 1;
+        if (((1L << bits) - 1) * static_cast<long>(periods) * hold > (1L << 31))
+          throw UsageError("(2^--bits - 1) x --periods x --hold is more than 2^31 samples");
+        stage = "generating the PRBS";
+        u = nlid::prbs(bits, periods, levels, hold);
+        char buf[200];
+        std::snprintf(
+            buf, sizeof buf,
+            "period %ld chips of %.6g s; spectrum flat to about %.6g Hz, first null at %.6g Hz",
+            (1L << bits) - 1, hold * ts, 0.44 / (hold * ts), 1.0 / (hold * ts));
+        what = buf;
+      } else if (signal == "multisine") {
+        nlid::MultisineOptions o;
+        o.band = band;
+        o.levels = levels;
+        o.seed = seed;
+        o.periods =
+            has("--periods") ? nlid_tools::parse_int("--periods", opt["--periods"], 1, 1000000) : 1;
+        const std::string lines = has("--lines") ? opt["--lines"] : "all";
+        if (lines == "all")
+          o.lines = nlid::MultisineLines::all;
+        else if (lines == "odd")
+          o.lines = nlid::MultisineLines::odd;
+        else if (lines == "random-odd")
+          o.lines = nlid::MultisineLines::random_odd;
+        else
+          throw UsageError("--lines must be all, odd or random-odd, got '" + lines + "'");
+        const std::string phases = has("--phases") ? opt["--phases"] : "schroeder";
+        if (phases == "schroeder")
+          o.phases = nlid::MultisinePhases::schroeder;
+        else if (phases == "random")
+          o.phases = nlid::MultisinePhases::random;
+        else
+          throw UsageError("--phases must be schroeder or random, got '" + phases + "'");
+        const long period =
+            nlid_tools::parse_integer("--period", required("--period"), 4, 10000000);
+        if (period * static_cast<long>(o.periods) > (1L << 31))
+          throw UsageError("--period times --periods is more than 2^31 samples");
+        stage = "generating the multisine";
+        const std::vector<Eigen::Index> k = nlid::multisine_lines(period, o);
+        u = nlid::multisine(period, o);
+        const double df = 1.0 / (static_cast<double>(period) * ts);
+        char buf[200];
+        std::snprintf(buf, sizeof buf,
+                      "%zu lines from %.6g Hz to %.6g Hz (spacing %.6g Hz), period %.6g s",
+                      k.size(), static_cast<double>(k.front()) * df,
+                      static_cast<double>(k.back()) * df, df, static_cast<double>(period) * ts);
+        what = buf;
+      } else {
+        const long n = nlid_tools::parse_integer("--samples", required("--samples"), 2, 1L << 31);
+        if (signal == "random-steps") {
+          const auto [lo, hi] = parse_pair("--hold", required("--hold"));
+          if (!(lo >= 1 && hi >= lo && lo == std::floor(lo) && hi == std::floor(hi) &&
+                hi <= static_cast<double>(n)))
+            throw UsageError(
+                "--hold needs whole sample counts 1 <= MIN <= MAX <= --samples, got '" +
+                opt["--hold"] + "'");
+          stage = "generating the random steps";
+          u = nlid::random_steps(n, static_cast<Eigen::Index>(lo), static_cast<Eigen::Index>(hi),
+                                 levels, seed);
+          long steps = 1;
+          for (Eigen::Index i = 1; i < u.size(); ++i) steps += u[i] != u[i - 1] ? 1 : 0;
+          char buf[200];
+          std::snprintf(buf, sizeof buf, "%ld steps held %.6g to %.6g s", steps, lo * ts, hi * ts);
+          what = buf;
+        } else {
+          stage = "generating the " + signal + " signal";
+          u = signal == "random-binary" ? nlid::random_binary(n, band, levels, seed)
+                                        : nlid::random_gaussian(n, band, levels, seed);
+          char buf[200];
+          std::snprintf(buf, sizeof buf, "band %.6g to %.6g Hz", band.low * 0.5 / ts,
+                        band.high * 0.5 / ts);
+          what = buf;
+        }
+      }
+    } catch (const nlid::Error& e) {
+      throw UsageError(e.what());
+    }
+
+    stage = "writing " + out;
+    std::string text = "t," + column + "\n";
+    text.reserve(static_cast<std::size_t>(u.size()) * 40);
+    char buf[96];
+    for (Eigen::Index i = 0; i < u.size(); ++i) {
+      std::snprintf(buf, sizeof buf, "%.17g,%.17g\n", static_cast<double>(i) * ts, u[i]);
+      text += buf;
+    }
+    nlid::write_file_atomically(out, text);
+    std::fprintf(stderr,
+                 "nlid-input: %s, %ld samples (%.6g s at ts %.6g s), %.6g to %.6g; %s -> %s\n",
+                 signal.c_str(), static_cast<long>(u.size()), static_cast<double>(u.size()) * ts,
+                 ts, u.minCoeff(), u.maxCoeff(), what.c_str(), out.c_str());
+    return nlid_tools::exit_ok;
+  });
+}
