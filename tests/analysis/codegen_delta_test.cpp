@@ -19,6 +19,7 @@
 
 #include "nlid/codegen/delta_form.hpp"
 #include "nlid/codegen/hammerstein_wiener.hpp"
+#include "nlid/codegen/linear.hpp"
 #include "nlid/codegen/series.hpp"
 #include "nlid/models/transfer_function_block.hpp"
 #include "nlid/nonlinearities/saturation.hpp"
@@ -237,4 +238,31 @@ TEST_CASE("float code of a Wiener-Hammerstein chain writes each linear block in 
   CHECK(std::abs(ref_eq(0) + 1.5) < 1e-9);
   for (int t = 0; t < 300; ++t) CHECK(std::abs(y_eq(t) - ref_eq(t)) <= 4e-7 * std::abs(ref_eq(t)));
   CHECK(rel_error(y_eq, ref_eq) <= 1e-4);
+}
+
+TEST_CASE("float code of a slow output-error model writes its block in delta form", "[codegen][delta]") {
+  using nlid::codegen::LinearForm;
+  // The slow block of the HW test as an output-error model with offset 0.5.
+  const nlid::OutputError m({Eigen::Vector2d(3e-6, 1e-6)}, {Eigen::Vector2d(-1.997, 0.997002)}, {1}, ts, 0.5);
+  Eigen::MatrixXd u = random_steps();
+  const nlid::Experiment e = experiment(u);
+  const Eigen::VectorXd ref = m.simulate(e, nlid::InitialCondition::zero).col(0);
+  const nlid::GeneratedCode delta = single_code(m, "slowoe", LinearForm::automatic);
+  CHECK(delta.header.find("delta-operator form") != std::string::npos);
+  CHECK(delta.header.find("#define SLOWOE_NUM_STATES 2") != std::string::npos);  // n = max(nf, nk + nb - 1)
+  const double err_delta = rel_error(nlid_test::run_generated_c(delta, u, "delta_oe", true), ref);
+  const double err_direct =
+      rel_error(nlid_test::run_generated_c(single_code(m, "slowoe_direct", LinearForm::direct), u, "delta_oe_direct", true), ref);
+  INFO("delta form " << err_delta << ", direct form " << err_direct);
+  CHECK(err_delta <= 1e-5);
+  CHECK(err_direct >= 10.0 * err_delta);
+
+  u.topRows(300).setConstant(2.0);
+  const Eigen::VectorXd ref_eq = m.simulate(experiment(u), nlid::InitialCondition::equilibrium).col(0);
+  const Eigen::VectorXd y_eq = nlid_test::run_generated_c(single_code(m, "slowoe_eq", LinearForm::automatic, 2.0), u,
+                                                          "delta_oe_eq", true);
+  REQUIRE(y_eq.size() == ref_eq.size());
+  CHECK(std::abs(ref_eq(0) - 4.5) < 1e-9);  // offset 0.5 + gain 2 * 2
+  for (int t = 0; t < 300; ++t) CHECK(std::abs(y_eq(t) - ref_eq(t)) <= 4e-7 * std::abs(ref_eq(t)));
+  CHECK(rel_error(y_eq, ref_eq) <= 1e-5);
 }

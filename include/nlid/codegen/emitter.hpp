@@ -63,7 +63,7 @@ struct CodegenOptions {
   /// double (default: nlid's numbers to the last bit) or float throughout (FPUs without double;
   /// see codegen::Precision).
   codegen::Precision precision = codegen::Precision::double_precision;
-  /// Form of the linear blocks of Hammerstein–Wiener and series models (codegen::LinearForm,
+  /// Form of the linear blocks of Hammerstein–Wiener, series and output-error models (codegen::LinearForm,
   /// delta_form.hpp): `automatic` is the delta-operator form in single precision and nlid's
   /// direct form in double; `direct` keeps the polynomial form in single precision too (for
   /// comparison); `delta` with double precision is an error. Other model kinds ignore it.
