@@ -74,9 +74,10 @@ GeneratedCode generate_c(const HammersteinWiener<In, L, Out>& model, const Codeg
     m.state_doc = "the linear block's state e1 .. e" + std::to_string(m.nx) +
                   " in delta-operator form (single precision): x(t) = c0*w(t) + e1(t), e_i(t+1) = e_i(t) + "
                   "e_(i+1)(t) + c_i*w(t) - a_i*x(t) with d = q - 1 and B(z)/F(z) = (c0 d^n + .. + cn)/(d^n + a1 "
-                  "d^(n-1) + .. + an), " + db->describe() + ". In terms of nlid's transposed-direct-form-II state s (x(t) = b0*w(t) + s1(t)): "
-                  "e_i = sum over j <= i of C(n-j, i-j)*s_j (the coefficients of s1 z^(n-1) + .. + sn in powers of "
-                  "z - 1; e1 = s1, en = s1 + .. + sn)";
+                  "d^(n-1) + .. + an), " + db->describe() +
+                  ". In terms of nlid's transposed-direct-form-II state s (x(t) = b0*w(t) + s1(t)): "
+                  "e_i = sum over j <= i of C(n-j, i-j)*s_j (the coefficients of s1 z^(n-1) + .. + sn "
+                  "in powers of z - 1; e1 = s1, en = s1 + .. + sn)";
   if (options.equilibrium_input) {
     const OperatingPoint op = equilibrium(model, *options.equilibrium_input);
     m.x0 = op.x;
