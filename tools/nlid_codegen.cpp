@@ -3,7 +3,7 @@
 //
 //   nlid-codegen --model model.json --out DIR [--name NAME] [--ts T] [--substeps N]
 //                [--x0 zero|equilibrium] [--u0 V] [--allow-extrapolation]
-//                [--precision double|single]
+//                [--precision double|single] [--linear-form auto|direct|delta]
 //
 // Kinds: nlarx, hammerstein_wiener, series, greybox, augmented_greybox (the repaired model of
 // nlid-diagnose --save), arx and output_error. Writes DIR/NAME.h and DIR/NAME.c (atomically; DIR must exist): NAME_init, NAME_step,
@@ -16,7 +16,9 @@
 // range, is refused (the model extrapolates there) unless --allow-extrapolation is given. Exit status (cli_common.hpp) 0 on success, 1 on a
 // bad file or model (a model kind that is not generated, no or a non-finite equilibrium, a
 // missing --out directory — the message says which), 2 on a bad command line. --precision single writes float code (no double anywhere) for FPUs
-// without double arithmetic; it computes the model in float rounding, not nlid's bits.
+// without double arithmetic; it computes the model in float rounding, not nlid's bits, and writes
+// the linear blocks of Hammerstein-Wiener, series and output-error models in delta-operator form
+// (docs/codegen.md); --linear-form direct keeps their polynomial form (for comparison).
 #include <cctype>
 #include <cmath>
 #include <cstdio>
@@ -35,7 +37,7 @@ namespace {
 constexpr const char* kUsage =
     "usage: nlid-codegen --model model.json --out DIR [--name NAME] [--ts T] [--substeps N]\n"
     "                    [--x0 zero|equilibrium] [--u0 V] [--allow-extrapolation]\n"
-    "                    [--precision double|single]\n"
+    "                    [--precision double|single] [--linear-form auto|direct|delta]\n"
     "  --model FILE     a model file (nlid-fit --save, or save() in C++)\n"
     "  --out DIR        existing directory for NAME.h and NAME.c\n"
     "  --name NAME      C identifier prefixing every generated name (default: the file's stem)\n"
@@ -48,6 +50,9 @@ constexpr const char* kUsage =
     "  --allow-extrapolation  generate an equilibrium start outside that range (a warning)\n"
     "  --precision P    double (default: nlid's numbers to the last bit) or single (float\n"
     "                   throughout, for FPUs without double; float rounding)\n"
+    "  --linear-form F  linear blocks of hammerstein_wiener, series and output_error models: auto\n"
+    "                   (default: delta-operator form in single precision, nlid's direct form in\n"
+    "                   double), direct (polynomial form), or delta (single precision only)\n"
     "Generated kinds: nlarx, hammerstein_wiener, series (wh, wiener, hammerstein), greybox,\n"
     "augmented_greybox (nlid-diagnose --save), arx, output_error.\n";
 
@@ -113,7 +118,7 @@ std::string extrapolation_problem(const nlid::AnyModel& m, const std::string& mo
 int main(int argc, char** argv) {
   std::string stage = "reading the command line", sizes;
   return nlid_tools::guarded_main("nlid-codegen", kUsage, "", stage, sizes, [&]() -> int {
-    std::string model, out, name, x0 = "zero", precision = "double";
+    std::string model, out, name, x0 = "zero", precision = "double", linear_form = "auto";
     double ts = 0.0, u0 = 0.0;
     bool u0_given = false, allow_extrapolation = false;
     int substeps = 0;
@@ -129,7 +134,7 @@ int main(int argc, char** argv) {
         continue;
       }
       const bool known = k == "--model" || k == "--out" || k == "--name" || k == "--x0" || k == "--precision" ||
-                         k == "--ts" || k == "--u0" || k == "--substeps";
+                         k == "--linear-form" || k == "--ts" || k == "--u0" || k == "--substeps";
       if (!known) throw UsageError("unknown option '" + k + "'");
       if (i + 1 >= argc) throw UsageError("option " + k + " needs a value");
       const std::string v = argv[++i];
@@ -139,6 +144,7 @@ int main(int argc, char** argv) {
       else if (k == "--name") name = v;
       else if (k == "--x0") x0 = v;
       else if (k == "--precision") precision = v;
+      else if (k == "--linear-form") linear_form = v;
       else if (k == "--ts") {
         ts = parse_number(k, v);
         if (!(ts > 0)) throw UsageError("--ts must be positive, got '" + v + "'");
@@ -151,6 +157,10 @@ int main(int argc, char** argv) {
     if (x0 != "zero" && x0 != "equilibrium") throw UsageError("--x0 must be zero or equilibrium, got '" + x0 + "'");
     if (precision != "double" && precision != "single")
       throw UsageError("--precision must be double or single, got '" + precision + "'");
+    if (linear_form != "auto" && linear_form != "direct" && linear_form != "delta")
+      throw UsageError("--linear-form must be auto, direct or delta, got '" + linear_form + "'");
+    if (linear_form == "delta" && precision != "single")
+      throw UsageError("--linear-form delta is for --precision single (double code is nlid's direct form, bit for bit)");
     if (u0_given && x0 != "equilibrium") throw UsageError("--u0 sets the input of --x0 equilibrium; give both");
     if (allow_extrapolation && x0 != "equilibrium")
       throw UsageError("--allow-extrapolation permits an equilibrium start (--x0 equilibrium) outside the data range");
@@ -220,6 +230,8 @@ int main(int argc, char** argv) {
     o.ts = ts;
     o.substeps = substeps;
     if (precision == "single") o.precision = nlid::codegen::Precision::single_precision;
+    if (linear_form == "direct") o.linear_form = nlid::codegen::LinearForm::direct;
+    if (linear_form == "delta") o.linear_form = nlid::codegen::LinearForm::delta;
     if (x0 == "equilibrium") o.equilibrium_input = Eigen::VectorXd::Constant(m.num_inputs(), u0);
     const nlid::GeneratedCode g = nlid::generate_c(m, o);
     stage = "writing " + out;

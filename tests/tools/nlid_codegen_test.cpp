@@ -190,9 +190,24 @@ TEST_CASE("nlid-codegen: C from nlid-fit's model files reproduces nlid-sim for e
       const double gap = max_relative_gap(ys_c, y_nlid);
       INFO("single precision: max |y_C - y_nlid| / max(1, max |y_nlid|) = " << gap);
       // Float keeps about 7 digits and a free run amplifies rounding by its own sensitivity:
-      // measured 1.6e-7 ... 1.5e-6 here, 1.3e-4 for the barely estimated output-error model.
+      // measured 1.6e-7 ... 1.5e-6 here (the barely estimated output-error model 1.8e-7 in delta
+      // form, 1.3e-4 in the direct form it had before).
       CHECK(gap <= 1e-3);
       CHECK(gap > 0.0);  // float rounding shows: the code did compute in float
+      // Linear blocks of HW, series and output-error models are in delta-operator form in single
+      // precision; --linear-form direct keeps the polynomial form (the same model within float
+      // rounding).
+      const bool block_model =
+          std::string(c.name) == "cg_hw" || std::string(c.name) == "cg_wh" || std::string(c.name) == "cg_oe";
+      CHECK((slurp(dir / "sp_model.h").find("delta-operator form") != std::string::npos) == block_model);
+      const Run gd = codegen("--model " + q(model) + " --out " + q(dir) + " --name sp_direct --precision single " +
+                             "--linear-form direct " + c.codegen_options);
+      INFO(gd.err);
+      REQUIRE(gd.code == 0);
+      CHECK(slurp(dir / "sp_direct.h").find("delta-operator form") == std::string::npos);
+      const std::vector<double> yd_c = run_generated(dir, "sp_direct", u, true);
+      REQUIRE(yd_c.size() == y_nlid.size());
+      CHECK(max_relative_gap(yd_c, y_nlid) <= 1e-3);
       // On a float-only FPU the double code calls soft-float routines, the float code none.
       if (const auto sp = cortex_m4f_imports(dir, "sp_model")) {
         const auto dp = cortex_m4f_imports(dir, c.name);
@@ -248,6 +263,12 @@ TEST_CASE("nlid-codegen: a kind it does not generate, a grey box without --ts, a
   r = codegen("--model " + q(nlarx) + " --out " + q(dir) + " --precision half");
   CHECK(r.code == 2);
   CHECK_THAT(r.err, Catch::Contains("--precision must be double or single, got 'half'"));
+  r = codegen("--model " + q(nlarx) + " --out " + q(dir) + " --precision single --linear-form cascade");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("--linear-form must be auto, direct or delta, got 'cascade'"));
+  r = codegen("--model " + q(nlarx) + " --out " + q(dir) + " --linear-form delta");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("--linear-form delta is for --precision single"));
   r = codegen("--model " + q(nlarx) + " --out " + q(dir) + " --substeps 0");
   CHECK(r.code == 2);
   CHECK_THAT(r.err, Catch::Contains("--substeps needs an integer from 1"));

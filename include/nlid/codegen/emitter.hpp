@@ -40,6 +40,7 @@
 
 #include <Eigen/Core>
 
+#include "nlid/codegen/delta_form.hpp"
 #include "nlid/codegen/trace_scalar.hpp"
 #include "nlid/core/atomic_file.hpp"
 #include "nlid/core/error.hpp"
@@ -62,6 +63,11 @@ struct CodegenOptions {
   /// double (default: nlid's numbers to the last bit) or float throughout (FPUs without double;
   /// see codegen::Precision).
   codegen::Precision precision = codegen::Precision::double_precision;
+  /// Form of the linear blocks of Hammerstein–Wiener, series and output-error models (codegen::LinearForm,
+  /// delta_form.hpp): `automatic` is the delta-operator form in single precision and nlid's
+  /// direct form in double; `direct` keeps the polynomial form in single precision too (for
+  /// comparison); `delta` with double precision is an error. Other model kinds ignore it.
+  codegen::LinearForm linear_form = codegen::LinearForm::automatic;
 };
 
 /// A generated header and source, ready to be written or compiled.
@@ -84,6 +90,16 @@ struct GeneratedCode {
 };
 
 namespace codegen {
+
+/// True if the linear blocks are generated in delta form under `o` (see
+/// `CodegenOptions::linear_form`). Throws `nlid::Error` for `delta` with double precision.
+inline bool use_delta_form(const CodegenOptions& o) {
+  require(!(o.linear_form == LinearForm::delta && o.precision == Precision::double_precision),
+          "codegen: the delta form of linear blocks is for single precision (double code is nlid's direct form, "
+          "bit for bit); use LinearForm::automatic or direct",
+          at_parameter("linear_form"));
+  return o.precision == Precision::single_precision && o.linear_form != LinearForm::direct;
+}
 
 /// Throws unless `name` is a C identifier that does not start with "nlid_" (reserved for helpers).
 inline void check_name(const std::string& name) {

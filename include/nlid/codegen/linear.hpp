@@ -16,11 +16,20 @@
 /// With `CodegenOptions::equilibrium_input` the past samples start at the steady state for that
 /// constant input, as `simulate(e, InitialCondition::equilibrium)` (values computed at
 /// generation with nlid's own expressions); otherwise at zero.
+///
+/// Single precision (`CodegenOptions::linear_form`): each output-error block with feedback is
+/// written in delta-operator form (delta_form.hpp); its segment of the state holds its delta
+/// state, max(nfᵢ, nkᵢ + nbᵢ − 1) values, instead of past inputs and outputs. ARX stays in the
+/// direct form (its inputs share A and the offset: a multi-input delta block, not written).
 
+#include <algorithm>
 #include <cmath>
+#include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
+#include "nlid/codegen/delta_form.hpp"
 #include "nlid/codegen/emitter.hpp"
 #include "nlid/linear/arx.hpp"
 #include "nlid/linear/output_error.hpp"
@@ -133,10 +142,29 @@ inline GeneratedCode generate_c(const OutputError& model, const CodegenOptions& 
   m.parameters = model.parameters();
   m.parameter_names = model.parameter_names();
   std::vector<int> lags(static_cast<std::size_t>(nu)), uoff(static_cast<std::size_t>(nu)), woff(static_cast<std::size_t>(nu));
+  // Single precision: each block with feedback in delta form (delta_form.hpp), its segment of
+  // the state then holds its delta state instead of past inputs and outputs.
+  std::vector<std::optional<codegen::DeltaBlock>> db(static_cast<std::size_t>(nu));
+  const bool delta = codegen::use_delta_form(options);
   int nx = 0;
   m.state_doc = "x = [";
   for (int i = 0; i < nu; ++i) {
     const auto ii = static_cast<std::size_t>(i);
+    if (delta && model.f(i).size() > 0) {
+      const int nb = static_cast<int>(model.b(i).size()), nf = static_cast<int>(model.f(i).size());
+      Eigen::VectorXd beta = Eigen::VectorXd::Zero(model.nk(i) + nb);
+      beta.tail(nb) = model.b(i);
+      db[ii] = codegen::DeltaBlock::from_tdf2(beta, model.f_polynomial(i), std::max(nf, model.nk(i) + nb - 1));
+      lags[ii] = 0;
+      uoff[ii] = woff[ii] = nx;
+      nx += db[ii]->n;
+      const std::string n = std::to_string(i + 1);
+      m.state_doc += std::string(i ? "; " : "") + "e" + n + "_1 .. e" + n + "_" + std::to_string(db[ii]->n) +
+                     " (single precision: block " + n + " in delta-operator form, d = q - 1: w" + n + "(t) = c0*u" + n +
+                     "(t) + e_1(t), e_k(t+1) = e_k(t) + e_(k+1)(t) + c_k*u" + n + "(t) - a_k*w" + n +
+                     "(t), B(z)/F(z) = (c0 d^n + .. + cn)/(d^n + a1 d^(n-1) + .. + an), " + db[ii]->describe() + ")";
+      continue;
+    }
     lags[ii] = std::max(0, model.nk(i) + static_cast<int>(model.b(i).size()) - 1);
     uoff[ii] = nx;
     woff[ii] = nx + lags[ii];
@@ -158,6 +186,21 @@ inline GeneratedCode generate_c(const OutputError& model, const CodegenOptions& 
               "codegen: no equilibrium: F(q) of input " + std::to_string(i + 1) + " has a root at z = 1",
               at_parameter("equilibrium_input"));
       const double w0 = std::abs(f1) > 1e-14 ? model.b(i).sum() / f1 * u0(i) : 0.0;
+      if (db[ii]) {
+        // The transposed-direct-form-II steady state s_k = sum_{j >= k} (beta_j u0 - f_j w0)
+        // (transfer_function_block.hpp), in delta form.
+        const int n = db[ii]->n, nk = model.nk(i), nb = static_cast<int>(model.b(i).size());
+        const int nf = static_cast<int>(model.f(i).size());
+        Eigen::VectorXd s(n);
+        double acc = 0.0;
+        for (int k = n; k >= 1; --k) {
+          if (k - nk >= 0 && k - nk < nb) acc += model.b(i)(k - nk) * u0(i);
+          if (k <= nf) acc -= model.f(i)(k - 1) * w0;
+          s(k - 1) = acc;
+        }
+        m.x0.segment(uoff[ii], n) = db[ii]->state_from_tdf2(s);
+        continue;
+      }
       m.x0.segment(uoff[ii], lags[ii]).setConstant(u0(i));
       m.x0.segment(woff[ii], model.f(i).size()).setConstant(w0);
     }
@@ -183,6 +226,22 @@ inline GeneratedCode generate_c(const OutputError& model, const CodegenOptions& 
   for (int i = 0; i < nu; ++i) {
     const auto ii = static_cast<std::size_t>(i);
     const std::string wi = at("w", i);
+    if (db[ii]) {
+      const int n = db[ii]->n;
+      const codegen::TracedFunction tf = codegen::trace_paths([&] {
+        std::vector<TraceScalar> e;
+        for (int k = 0; k < n; ++k) e.push_back(TraceScalar::signal(at(X, uoff[ii] + k)));
+        std::vector<TraceScalar> r{db[ii]->step(std::span<TraceScalar>(e), TraceScalar::signal(at("u", i)))};
+        r.insert(r.end(), e.begin(), e.end());
+        return r;
+      });
+      std::vector<std::string> t{wi};
+      for (int k = 0; k < n; ++k) t.push_back(at("en", k));
+      body += "  {\n    " + R + " en[" + std::to_string(n) + "];\n    int k;\n" + codegen::emit_c(tf, t, "    ");
+      body += "    for (k = 0; k < " + std::to_string(n) + "; ++k) s->x[" + std::to_string(uoff[ii]) + " + k] = en[k];\n  }\n";
+      body += "  out += " + wi + ";\n";
+      continue;
+    }
     body += "  " + wi + " = " + codegen::c_literal(0.0) + ";\n";
     for (int j = 0; j < static_cast<int>(model.b(i).size()); ++j) {
       const int lag = model.nk(i) + j;
@@ -195,6 +254,7 @@ inline GeneratedCode generate_c(const OutputError& model, const CodegenOptions& 
   body += "  y[0] = out;\n";
   for (int i = 0; i < nu; ++i) {
     const auto ii = static_cast<std::size_t>(i);
+    if (db[ii]) continue;  // updated above
     body += codegen::detail::shift_code(X, uoff[ii], lags[ii], at("u", i));
     body += codegen::detail::shift_code(X, woff[ii], static_cast<int>(model.f(i).size()), at("w", i));
   }

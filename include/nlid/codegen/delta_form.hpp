@@ -1,0 +1,144 @@
+#pragma once
+/// @file
+/// Linear blocks of single-precision C in *delta-operator* form (Middleton & Goodwin, "Digital
+/// Control and Estimation: A Unified Approach", 1990, ch. 2–3): why and how.
+///
+/// A block B̃(q)/F(q) with poles close to z = 1 (slow dynamics, fast sampling) is badly
+/// conditioned in its polynomial form: its static gain B(1)/F(1) depends on F(1) = 1 + f₁ + … +
+/// f_n, a small difference of O(1) coefficients, and rounding the fᵢ to float (relative 6·10⁻⁸)
+/// moves F(1) by about 10⁻⁷ absolute — percent of the gain when F(1) ~ 10⁻⁵.
+///
+/// With δ = q − 1 the same transfer function, written over n = max(nf, nk + nb − 1) states, is
+///
+///     B̃(z)/F(z) = (c₀ δⁿ + c₁ δⁿ⁻¹ + … + cₙ) / (δⁿ + a₁ δⁿ⁻¹ + … + aₙ),   z = 1 + δ,
+///
+/// whose coefficients are the Taylor coefficients of zⁿB̃ and zⁿF about z = 1 (computed in
+/// double at generation time): aₙ = F(1), cₙ = B(1), a₁ = n + f₁ … — small quantities are now
+/// coefficients of their own and keep float's full relative precision. The realization is the
+/// observer canonical form in δ, the transposed direct form II with q⁻¹ replaced by δ⁻¹:
+///
+///     y(t)      = c₀ w(t) + e₁(t),
+///     eᵢ(t+1)   = eᵢ(t) + (eᵢ₊₁(t) + cᵢ w(t) − aᵢ y(t)),   i = 1 … n   (eₙ₊₁ ≡ 0).
+///
+/// State. nlid's TDF-II state s and the δ state e describe the same free response when the
+/// polynomial s₁zⁿ⁻¹ + … + sₙ written in powers of δ = z − 1 has the coefficients e₁ … eₙ:
+/// e = T s with T the Taylor shift (lower triangular, eᵢ = Σ_{j ≤ i} C(n − j, i − j) sⱼ; e₁ = s₁,
+/// eₙ = s₁ + … + sₙ). NAME_x0 is T applied to nlid's state in double, rounded once.
+///
+/// Blocks with nf = 0 (FIR: no feedback, no sensitivity to rounding) and blocks without state
+/// stay in the direct form.
+
+#include <cstddef>
+#include <cstdio>
+#include <span>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "nlid/codegen/trace_scalar.hpp"
+#include "nlid/core/error.hpp"
+
+namespace nlid::codegen {
+
+/// How a linear block of a Hammerstein–Wiener or series model is written in the generated C.
+///  - `automatic`: `delta` in single precision, `direct` in double precision;
+///  - `direct`: nlid's transposed direct form II on the polynomial coefficients (in double
+///    precision nlid's own operations, bit for bit);
+///  - `delta`: delta-operator form (delta_form.hpp); single precision only — in double the direct
+///    form already reproduces nlid to the last bit, so asking for delta there is an error.
+enum class LinearForm { automatic, direct, delta };
+
+/// Taylor coefficients about z = 1: for P(z) = Σₖ p[k] z^(m−k) (highest power first) returns q
+/// with P(1 + δ) = Σₖ q[k] δ^(m−k). Repeated synthetic division by (z − 1) (Horner), in double.
+inline std::vector<double> taylor_shift_at_one(std::vector<double> p) {
+  const std::size_t m = p.empty() ? 0 : p.size() - 1;
+  for (std::size_t pass = 0; pass < m; ++pass)
+    for (std::size_t k = 1; k <= m - pass; ++k) p[k] += p[k - 1];
+  return p;
+}
+
+/// One linear block in delta form: c[0 … n] (numerator) and a[0 … n] (a[0] = 1) as above.
+struct DeltaBlock {
+  int n = 0;              ///< states
+  std::vector<double> c;  ///< numerator coefficients in δ, c[0] = β₀, c[n] = B(1)
+  std::vector<double> a;  ///< denominator coefficients in δ, a[0] = 1, a[n] = F(1)
+
+  /// δ-form coefficients of the TDF-II block with numerator β₀ … βₙ (coefficients of q⁻ʲ of B̃,
+  /// delay included) and monic denominator f₀ = 1, f₁ … (padded with zeros to n).
+  static DeltaBlock from_tdf2(const Eigen::VectorXd& beta, const Eigen::VectorXd& f, int n) {
+    DeltaBlock d;
+    d.n = n;
+    std::vector<double> b(static_cast<std::size_t>(n) + 1, 0.0), fp(static_cast<std::size_t>(n) + 1, 0.0);
+    for (Eigen::Index j = 0; j < beta.size() && j <= n; ++j) b[static_cast<std::size_t>(j)] = beta(j);
+    for (Eigen::Index j = 0; j < f.size() && j <= n; ++j) fp[static_cast<std::size_t>(j)] = f(j);
+    d.c = taylor_shift_at_one(b);
+    d.a = taylor_shift_at_one(fp);
+    return d;
+  }
+
+  /// δ state e = T s of nlid's TDF-II state s (n values), in double.
+  [[nodiscard]] Eigen::VectorXd state_from_tdf2(const Eigen::VectorXd& s) const {
+    require(s.size() == n, "codegen: a linear block state has " + std::to_string(s.size()) + " values, expected " +
+                               std::to_string(n),
+            at_parameter("x0"));
+    const std::vector<double> e = taylor_shift_at_one(std::vector<double>(s.data(), s.data() + s.size()));
+    return Eigen::Map<const Eigen::VectorXd>(e.data(), n);
+  }
+
+  /// "c0 .. cn = [...], a1 .. an = [...]" (9 significant digits: the float values in the code).
+  [[nodiscard]] std::string describe() const {
+    const auto list = [](const std::vector<double>& v, std::size_t first) {
+      std::string s = "[";
+      char b[32];
+      for (std::size_t i = first; i < v.size(); ++i) {
+        std::snprintf(b, sizeof b, "%s%.9g", i > first ? " " : "", v[i]);
+        s += b;
+      }
+      return s + "]";
+    };
+    return "c0 .. c" + std::to_string(n) + " = " + list(c, 0) + ", a1 .. a" + std::to_string(n) + " = " + list(a, 1);
+  }
+
+  /// One traced sample: returns y(t) for input w(t) and advances the δ state `e` (n values).
+  /// The coefficients are literals of the code (rounded once to its precision); exact zeros are
+  /// left out.
+  [[nodiscard]] TraceScalar step(std::span<TraceScalar> e, const TraceScalar& w) const {
+    const auto term = [&](double coef, const TraceScalar& v) { return TraceScalar(coef) * v; };
+    TraceScalar y = e[0];
+    if (c[0] != 0.0) y = y + term(c[0], w);
+    const std::vector<TraceScalar> old(e.begin(), e.end());
+    for (int i = 1; i <= n; ++i) {
+      const auto ui = static_cast<std::size_t>(i);
+      TraceScalar inc = i < n ? old[ui] : TraceScalar(0.0);
+      bool any = i < n;
+      if (c[ui] != 0.0) {
+        inc = any ? inc + term(c[ui], w) : term(c[ui], w);
+        any = true;
+      }
+      if (a[ui] != 0.0) {
+        inc = any ? inc - term(a[ui], y) : term(-a[ui], y);
+        any = true;
+      }
+      e[ui - 1] = any ? old[ui - 1] + inc : old[ui - 1];
+    }
+    return y;
+  }
+};
+
+/// The δ form of a `TransferFunctionBlock` (anything with nb(), nf(), nk(), num_states_runtime()
+/// and polynomials(θ)) with parameters θ.
+template <class Block>
+DeltaBlock delta_block(const Block& block, std::span<const double> theta) {
+  const auto [b, f] = block.polynomials(theta);  // B̃ with the nk leading zeros, monic F
+  return DeltaBlock::from_tdf2(b, f, block.num_states_runtime());
+}
+
+/// True if a block with these orders is written in δ form when δ is in use (it has a state and
+/// feedback).
+template <class Block>
+bool delta_applies(const Block& block) {
+  return block.nf() > 0 && block.num_states_runtime() > 0;
+}
+
+}  // namespace nlid::codegen

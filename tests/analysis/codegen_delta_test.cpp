@@ -1,0 +1,268 @@
+// Single-precision C of linear blocks with poles close to z = 1 (docs/codegen.md, "Linear blocks
+// with poles close to z = 1"): the delta-operator form (codegen/delta_form.hpp) against nlid's
+// double simulation and against the direct (polynomial) form on the same model. Poles 0.999 and
+// 0.998 give F(1) = 2e-6, where rounding the f coefficients to float moves the static gain by
+// percent; the delta form must track nlid closely and the direct form must be at least ten times
+// worse — so the test fails if the delta path silently falls back to the direct form. Also: the
+// initial state tables (equilibrium) and an explicit state (NAME_set_state with
+// generated_c_state) map nlid's state correctly, and double code ignores the option.
+#include <catch2/catch.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "nlid/codegen/delta_form.hpp"
+#include "nlid/codegen/hammerstein_wiener.hpp"
+#include "nlid/codegen/linear.hpp"
+#include "nlid/codegen/series.hpp"
+#include "nlid/models/transfer_function_block.hpp"
+#include "nlid/nonlinearities/saturation.hpp"
+#include "nlid/nonlinearities/unit_gain.hpp"
+
+#include "../support/generated_c.hpp"
+
+namespace {
+
+using Slow = nlid::TransferFunctionBlock<2, 2, 1>;
+using SlowHw = nlid::HammersteinWiener<nlid::UnitGain, Slow, nlid::Saturation>;
+
+constexpr double ts = 0.001;
+
+// B = [3e-6 1e-6] (delay 1), F = (1 - 0.999 q^-1)(1 - 0.998 q^-1): F(1) = 2e-6, gain 2;
+// output saturation [-20, 20] (not reached: its branches are traced, the error is the block's).
+SlowHw slow_hw() {
+  SlowHw m(nlid::UnitGain{}, Slow{}, nlid::Saturation{}, ts);
+  Eigen::VectorXd th(6);
+  th << 3e-6, 1e-6, -1.997, 0.997002, -20.0, 20.0;
+  m.set_parameters(th);
+  return m;
+}
+
+// A unit step, and random steps (levels in [-3, 3] held 300 .. 1500 samples), N = 6000.
+Eigen::MatrixXd step_input(double level) { return Eigen::MatrixXd::Constant(6000, 1, level); }
+Eigen::MatrixXd random_steps() {
+  std::mt19937 gen(7);
+  std::uniform_real_distribution<double> level(-3.0, 3.0);
+  std::uniform_int_distribution<int> hold(300, 1500);
+  Eigen::MatrixXd u(6000, 1);
+  for (Eigen::Index t = 0; t < u.rows();) {
+    const double v = level(gen);
+    for (int k = hold(gen); k > 0 && t < u.rows(); --k) u(t++, 0) = v;
+  }
+  return u;
+}
+
+nlid::Experiment experiment(const Eigen::MatrixXd& u) { return nlid::Experiment(u, Eigen::MatrixXd::Zero(u.rows(), 1), ts); }
+
+// max |a - b| / max |b|.
+double rel_error(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
+  REQUIRE(a.size() == b.size());
+  return (a - b).cwiseAbs().maxCoeff() / b.cwiseAbs().maxCoeff();
+}
+
+template <class Model>
+nlid::GeneratedCode single_code(const Model& m, const std::string& name, nlid::codegen::LinearForm form,
+                                std::optional<double> u0 = std::nullopt) {
+  nlid::CodegenOptions o;
+  o.name = name;
+  o.precision = nlid::codegen::Precision::single_precision;
+  o.linear_form = form;
+  if (u0) o.equilibrium_input = Eigen::VectorXd::Constant(1, *u0);
+  return nlid::generate_c(m, o);
+}
+
+// Outputs of the generated code started with NAME_set_state(x) instead of NAME_init.
+Eigen::VectorXd run_from_state(const nlid::GeneratedCode& g, const Eigen::MatrixXd& u, const Eigen::VectorXd& x,
+                               const std::string& tag) {
+  const std::filesystem::path dir = nlid_test::scratch_dir() / ("c_" + tag);
+  std::filesystem::create_directories(dir);
+  g.write(dir.string());
+  const std::string n = g.name;
+  std::string xs;
+  char b[48];
+  for (Eigen::Index i = 0; i < x.size(); ++i) {
+    std::snprintf(b, sizeof b, "%s(%s)%.9g", i ? ", " : "", (n + "_real").c_str(), x(i));
+    xs += b;
+  }
+  std::ofstream(dir / "driver.c") << "#include <stdio.h>\n#include \"" << n << ".h\"\n"
+                                  << "int main(int argc, char** argv) {\n  " << n << "_real u[1], y[1];\n  const " << n
+                                  << "_real x[] = {" << xs << "};\n  double v;\n  " << n << "_state s;\n"
+                                  << "  FILE* in = argc > 1 ? fopen(argv[1], \"r\") : NULL;\n  if (!in) return 2;\n  " << n
+                                  << "_init(&s);\n  " << n << "_set_state(&s, x);\n"
+                                  << "  while (fscanf(in, \"%lf\", &v) == 1) {\n    u[0] = (" << n << "_real)v;\n    " << n
+                                  << "_step(&s, u, y);\n    printf(\"%.17g\\n\", (double)y[0]);\n  }\n  fclose(in);\n  return 0;\n}\n";
+  {
+    std::ofstream in(dir / "u.txt");
+    for (Eigen::Index t = 0; t < u.rows(); ++t) {
+      std::snprintf(b, sizeof b, "%.17g\n", u(t, 0));
+      in << b;
+    }
+  }
+  nlid_test::compile_and_run_driver(dir, n, true);
+  std::ifstream out(dir / "y.txt");
+  std::vector<double> ys;
+  for (double v; out >> v;) ys.push_back(v);
+  return Eigen::Map<Eigen::VectorXd>(ys.data(), static_cast<Eigen::Index>(ys.size()));
+}
+
+}  // namespace
+
+TEST_CASE("Taylor shift about z = 1 and the delta coefficients of a block", "[codegen][delta]") {
+  // z^2 - 1.997 z + 0.997002 = d^2 + 0.003 d + 2e-6 (d = z - 1).
+  const std::vector<double> a = nlid::codegen::taylor_shift_at_one({1.0, -1.997, 0.997002});
+  REQUIRE(a.size() == 3);
+  CHECK(a[0] == 1.0);
+  CHECK(a[1] == Approx(0.003).epsilon(1e-12));
+  CHECK(a[2] == Approx(2e-6).epsilon(1e-9));
+  // 2 z^3 + 0 z^2 - 1 z + 5 = 2 d^3 + 6 d^2 + 5 d + 6.
+  CHECK(nlid::codegen::taylor_shift_at_one({2.0, 0.0, -1.0, 5.0}) == std::vector<double>{2.0, 6.0, 5.0, 6.0});
+  // The delta state is the Taylor shift of nlid's TDF-II registers: e1 = s1, e2 = s1 + s2.
+  const SlowHw m = slow_hw();
+  const nlid::codegen::DeltaBlock d = nlid::codegen::delta_block(m.linear_block(), m.linear_parameters());
+  CHECK(d.n == 2);
+  CHECK(d.c[2] == Approx(4e-6).epsilon(1e-9));  // B(1)
+  CHECK(d.a[2] == Approx(2e-6).epsilon(1e-9));  // F(1)
+  const Eigen::VectorXd e = d.state_from_tdf2(Eigen::Vector2d(1.5, -0.25));
+  CHECK(e(0) == 1.5);
+  CHECK(e(1) == 1.25);
+}
+
+TEST_CASE("float code of a slow Hammerstein-Wiener block: the delta form tracks nlid, the direct form does not",
+          "[codegen][delta]") {
+  using nlid::codegen::LinearForm;
+  const SlowHw m = slow_hw();
+  const nlid::GeneratedCode delta = single_code(m, "slowhw", LinearForm::automatic);
+  const nlid::GeneratedCode direct = single_code(m, "slowhw_direct", LinearForm::direct);
+  CHECK(delta.source != direct.source);
+  CHECK(delta.header.find("delta-operator form") != std::string::npos);
+  CHECK(nlid_test::c_code_only(delta.source + delta.header).find("double") == std::string::npos);
+  CHECK(single_code(m, "slowhw", LinearForm::delta).source == delta.source);  // automatic = delta in float
+  int k = 0;
+  for (const Eigen::MatrixXd& u : {step_input(1.0), random_steps()}) {
+    const std::string tag = "delta_hw" + std::to_string(k++);
+    const Eigen::VectorXd ref = m.simulate(experiment(u), nlid::InitialCondition::zero).col(0);
+    const double err_delta = rel_error(nlid_test::run_generated_c(delta, u, tag, true), ref);
+    const double err_direct = rel_error(nlid_test::run_generated_c(direct, u, tag + "_direct", true), ref);
+    INFO("input " << tag << ": delta form " << err_delta << ", direct form " << err_direct
+                  << " (max |y_C - y_nlid| / max |y_nlid|)");
+    CHECK(err_delta <= 1e-5);
+    CHECK(err_direct >= 10.0 * err_delta);
+    CHECK(err_direct > 1e-3);
+  }
+  // Double code: `automatic` is the direct form, the same text as before the option existed;
+  // asking for delta in double is refused.
+  nlid::CodegenOptions o;
+  o.name = "slowhw_double";
+  const std::string automatic = nlid::generate_c(m, o).source;
+  o.linear_form = LinearForm::direct;
+  CHECK(nlid::generate_c(m, o).source == automatic);
+  o.linear_form = LinearForm::delta;
+  CHECK_THROWS_AS(nlid::generate_c(m, o), nlid::Error);
+}
+
+TEST_CASE("float code in delta form starts from nlid's equilibrium and from an explicit state", "[codegen][delta]") {
+  using nlid::codegen::LinearForm;
+  const SlowHw m = slow_hw();
+  Eigen::MatrixXd u = random_steps();
+  u.topRows(200).setConstant(2.5);
+  const nlid::Experiment e = experiment(u);
+  // Equilibrium for u0 = 2.5 (y = 5): NAME_x0 is the delta state of nlid's steady state.
+  const nlid::GeneratedCode eq = single_code(m, "slowhw_eq", LinearForm::automatic, 2.5);
+  const Eigen::VectorXd ref_eq = m.simulate(e, nlid::InitialCondition::equilibrium).col(0);
+  const Eigen::VectorXd y_eq = nlid_test::run_generated_c(eq, u, "delta_hw_eq", true);
+  REQUIRE(y_eq.size() == ref_eq.size());
+  INFO("equilibrium start: first outputs " << y_eq(0) << " vs nlid " << ref_eq(0));
+  CHECK(std::abs(ref_eq(0) - 5.0) < 1e-9);
+  for (int t = 0; t < 200; ++t) CHECK(std::abs(y_eq(t) - ref_eq(t)) <= 4e-7 * std::abs(ref_eq(t)));
+  CHECK(rel_error(y_eq, ref_eq) <= 1e-4);
+
+  // An explicit state: where nlid's block is after 1500 samples of a ramp (both registers away
+  // from any steady state), passed through generated_c_state to NAME_set_state.
+  std::vector<double> s(2, 0.0);
+  const std::vector<double> th(m.linear_parameters().begin(), m.linear_parameters().end());
+  for (int t = 0; t < 1500; ++t)
+    (void)m.linear_block().step(std::span<double>(s), 0.004 * t, std::span<const double>(th));
+  const Eigen::VectorXd x = Eigen::Map<const Eigen::VectorXd>(s.data(), 2);
+  nlid::CodegenOptions o;
+  o.precision = nlid::codegen::Precision::single_precision;
+  const Eigen::VectorXd xc = nlid::generated_c_state(m, x, o);
+  CHECK(xc(0) == x(0));
+  CHECK(xc(1) == x(0) + x(1));
+  o.linear_form = LinearForm::direct;
+  CHECK(nlid::generated_c_state(m, x, o) == x);  // the direct form's state is nlid's
+  Eigen::VectorXd ref_x(u.rows());
+  const std::span<const double> theta(m.parameters().data(), static_cast<std::size_t>(m.parameters().size()));
+  REQUIRE(m.simulate<double>(u, theta, std::span<const double>(x.data(), 2),
+                             std::span<double>(ref_x.data(), static_cast<std::size_t>(ref_x.size()))));
+  const Eigen::VectorXd y_x = run_from_state(single_code(m, "slowhw_x", LinearForm::automatic), u, xc, "delta_hw_x");
+  REQUIRE(y_x.size() == ref_x.size());
+  INFO("explicit state " << x.transpose() << ": first outputs " << y_x(0) << ", " << y_x(1) << " vs nlid " << ref_x(0)
+                         << ", " << ref_x(1));
+  for (int t = 0; t < 20; ++t) CHECK(std::abs(y_x(t) - ref_x(t)) <= 4e-7 * std::abs(ref_x(t)));
+  CHECK(rel_error(y_x, ref_x) <= 1e-4);
+}
+
+TEST_CASE("float code of a Wiener-Hammerstein chain writes each linear block in delta form", "[codegen][delta]") {
+  using nlid::codegen::LinearForm;
+  using Fast = nlid::TransferFunctionBlock<1, 1, 0>;
+  nlid::WienerHammerstein<Slow, nlid::Saturation, Fast> m(Slow{}, nlid::Saturation{}, Fast{}, ts);
+  Eigen::VectorXd th(8);
+  th << 3e-6, 1e-6, -1.997, 0.997002,  // the slow block of the HW test (gain 2)
+      -20.0, 20.0,                      // saturation, not reached
+      0.25, -0.5;                       // 0.25 / (1 - 0.5 q^-1): gain 0.5
+  m.set_parameters(th);
+  const Eigen::MatrixXd u = random_steps();
+  const Eigen::VectorXd ref = m.simulate(experiment(u), nlid::InitialCondition::zero).col(0);
+  const nlid::GeneratedCode delta = single_code(m, "slowwh", LinearForm::automatic);
+  CHECK(delta.header.find("delta-operator form") != std::string::npos);
+  const double err_delta = rel_error(nlid_test::run_generated_c(delta, u, "delta_wh", true), ref);
+  const double err_direct =
+      rel_error(nlid_test::run_generated_c(single_code(m, "slowwh_direct", LinearForm::direct), u, "delta_wh_direct", true), ref);
+  INFO("delta form " << err_delta << ", direct form " << err_direct);
+  CHECK(err_delta <= 1e-5);
+  CHECK(err_direct >= 10.0 * err_delta);
+
+  // Equilibrium for u0 = -1.5 (stacked states of both blocks transformed).
+  Eigen::MatrixXd ue = u;
+  ue.topRows(300).setConstant(-1.5);
+  const Eigen::VectorXd ref_eq = m.simulate(experiment(ue), nlid::InitialCondition::equilibrium).col(0);
+  const Eigen::VectorXd y_eq = nlid_test::run_generated_c(single_code(m, "slowwh_eq", LinearForm::automatic, -1.5), ue,
+                                                          "delta_wh_eq", true);
+  REQUIRE(y_eq.size() == ref_eq.size());
+  CHECK(std::abs(ref_eq(0) + 1.5) < 1e-9);
+  for (int t = 0; t < 300; ++t) CHECK(std::abs(y_eq(t) - ref_eq(t)) <= 4e-7 * std::abs(ref_eq(t)));
+  CHECK(rel_error(y_eq, ref_eq) <= 1e-4);
+}
+
+TEST_CASE("float code of a slow output-error model writes its block in delta form", "[codegen][delta]") {
+  using nlid::codegen::LinearForm;
+  // The slow block of the HW test as an output-error model with offset 0.5.
+  const nlid::OutputError m({Eigen::Vector2d(3e-6, 1e-6)}, {Eigen::Vector2d(-1.997, 0.997002)}, {1}, ts, 0.5);
+  Eigen::MatrixXd u = random_steps();
+  const nlid::Experiment e = experiment(u);
+  const Eigen::VectorXd ref = m.simulate(e, nlid::InitialCondition::zero).col(0);
+  const nlid::GeneratedCode delta = single_code(m, "slowoe", LinearForm::automatic);
+  CHECK(delta.header.find("delta-operator form") != std::string::npos);
+  CHECK(delta.header.find("#define SLOWOE_NUM_STATES 2") != std::string::npos);  // n = max(nf, nk + nb - 1)
+  const double err_delta = rel_error(nlid_test::run_generated_c(delta, u, "delta_oe", true), ref);
+  const double err_direct =
+      rel_error(nlid_test::run_generated_c(single_code(m, "slowoe_direct", LinearForm::direct), u, "delta_oe_direct", true), ref);
+  INFO("delta form " << err_delta << ", direct form " << err_direct);
+  CHECK(err_delta <= 1e-5);
+  CHECK(err_direct >= 10.0 * err_delta);
+
+  u.topRows(300).setConstant(2.0);
+  const Eigen::VectorXd ref_eq = m.simulate(experiment(u), nlid::InitialCondition::equilibrium).col(0);
+  const Eigen::VectorXd y_eq = nlid_test::run_generated_c(single_code(m, "slowoe_eq", LinearForm::automatic, 2.0), u,
+                                                          "delta_oe_eq", true);
+  REQUIRE(y_eq.size() == ref_eq.size());
+  CHECK(std::abs(ref_eq(0) - 4.5) < 1e-9);  // offset 0.5 + gain 2 * 2
+  for (int t = 0; t < 300; ++t) CHECK(std::abs(y_eq(t) - ref_eq(t)) <= 4e-7 * std::abs(ref_eq(t)));
+  CHECK(rel_error(y_eq, ref_eq) <= 1e-5);
+}
