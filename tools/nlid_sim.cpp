@@ -136,23 +136,36 @@ int main(int argc, char** argv) {
     }
     stage = "simulating " + model;
     sizes = std::to_string(e.size()) + " samples";
-    const Eigen::MatrixXd y =
-        m.simulate(named, x0 == "zero" ? nlid::InitialCondition::zero : nlid::InitialCondition::equilibrium);
     const Eigen::VectorXd t = named.time();
     // A diverging model gives inf/NaN: refuse to write them (a file of NaN looks like a result).
+    // Nonlinear ARX, Hammerstein-Wiener and series models stop at the first non-finite sample
+    // with a DivergenceError that knows only the sample; linear and grey-box models return the
+    // inf/NaN. Both end in the same message, naming the file, the time and the data row.
+    const auto diverged = [&](long i, const std::string& value) {
+      char buf[200];
+      std::snprintf(buf, sizeof buf, "the simulated output is not finite%s from sample %ld on (t = %.10g s",
+                    value.c_str(), i, t(static_cast<Eigen::Index>(i)));
+      nlid::Location l;
+      l.file = input;
+      return nlid::Error(std::string(buf) +
+                             (decimate == 1 ? ", data row " + std::to_string(i + 1) + " of " + input
+                                            : ", after --decimate " + std::to_string(decimate)) +
+                             "): the model " + model + " is unstable or diverges on this input (x0 " + x0 +
+                             "); nothing written to " + out,
+                         l);
+    };
+    Eigen::MatrixXd y;
+    try {
+      y = m.simulate(named, x0 == "zero" ? nlid::InitialCondition::zero : nlid::InitialCondition::equilibrium);
+    } catch (const nlid::DivergenceError& d) {
+      if (d.sample() < 0 || d.sample() >= static_cast<long>(t.size())) throw;
+      throw diverged(d.sample(), "");
+    }
     for (Eigen::Index i = 0; i < y.rows(); ++i) {
       if (!y.row(i).allFinite()) {
-        char buf[200];
-        std::snprintf(buf, sizeof buf, "the simulated output is not finite (%g) from sample %ld on (t = %.10g s",
-                      y(i, 0), static_cast<long>(i), t(i));
-        nlid::Location l;
-        l.file = input;
-        throw nlid::Error(std::string(buf) +
-                              (decimate == 1 ? ", data row " + std::to_string(i + 1) + " of " + input
-                                             : ", after --decimate " + std::to_string(decimate)) +
-                              "): the model " + model + " is unstable or diverges on this input (x0 " + x0 +
-                              "); nothing written to " + out,
-                          l);
+        char value[40];
+        std::snprintf(value, sizeof value, " (%g)", y(i, 0));
+        throw diverged(static_cast<long>(i), value);
       }
     }
     stage = "writing " + out;

@@ -79,6 +79,34 @@ TEST_CASE("nlid-sim: an unstable model's inf/NaN output is refused, naming the f
   CHECK_FALSE(fs::exists(out));
 }
 
+TEST_CASE("nlid-sim: a diverging nonlinear ARX gets the same message (file, time, row) as a linear model",
+          "[tools][sim][bad_input]") {
+  // Nlarx::simulate stops at the first non-finite sample with a DivergenceError; nlid-sim used to
+  // pass its text on ("simulation of experiment diverges ..."), naming neither the file nor the time.
+  const fs::path input = write_record("unstable_nlarx_in", 1500, 204u, 0);
+  const fs::path model = work_dir() / "unstable_nlarx.json";
+  std::ofstream(model) << R"json({"format": "nlid-model", "version": 1, "kind": "nlarx", "ts": 0.01,
+ "created": "2026-11-26T00:00:00Z", "generator": "test", "description": "y(t) = 2 y(t-1) + u(t)",
+ "inputs": [{"name": "u", "unit": ""}], "outputs": [{"name": "y", "unit": ""}], "initial_condition": "zero",
+ "structure": {"regressors": {"blocks": [{"type": "output_lags", "na": 1},
+                                         {"type": "input_lags", "nb": 1, "nk": 0, "channel": 0}],
+                              "names": ["y(t-1)", "u(t)"]},
+               "nonlinearity": {"type": "linear", "inputs": 2}},
+ "parameters": {"names": ["L[0]", "L[1]", "d"], "values": [2, 1, 0]},
+ "report": {"estimated": false, "focus": "simulation", "initial_condition": "zero", "iterations": 0,
+            "initial_cost": 0, "final_cost": 0, "seconds": 0, "status": "", "data_names": [],
+            "fit_percent": [], "initial_states": []}})json";
+  const fs::path out = work_dir() / "unstable_nlarx_out.csv";
+  const Run r = sim("--model " + q(model) + " --input " + q(input) + " --out " + q(out));
+  INFO(r.err);
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("the simulated output is not finite from sample") && Catch::Contains("data row") &&
+                        Catch::Contains("unstable or diverges") && Catch::Contains("unstable_nlarx_in.csv") &&
+                        Catch::Contains("nothing written to"));
+  CHECK_THAT(r.err, !Catch::Contains("simulation of experiment"));
+  CHECK_FALSE(fs::exists(out));
+}
+
 TEST_CASE("tools: integer options are range-checked, never wrapped around", "[tools][bad_input]") {
   const fs::path est = write_record("int_est", 1500, 203u, 0);
   const fs::path model = work_dir() / "int.json";

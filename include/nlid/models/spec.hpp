@@ -22,7 +22,7 @@
 /// key=value options (units, breakpoints, degree, depth, linear=0|1). In `hw`, `in=` and `out=`
 /// name the two maps (default unitgain). Options for the whole fit may follow anywhere as
 /// key=value fields: `focus=simulation|prediction` (nlarx; default simulation),
-/// `ic=zero|estimate|equilibrium` (initial condition during estimation), and for nlarx
+/// `ic=zero|estimate|equilibrium|measured` (initial condition during estimation), and for nlarx
 /// `starts=N` / `start_iterations=N` (N data-driven starts of the network, each refined for
 /// `start_iterations`; the best continues — `EstimateOptions::starts`, e.g. the study's nlarx5:
 /// `nlarx:na=3,nb=3,nk=0:sigmoidnet:5:starts=4,start_iterations=30` with `--iterations 90`),
