@@ -11,6 +11,8 @@
 //
 // A binary input shows the model two points of the driver's curve; every model fits its own
 // record, only the multi-level ones also fit the validation records (table in docs/data.md).
+// Then, before any model: a random-odd multisine at two amplitudes and `distortion_analysis`
+// say whether a linear model could do, and whether the nonlinearity is even or odd.
 //
 //   example_input_design [--out DIR]      (writes DIR/input_design.csv: the three inputs)
 #include <algorithm>
@@ -23,6 +25,7 @@
 #include <utility>
 #include <vector>
 
+#include "nlid/analysis/distortion.hpp"
 #include "nlid/analysis/fit.hpp"
 #include "nlid/data.hpp"
 #include "nlid/models/estimate.hpp"
@@ -126,6 +129,21 @@ int main(int argc, char** argv) {
       std::printf("%-10s %9.1f%%", inputs[j].first.c_str(), fit(train));
       for (const auto& v : validation) std::printf(" %11.1f%%", fit(v));
       std::printf("   %12td\n", distinct);
+    }
+
+    // Before any model: is a linear one enough? A random-odd multisine (5 periods of 10 s, the
+    // first skipped as the transient) at a small and at the full amplitude; the empty lines show
+    // the distortion (nlid/analysis/distortion.hpp).
+    std::printf("\nDistortion analysis, random-odd multisine up to 5 Hz\n");
+    for (const nlid::InputLevels lv : {nlid::InputLevels{0.30, 0.40}, range}) {
+      nlid::MultisineOptions ro = ms;
+      ro.levels = lv;
+      ro.periods = 5;
+      ro.lines = nlid::MultisineLines::random_odd;
+      const nlid::Experiment probe = record(nlid::multisine(1000, ro), "random-odd", 30);
+      const nlid::DistortionAnalysis d = nlid::distortion_analysis(probe, 1000);
+      std::printf("u in [%.2f, %.2f] (valve %.0f to %.0f deg):\n%s", lv.low, lv.high, probe.y().minCoeff(),
+                  probe.y().maxCoeff(), d.report().c_str());
     }
     std::printf("\nwrote %s/input_design.csv\n", out_dir.c_str());
   } catch (const nlid::Error& e) {

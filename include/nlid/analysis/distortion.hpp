@@ -1,0 +1,215 @@
+#pragma once
+/// @file
+/// Nonlinear distortion analysis of a periodic experiment: is a linear model enough, and if
+/// not, is the nonlinearity even or odd — measured before any model is estimated.
+///
+/// Method (Pintelon & Schoukens, "System Identification: A Frequency Domain Approach", 2nd ed.,
+/// 2012, ch. 3 and 4; Schoukens, Pintelon & Rolain, "Mastering System Identification in 100
+/// Exercises", 2012). Excite the system with a multisine that leaves some lines of its band
+/// empty (`multisine` with `MultisineLines::odd` or `random_odd`, data/input_design.hpp), record
+/// P ≥ 2 steady-state periods, and take the DFT of each period at every line k = 1 … period/2 − 1:
+///
+///   - a linear system's output has power only at the excited lines;
+///   - an even nonlinearity (x², …) mixes pairs of odd lines into *even* lines;
+///   - an odd nonlinearity (x³, …) mixes triples of odd lines into *odd* lines, so it shows on the
+///     odd lines a random-odd multisine leaves out;
+///   - noise shows everywhere, and its level is measured separately from the spread of Y_p(k)
+///     over the periods p (distortion repeats every period; noise does not).
+///
+/// Levels are mean powers over lines in the excited band (from the lowest to the highest excited
+/// line) of the period-averaged spectrum Ȳ(k) = (1/P) Σ_p Y_p(k), Y_p(k) = Σ_t y_p(t) e^{−2πikt/N};
+/// the noise level is the mean over the same lines of var(Ȳ(k)) = Σ_p |Y_p(k) − Ȳ(k)|² / (P(P−1)),
+/// the expectation of |Ȳ(k)|² at a line that carries noise only. A detection-line level more than
+/// `threshold_db` (default 6 dB, a factor 4 in power) above the noise level is reported as
+/// distortion. The frequency response at the excited lines, Ȳ(k)/Ū(k), is the best linear
+/// approximation of the system for this input class (for a linear system, its transfer function).
+///
+/// Cost: period²/2 multiply-adds per period (direct DFT with exact integer angles).
+
+#include <algorithm>
+#include <cmath>
+#include <complex>
+#include <cstdio>
+#include <limits>
+#include <numbers>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "nlid/core/error.hpp"
+#include "nlid/data/experiment.hpp"
+
+namespace nlid {
+
+/// Result of `distortion_analysis` (see the file comment).
+struct DistortionAnalysis {
+  Eigen::Index period = 0;  ///< samples per period
+  int periods = 0;          ///< periods analysed (after the skipped ones)
+  double ts = 0.0;          ///< sample time (s)
+  std::vector<Eigen::Index> excited;     ///< excited lines (input power above −40 dB of its peak)
+  std::vector<Eigen::Index> even_lines;  ///< empty even lines inside the excited band
+  std::vector<Eigen::Index> odd_lines;   ///< empty odd lines inside the excited band
+  Eigen::VectorXcd frf;                  ///< Ȳ/Ū at the excited lines (best linear approximation)
+  Eigen::VectorXd output_power;          ///< |Ȳ(k)|², k = 0 … period/2
+  Eigen::VectorXd noise_power;           ///< var(Ȳ(k)) from the spread over periods, k = 0 … period/2
+  double excited_level = std::numeric_limits<double>::quiet_NaN();  ///< mean |Ȳ|² at excited lines
+  double even_level = std::numeric_limits<double>::quiet_NaN();     ///< … at empty even lines
+  double odd_level = std::numeric_limits<double>::quiet_NaN();      ///< … at empty odd lines
+  double noise_level = std::numeric_limits<double>::quiet_NaN();    ///< mean var(Ȳ) over the band
+  double threshold_db = 6.0;  ///< detection threshold above the noise level
+
+  /// Frequency of line k in Hz.
+  [[nodiscard]] double frequency(Eigen::Index k) const {
+    return static_cast<double>(k) / (static_cast<double>(period) * ts);
+  }
+  /// Level above the noise, in dB (NaN without such lines).
+  [[nodiscard]] double even_db() const { return db(even_level); }
+  [[nodiscard]] double odd_db() const { return db(odd_level); }
+  /// Level of the excited output relative to the noise, in dB (the experiment's SNR).
+  [[nodiscard]] double snr_db() const { return db(excited_level); }
+  /// Even / odd distortion above the threshold (false without detection lines).
+  [[nodiscard]] bool even_detected() const { return even_db() > threshold_db; }
+  [[nodiscard]] bool odd_detected() const { return odd_db() > threshold_db; }
+
+  /// A few lines for a person: levels, what they mean for the choice of model.
+  [[nodiscard]] std::string report() const {
+    char buf[256];
+    std::string s;
+    std::snprintf(buf, sizeof buf,
+                  "Distortion analysis: %d periods of %ld samples, %zu excited lines (%.4g to %.4g Hz), output "
+                  "%.1f dB above the noise\n",
+                  periods, static_cast<long>(period), excited.size(), excited.empty() ? 0.0 : frequency(excited.front()),
+                  excited.empty() ? 0.0 : frequency(excited.back()), snr_db());
+    s += buf;
+    const auto line = [&](const char* what, const std::vector<Eigen::Index>& lines, double level_db, bool detected) {
+      if (lines.empty()) {
+        std::snprintf(buf, sizeof buf, "  %s distortion: no empty %s lines in the band (use odd or random-odd lines)\n",
+                      what, what);
+      } else {
+        std::snprintf(buf, sizeof buf, "  %s distortion: %.1f dB above the noise on %zu lines: %s\n", what, level_db,
+                      lines.size(), detected ? "present" : "not detected");
+      }
+      s += buf;
+    };
+    line("even", even_lines, even_db(), even_detected());
+    line("odd", odd_lines, odd_db(), odd_detected());
+    if (even_detected() || odd_detected())
+      s += "  a linear model leaves this distortion unexplained; a nonlinear structure is warranted\n";
+    else if (!even_lines.empty() || !odd_lines.empty())
+      s += "  no distortion above the noise: a linear model can explain these data\n";
+    return s;
+  }
+
+ private:
+  [[nodiscard]] double db(double level) const {
+    if (!std::isfinite(level) || !(noise_level > 0.0)) return std::numeric_limits<double>::quiet_NaN();
+    return 10.0 * std::log10(level / noise_level);
+  }
+};
+
+/// Analyses input 0 and output 0 of `e`, which holds whole periods of `period` samples of a
+/// periodic input (the first `skip_periods` are skipped as the transient; samples after the last
+/// whole period are ignored). Needs at least 2 analysed periods (for the noise level). Throws
+/// `nlid::Error` naming the parameter for a bad period count, and for an input without excited
+/// lines.
+[[nodiscard]] inline DistortionAnalysis distortion_analysis(const Experiment& e, Eigen::Index period,
+                                                            int skip_periods = 1, double threshold_db = 6.0) {
+  e.validate(true);
+  require(e.num_inputs() >= 1 && e.num_outputs() >= 1, "distortion analysis needs an input and an output",
+          at_parameter("experiment"));
+  require(period >= 8, "distortion analysis: the period must be >= 8 samples, got " + std::to_string(period),
+          at_parameter("period"));
+  require(skip_periods >= 0, "distortion analysis: skip_periods must be >= 0", at_parameter("skip_periods"));
+  require(std::isfinite(threshold_db), "distortion analysis: threshold_db must be finite", at_parameter("threshold_db"));
+  const Eigen::Index whole = e.size() / period;
+  const Eigen::Index p = whole - skip_periods;
+  require(p >= 2,
+          "distortion analysis: " + std::to_string(e.size()) + " samples hold " + std::to_string(whole) +
+              " whole period(s) of " + std::to_string(period) + "; after skipping " + std::to_string(skip_periods) +
+              " at least 2 must remain (the noise level is their spread)",
+          at_parameter("period"));
+  const auto u = e.u().col(0);
+  const auto y = e.y().col(0);
+  require(u.allFinite() && y.allFinite(), "distortion analysis: the record has non-finite samples",
+          at_parameter("experiment"));
+
+  DistortionAnalysis r;
+  r.period = period;
+  r.periods = static_cast<int>(p);
+  r.ts = e.ts();
+  r.threshold_db = threshold_db;
+  const Eigen::Index nk = period / 2 + 1;  // lines 0 … period/2
+  Eigen::VectorXd c(period), s(period);
+  for (Eigen::Index m = 0; m < period; ++m) {
+    const double a = 2.0 * std::numbers::pi * static_cast<double>(m) / static_cast<double>(period);
+    c[m] = std::cos(a);
+    s[m] = std::sin(a);
+  }
+  // Y_p(k) for every analysed period; Ū averaged directly.
+  std::vector<Eigen::VectorXcd> yp(static_cast<std::size_t>(p));
+  Eigen::VectorXcd ubar = Eigen::VectorXcd::Zero(nk);
+  for (Eigen::Index q = 0; q < p; ++q) {
+    const Eigen::Index off = (skip_periods + q) * period;
+    Eigen::VectorXcd& Y = yp[static_cast<std::size_t>(q)];
+    Y = Eigen::VectorXcd::Zero(nk);
+    for (Eigen::Index k = 0; k < nk; ++k) {
+      double yr = 0, yi = 0, ur = 0, ui = 0;
+      Eigen::Index m = 0;
+      for (Eigen::Index t = 0; t < period; ++t) {
+        yr += y[off + t] * c[m];
+        yi -= y[off + t] * s[m];
+        ur += u[off + t] * c[m];
+        ui -= u[off + t] * s[m];
+        m += k;
+        if (m >= period) m -= period;
+      }
+      Y[k] = {yr, yi};
+      ubar[k] += std::complex<double>(ur, ui) / static_cast<double>(p);
+    }
+  }
+  Eigen::VectorXcd ybar = Eigen::VectorXcd::Zero(nk);
+  for (const auto& Y : yp) ybar += Y / static_cast<double>(p);
+  r.output_power = ybar.cwiseAbs2();
+  r.noise_power = Eigen::VectorXd::Zero(nk);
+  for (const auto& Y : yp) r.noise_power += (Y - ybar).cwiseAbs2();
+  r.noise_power /= static_cast<double>(p * (p - 1));
+
+  // Excited lines: input power within 40 dB of its peak (DC and, for even periods, Nyquist out).
+  const Eigen::Index top = period % 2 == 0 ? nk - 2 : nk - 1;
+  double peak = 0.0, energy = 0.0;
+  for (Eigen::Index k = 1; k <= top; ++k) peak = std::max(peak, std::norm(ubar[k]));
+  for (Eigen::Index k = 0; k < nk; ++k) energy += std::norm(ubar[k]);
+  // Rounding leaves ~(N·ε)² of a constant input at every line: relative to the whole spectrum.
+  require(peak > 1e-12 * energy, "distortion analysis: the input has no power at any line of the period (a constant input?)",
+          at_parameter("experiment"));
+  for (Eigen::Index k = 1; k <= top; ++k)
+    if (std::norm(ubar[k]) > 1e-4 * peak) r.excited.push_back(k);
+  r.frf.resize(static_cast<Eigen::Index>(r.excited.size()));
+  double exc = 0, noise = 0, even = 0, odd = 0;
+  for (std::size_t i = 0; i < r.excited.size(); ++i) {
+    const Eigen::Index k = r.excited[i];
+    r.frf[static_cast<Eigen::Index>(i)] = ybar[k] / ubar[k];
+    exc += r.output_power[k];
+  }
+  std::size_t j = 0;
+  for (Eigen::Index k = r.excited.front(); k <= r.excited.back(); ++k) {
+    noise += r.noise_power[k];
+    while (j < r.excited.size() && r.excited[j] < k) ++j;
+    if (j < r.excited.size() && r.excited[j] == k) continue;
+    if (k % 2 == 0) {
+      r.even_lines.push_back(k);
+      even += r.output_power[k];
+    } else {
+      r.odd_lines.push_back(k);
+      odd += r.output_power[k];
+    }
+  }
+  r.excited_level = exc / static_cast<double>(r.excited.size());
+  r.noise_level = noise / static_cast<double>(r.excited.back() - r.excited.front() + 1);
+  if (!r.even_lines.empty()) r.even_level = even / static_cast<double>(r.even_lines.size());
+  if (!r.odd_lines.empty()) r.odd_level = odd / static_cast<double>(r.odd_lines.size());
+  return r;
+}
+
+}  // namespace nlid

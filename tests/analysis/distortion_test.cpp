@@ -1,0 +1,92 @@
+// Nonlinear distortion analysis: known answers from theory on a Wiener system excited by a
+// random-odd multisine — a linear system shows nothing on the empty lines and its frequency
+// response is recovered; a square term shows on the even lines only, a cube on the odd ones.
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <complex>
+
+#include "nlid/analysis/distortion.hpp"
+#include "nlid/data/input_design.hpp"
+
+namespace {
+
+constexpr Eigen::Index kPeriod = 512;
+
+// x(t) = 0.9 x(t-1) + 0.1 u(t); y = x + a2 x² + a3 x³ + noise (σ = 1e-3), 1 + 4 periods.
+nlid::Experiment wiener(double a2, double a3, nlid::MultisineLines lines = nlid::MultisineLines::random_odd) {
+  nlid::MultisineOptions o;
+  o.band = {0.0, 0.3};
+  o.lines = lines;
+  o.periods = 5;
+  o.seed = 2;
+  o.phases = nlid::MultisinePhases::random;
+  const Eigen::VectorXd u = nlid::multisine(kPeriod, o);
+  const Eigen::VectorXd noise = nlid::random_gaussian(u.size(), {}, {-1e-3, 1e-3}, 17);
+  Eigen::VectorXd y(u.size());
+  double x = 0.0;
+  for (Eigen::Index t = 0; t < u.size(); ++t) {
+    x = 0.9 * x + 0.1 * u[t];
+    y[t] = x + a2 * x * x + a3 * x * x * x + noise[t];
+  }
+  return nlid::Experiment(u, y, 0.01, "wiener");
+}
+
+}  // namespace
+
+TEST_CASE("Distortion analysis: a linear system shows no distortion and its FRF", "[analysis][distortion]") {
+  const nlid::DistortionAnalysis d = nlid::distortion_analysis(wiener(0.0, 0.0), kPeriod);
+  CHECK(d.periods == 4);
+  // Band 0.3 of Nyquist: lines 1 … 76; odd ones 1 … 75 (38), one of each 4 left out (9 groups).
+  CHECK(d.excited.size() == 29u);
+  CHECK(d.odd_lines.size() == 9u);
+  CHECK(d.even_lines.size() == 37u);  // 2 … 74 between the first and the last excited line
+  CHECK_FALSE(d.even_detected());
+  CHECK_FALSE(d.odd_detected());
+  CHECK(std::abs(d.even_db()) < 3.0);  // noise only: the level of the noise, 0 dB
+  CHECK(std::abs(d.odd_db()) < 3.0);
+  CHECK(d.snr_db() > 30.0);
+  double worst = 0.0;
+  for (std::size_t i = 0; i < d.excited.size(); ++i) {
+    const double w = 2.0 * std::numbers::pi * static_cast<double>(d.excited[i]) / static_cast<double>(kPeriod);
+    const std::complex<double> g = 0.1 / (1.0 - 0.9 * std::polar(1.0, -w));
+    worst = std::max(worst, std::abs(d.frf[static_cast<Eigen::Index>(i)] - g) / std::abs(g));
+  }
+  CHECK(worst < 0.02);
+  CHECK(d.frequency(d.excited.front()) == Approx(static_cast<double>(d.excited.front()) / (kPeriod * 0.01)));
+  CHECK_THAT(d.report(), Catch::Contains("no distortion above the noise: a linear model can explain these data"));
+}
+
+TEST_CASE("Distortion analysis: a square term shows on the even lines, a cube on the odd ones", "[analysis][distortion]") {
+  const nlid::DistortionAnalysis even = nlid::distortion_analysis(wiener(0.5, 0.0), kPeriod);
+  CHECK(even.even_detected());
+  CHECK(even.even_db() > 20.0);
+  CHECK_FALSE(even.odd_detected());
+  const nlid::DistortionAnalysis odd = nlid::distortion_analysis(wiener(0.0, 0.5), kPeriod);
+  CHECK(odd.odd_detected());
+  CHECK(odd.odd_db() > 20.0);
+  CHECK_FALSE(odd.even_detected());
+  CHECK_THAT(odd.report(), Catch::Contains("odd distortion:") && Catch::Contains("present") &&
+                               Catch::Contains("a nonlinear structure is warranted"));
+  // All lines excited: nothing to detect with, and the report says what to use instead.
+  const nlid::DistortionAnalysis full = nlid::distortion_analysis(wiener(0.5, 0.5, nlid::MultisineLines::all), kPeriod);
+  CHECK(full.even_lines.empty());
+  CHECK(full.odd_lines.empty());
+  CHECK_FALSE(full.even_detected());
+  CHECK_THAT(full.report(), Catch::Contains("no empty even lines in the band (use odd or random-odd lines)"));
+}
+
+TEST_CASE("Distortion analysis refuses records it cannot analyse, naming the parameter", "[analysis][distortion][errors]") {
+  const nlid::Experiment e = wiener(0.0, 0.0);
+  CHECK_THROWS_WITH(nlid::distortion_analysis(e, 4), Catch::Contains("period must be >= 8"));
+  CHECK_THROWS_WITH(nlid::distortion_analysis(e, kPeriod, 4),
+                    Catch::Contains("hold 5 whole period(s) of 512; after skipping 4 at least 2 must remain"));
+  CHECK_THROWS_WITH(nlid::distortion_analysis(e, kPeriod, -1), Catch::Contains("skip_periods must be >= 0"));
+  const nlid::Experiment flat(Eigen::VectorXd::Constant(2048, 0.3), Eigen::VectorXd::Zero(2048), 0.01);
+  CHECK_THROWS_WITH(nlid::distortion_analysis(flat, kPeriod), Catch::Contains("no power at any line"));
+  try {
+    (void)nlid::distortion_analysis(e, 2000);
+  } catch (const nlid::Error& err) {
+    CHECK(err.where().parameter == "period");
+  }
+}
