@@ -17,8 +17,8 @@
 // bad file or model (a model kind that is not generated, no or a non-finite equilibrium, a
 // missing --out directory — the message says which), 2 on a bad command line. --precision single writes float code (no double anywhere) for FPUs
 // without double arithmetic; it computes the model in float rounding, not nlid's bits, and writes
-// the linear blocks of Hammerstein-Wiener, series and output-error models in delta-operator form
-// (docs/codegen.md); --linear-form direct keeps their polynomial form (for comparison).
+// the linear blocks of Hammerstein-Wiener, series, ARX and output-error models in delta-operator
+// form (docs/codegen.md); --linear-form direct keeps their polynomial form (for comparison).
 #include <cctype>
 #include <cmath>
 #include <cstdio>
@@ -50,9 +50,9 @@ constexpr const char* kUsage =
     "  --allow-extrapolation  generate an equilibrium start outside that range (a warning)\n"
     "  --precision P    double (default: nlid's numbers to the last bit) or single (float\n"
     "                   throughout, for FPUs without double; float rounding)\n"
-    "  --linear-form F  linear blocks of hammerstein_wiener, series and output_error models: auto\n"
-    "                   (default: delta-operator form in single precision, nlid's direct form in\n"
-    "                   double), direct (polynomial form), or delta (single precision only)\n"
+    "  --linear-form F  linear blocks of hammerstein_wiener, series, arx and output_error models:\n"
+    "                   auto (default: delta-operator form in single precision, nlid's direct\n"
+    "                   form in double), direct (polynomial form), or delta (single precision only)\n"
     "Generated kinds: nlarx, hammerstein_wiener, series (wh, wiener, hammerstein), greybox,\n"
     "augmented_greybox (nlid-diagnose --save), arx, output_error.\n";
 

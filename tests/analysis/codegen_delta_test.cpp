@@ -5,7 +5,8 @@
 // percent; the delta form must track nlid closely and the direct form must be at least ten times
 // worse — so the test fails if the delta path silently falls back to the direct form. Also: the
 // initial state tables (equilibrium) and an explicit state (NAME_set_state with
-// generated_c_state) map nlid's state correctly, and double code ignores the option.
+// generated_c_state) map nlid's state correctly, and double code ignores the option. ARX models
+// (two inputs and an offset over the same slow A) are one multi-input delta block.
 #include <catch2/catch.hpp>
 
 #include <algorithm>
@@ -46,8 +47,8 @@ SlowHw slow_hw() {
 
 // A unit step, and random steps (levels in [-3, 3] held 300 .. 1500 samples), N = 6000.
 Eigen::MatrixXd step_input(double level) { return Eigen::MatrixXd::Constant(6000, 1, level); }
-Eigen::MatrixXd random_steps() {
-  std::mt19937 gen(7);
+Eigen::MatrixXd random_steps(unsigned seed = 7) {
+  std::mt19937 gen(seed);
   std::uniform_real_distribution<double> level(-3.0, 3.0);
   std::uniform_int_distribution<int> hold(300, 1500);
   Eigen::MatrixXd u(6000, 1);
@@ -91,18 +92,20 @@ Eigen::VectorXd run_from_state(const nlid::GeneratedCode& g, const Eigen::Matrix
     xs += b;
   }
   std::ofstream(dir / "driver.c") << "#include <stdio.h>\n#include \"" << n << ".h\"\n"
-                                  << "int main(int argc, char** argv) {\n  " << n << "_real u[1], y[1];\n  const " << n
-                                  << "_real x[] = {" << xs << "};\n  double v;\n  " << n << "_state s;\n"
+                                  << "int main(int argc, char** argv) {\n  " << n << "_real u[" << u.cols() << "], y[1];\n  const " << n
+                                  << "_real x[] = {" << xs << "};\n  double v;\n  int i = 0;\n  " << n << "_state s;\n"
                                   << "  FILE* in = argc > 1 ? fopen(argv[1], \"r\") : NULL;\n  if (!in) return 2;\n  " << n
                                   << "_init(&s);\n  " << n << "_set_state(&s, x);\n"
-                                  << "  while (fscanf(in, \"%lf\", &v) == 1) {\n    u[0] = (" << n << "_real)v;\n    " << n
+                                  << "  while (fscanf(in, \"%lf\", &v) == 1) {\n    u[i++] = (" << n << "_real)v;\n"
+                                  << "    if (i < " << u.cols() << ") continue;\n    i = 0;\n    " << n
                                   << "_step(&s, u, y);\n    printf(\"%.17g\\n\", (double)y[0]);\n  }\n  fclose(in);\n  return 0;\n}\n";
   {
     std::ofstream in(dir / "u.txt");
-    for (Eigen::Index t = 0; t < u.rows(); ++t) {
-      std::snprintf(b, sizeof b, "%.17g\n", u(t, 0));
-      in << b;
-    }
+    for (Eigen::Index t = 0; t < u.rows(); ++t)
+      for (Eigen::Index j = 0; j < u.cols(); ++j) {
+        std::snprintf(b, sizeof b, "%.17g\n", u(t, j));
+        in << b;
+      }
   }
   nlid_test::compile_and_run_driver(dir, n, true);
   std::ifstream out(dir / "y.txt");
@@ -265,4 +268,124 @@ TEST_CASE("float code of a slow output-error model writes its block in delta for
   CHECK(std::abs(ref_eq(0) - 4.5) < 1e-9);  // offset 0.5 + gain 2 * 2
   for (int t = 0; t < 300; ++t) CHECK(std::abs(y_eq(t) - ref_eq(t)) <= 4e-7 * std::abs(ref_eq(t)));
   CHECK(rel_error(y_eq, ref_eq) <= 1e-5);
+}
+
+namespace {
+
+// A(q) = (1 - 0.999 q^-1)(1 - 0.998 q^-1), A(1) = 2e-6; B1 = [3e-6 1e-6] with delay 1 (gain 2),
+// B2 = 0.5e-6 (1 + q^-1 + q^-2 + q^-3) without delay (gain 1, direct feedthrough, 3 past
+// inputs: n = 3 > na), offset c = 1e-6 (0.5 at steady state).
+nlid::Arx slow_arx() {
+  return nlid::Arx(Eigen::Vector2d(-1.997, 0.997002), {Eigen::Vector2d(3e-6, 1e-6), Eigen::Vector4d::Constant(0.5e-6)},
+                   {1, 0}, ts, 1e-6);
+}
+
+// Two inputs of random steps (independent levels and switching times).
+Eigen::MatrixXd random_steps2() {
+  Eigen::MatrixXd u(6000, 2);
+  u.col(0) = random_steps(7);
+  u.col(1) = random_steps(11);
+  return u;
+}
+
+nlid::GeneratedCode single_code2(const nlid::Arx& m, const std::string& name, nlid::codegen::LinearForm form,
+                                 std::optional<Eigen::Vector2d> u0 = std::nullopt) {
+  nlid::CodegenOptions o;
+  o.name = name;
+  o.precision = nlid::codegen::Precision::single_precision;
+  o.linear_form = form;
+  if (u0) o.equilibrium_input = *u0;
+  return nlid::generate_c(m, o);
+}
+
+}  // namespace
+
+TEST_CASE("float code of a slow two-input ARX model with offset: one delta block tracks nlid", "[codegen][delta]") {
+  using nlid::codegen::LinearForm;
+  const nlid::Arx m = slow_arx();
+  // One block of n = 3 states: numerators per input and the offset's c*binomial(3, k).
+  nlid::CodegenOptions so;
+  so.precision = nlid::codegen::Precision::single_precision;
+  const auto db = nlid::codegen::detail::arx_delta_block(m, so);
+  REQUIRE(db);
+  CHECK(db->n == 3);
+  REQUIRE(db->c.size() == 3);
+  CHECK(db->a[3] == Approx(2e-6).epsilon(1e-9));     // A(1)
+  CHECK(db->c[0][3] == Approx(4e-6).epsilon(1e-9));  // B1(1)
+  CHECK(db->c[1][3] == Approx(2e-6).epsilon(1e-9));  // B2(1)
+  CHECK(db->c[1][0] == 0.5e-6);                      // feedthrough b2,0
+  CHECK(db->c[2] == std::vector<double>{1e-6, 3e-6, 3e-6, 1e-6});
+
+  const nlid::GeneratedCode delta = single_code2(m, "slowarx", LinearForm::automatic);
+  const nlid::GeneratedCode direct = single_code2(m, "slowarx_direct", LinearForm::direct);
+  CHECK(delta.header.find("delta-operator form") != std::string::npos);
+  CHECK(delta.header.find("#define SLOWARX_NUM_STATES 3") != std::string::npos);
+  CHECK(direct.header.find("delta-operator form") == std::string::npos);
+  CHECK(nlid_test::c_code_only(delta.source + delta.header).find("double") == std::string::npos);
+  CHECK(single_code2(m, "slowarx", LinearForm::delta).source == delta.source);  // automatic = delta in float
+  const Eigen::MatrixXd u = random_steps2();
+  const Eigen::VectorXd ref = m.simulate(experiment(u), nlid::InitialCondition::zero).col(0);
+  const double err_delta = rel_error(nlid_test::run_generated_c(delta, u, "delta_arx", true), ref);
+  const double err_direct = rel_error(nlid_test::run_generated_c(direct, u, "delta_arx_direct", true), ref);
+  INFO("delta form " << err_delta << ", direct form " << err_direct);
+  CHECK(err_delta <= 1e-5);
+  CHECK(err_direct >= 10.0 * err_delta);
+  CHECK(err_direct > 1e-3);
+
+  // Double code: the direct form whatever `automatic`/`direct` says; delta is refused.
+  nlid::CodegenOptions o;
+  o.name = "slowarx_double";
+  const std::string automatic = nlid::generate_c(m, o).source;
+  o.linear_form = LinearForm::direct;
+  CHECK(nlid::generate_c(m, o).source == automatic);
+  o.linear_form = LinearForm::delta;
+  CHECK_THROWS_AS(nlid::generate_c(m, o), nlid::Error);
+
+  // No feedback (na = 0): the direct form in single precision too.
+  const nlid::Arx fir(Eigen::VectorXd(0), {Eigen::Vector2d(0.5, 0.25)}, {1}, ts);
+  CHECK(single_code(fir, "fir", LinearForm::automatic).source == single_code(fir, "fir", LinearForm::direct).source);
+}
+
+TEST_CASE("float code of a slow ARX model in delta form starts from nlid's equilibrium and from past samples",
+          "[codegen][delta]") {
+  using nlid::codegen::LinearForm;
+  const nlid::Arx m = slow_arx();
+  Eigen::MatrixXd u = random_steps2();
+  u.topRows(300).col(0).setConstant(2.5);
+  u.topRows(300).col(1).setConstant(-1.0);
+  // Equilibrium for u0 = (2.5, -1): y = 2*2.5 - 1 + 0.5 = 4.5.
+  const Eigen::VectorXd ref_eq = m.simulate(experiment(u), nlid::InitialCondition::equilibrium).col(0);
+  const Eigen::VectorXd y_eq =
+      nlid_test::run_generated_c(single_code2(m, "slowarx_eq", LinearForm::automatic, Eigen::Vector2d(2.5, -1.0)), u,
+                                 "delta_arx_eq", true);
+  REQUIRE(y_eq.size() == ref_eq.size());
+  INFO("equilibrium start: first outputs " << y_eq(0) << " vs nlid " << ref_eq(0) << ", max rel. error "
+                                           << rel_error(y_eq, ref_eq));
+  CHECK(std::abs(ref_eq(0) - 4.5) < 1e-9);
+  for (int t = 0; t < 300; ++t) CHECK(std::abs(y_eq(t) - ref_eq(t)) <= 4e-7 * std::abs(ref_eq(t)));
+  CHECK(rel_error(y_eq, ref_eq) <= 1e-5);
+
+  // Past samples after 1500 samples of ramps: x = [y(t-1) y(t-2), u1(t-1) u1(t-2), u2(t-1) .. u2(t-3)]
+  // at t = 1500, mapped by generated_c_state; the C run from there against the rest of nlid's run.
+  const Eigen::Index t0 = 1500;
+  Eigen::MatrixXd uu(t0 + u.rows(), 2);
+  for (Eigen::Index t = 0; t < t0; ++t) uu.row(t) << 0.004 * static_cast<double>(t), -0.002 * static_cast<double>(t);
+  uu.bottomRows(u.rows()) = u;
+  const Eigen::VectorXd yy = m.simulate(experiment(uu), nlid::InitialCondition::zero).col(0);
+  Eigen::VectorXd x(7);
+  x << yy(t0 - 1), yy(t0 - 2), uu(t0 - 1, 0), uu(t0 - 2, 0), uu(t0 - 1, 1), uu(t0 - 2, 1), uu(t0 - 3, 1);
+  nlid::CodegenOptions o;
+  o.precision = nlid::codegen::Precision::single_precision;
+  const Eigen::VectorXd xc = nlid::generated_c_state(m, x, o);
+  REQUIRE(xc.size() == 3);
+  o.linear_form = LinearForm::direct;
+  CHECK(nlid::generated_c_state(m, x, o) == x);  // the direct form's state is the past samples
+  CHECK_THROWS_AS(nlid::generated_c_state(m, x.head(6), o), nlid::Error);
+  const Eigen::VectorXd ref_x = yy.tail(u.rows());
+  const Eigen::VectorXd y_x = run_from_state(single_code2(m, "slowarx_x", LinearForm::automatic), u, xc, "delta_arx_x");
+  REQUIRE(y_x.size() == ref_x.size());
+  INFO("past samples " << x.transpose() << " -> delta state " << xc.transpose() << ": first outputs " << y_x(0) << ", "
+                       << y_x(1) << " vs nlid " << ref_x(0) << ", " << ref_x(1));
+  for (int t = 0; t < 20; ++t) CHECK(std::abs(y_x(t) - ref_x(t)) <= 4e-7 * std::abs(ref_x(t)));
+  CHECK(rel_error(y_x, ref_x) <= 1e-5);
 }

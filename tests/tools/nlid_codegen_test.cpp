@@ -194,11 +194,11 @@ TEST_CASE("nlid-codegen: C from nlid-fit's model files reproduces nlid-sim for e
       // form, 1.3e-4 in the direct form it had before).
       CHECK(gap <= 1e-3);
       CHECK(gap > 0.0);  // float rounding shows: the code did compute in float
-      // Linear blocks of HW, series and output-error models are in delta-operator form in single
-      // precision; --linear-form direct keeps the polynomial form (the same model within float
-      // rounding).
-      const bool block_model =
-          std::string(c.name) == "cg_hw" || std::string(c.name) == "cg_wh" || std::string(c.name) == "cg_oe";
+      // Linear blocks of HW, series, ARX and output-error models are in delta-operator form in
+      // single precision; --linear-form direct keeps the polynomial form (the same model within
+      // float rounding).
+      const bool block_model = std::string(c.name) == "cg_hw" || std::string(c.name) == "cg_wh" ||
+                               std::string(c.name) == "cg_arx" || std::string(c.name) == "cg_oe";
       CHECK((slurp(dir / "sp_model.h").find("delta-operator form") != std::string::npos) == block_model);
       const Run gd = codegen("--model " + q(model) + " --out " + q(dir) + " --name sp_direct --precision single " +
                              "--linear-form direct " + c.codegen_options);

@@ -27,6 +27,11 @@
 ///
 /// Blocks with nf = 0 (FIR: no feedback, no sensitivity to rounding) and blocks without state
 /// stay in the direct form.
+///
+/// Several inputs over one denominator (ARX: A(q) y = Σᵢ Bᵢ(q) uᵢ(t − nkᵢ) + c) make one δ block
+/// `MultiInputDeltaBlock` with one numerator per input — cᵢ,ₖ the Taylor coefficients of zⁿB̃ᵢ —
+/// and the same recursion with Σᵢ cᵢ,ₖ wᵢ(t) in place of cₖ w(t). A constant c is an input held
+/// at 1 with B̃ = c (no delay): its coefficients c·C(n, k) become constants of the update.
 
 #include <cstddef>
 #include <cstdio>
@@ -114,6 +119,86 @@ struct DeltaBlock {
       bool any = i < n;
       if (c[ui] != 0.0) {
         inc = any ? inc + term(c[ui], w) : term(c[ui], w);
+        any = true;
+      }
+      if (a[ui] != 0.0) {
+        inc = any ? inc - term(a[ui], y) : term(-a[ui], y);
+        any = true;
+      }
+      e[ui - 1] = any ? old[ui - 1] + inc : old[ui - 1];
+    }
+    return y;
+  }
+};
+
+/// One δ block for several inputs sharing the denominator (file comment): c[i][0 … n] for input
+/// i, a[0 … n] (a[0] = 1). The δ state is the Taylor shift of the multi-input TDF-II state, as
+/// for `DeltaBlock`.
+struct MultiInputDeltaBlock {
+  int n = 0;                            ///< states
+  std::vector<std::vector<double>> c;   ///< numerator coefficients in δ, one vector per input
+  std::vector<double> a;                ///< denominator coefficients in δ, a[0] = 1, a[n] = F(1)
+
+  /// δ-form coefficients of the TDF-II block with numerators beta[i] (coefficients of q⁻ʲ of
+  /// B̃ᵢ, delay included) and monic denominator f (both padded with zeros to n).
+  static MultiInputDeltaBlock from_tdf2(const std::vector<Eigen::VectorXd>& beta, const Eigen::VectorXd& f, int n) {
+    MultiInputDeltaBlock d;
+    d.n = n;
+    const auto padded = [n](const Eigen::VectorXd& v) {
+      std::vector<double> p(static_cast<std::size_t>(n) + 1, 0.0);
+      for (Eigen::Index j = 0; j < v.size() && j <= n; ++j) p[static_cast<std::size_t>(j)] = v(j);
+      return p;
+    };
+    for (const Eigen::VectorXd& b : beta) d.c.push_back(taylor_shift_at_one(padded(b)));
+    d.a = taylor_shift_at_one(padded(f));
+    return d;
+  }
+
+  /// δ state e = T s of the TDF-II state s (n values), in double.
+  [[nodiscard]] Eigen::VectorXd state_from_tdf2(const Eigen::VectorXd& s) const {
+    require(s.size() == n, "codegen: a linear block state has " + std::to_string(s.size()) + " values, expected " +
+                               std::to_string(n),
+            at_parameter("x0"));
+    const std::vector<double> e = taylor_shift_at_one(std::vector<double>(s.data(), s.data() + s.size()));
+    return Eigen::Map<const Eigen::VectorXd>(e.data(), n);
+  }
+
+  /// "cI_0 .. cI_n = [...] (one list per input, named by `names`), a1 .. an = [...]".
+  [[nodiscard]] std::string describe(const std::vector<std::string>& names) const {
+    const auto list = [](const std::vector<double>& v, std::size_t first) {
+      std::string s = "[";
+      char b[32];
+      for (std::size_t i = first; i < v.size(); ++i) {
+        std::snprintf(b, sizeof b, "%s%.9g", i > first ? " " : "", v[i]);
+        s += b;
+      }
+      return s + "]";
+    };
+    std::string s;
+    for (std::size_t i = 0; i < c.size(); ++i)
+      s += (i < names.size() ? names[i] : "c" + std::to_string(i + 1)) + "_0 .. _" + std::to_string(n) + " = " +
+           list(c[i], 0) + ", ";
+    return s + "a1 .. a" + std::to_string(n) + " = " + list(a, 1);
+  }
+
+  /// One traced sample: returns y(t) for inputs w(t) (one per numerator; a literal 1 for a
+  /// constant) and advances the δ state `e` (n values). Exact zeros are left out.
+  [[nodiscard]] TraceScalar step(std::span<TraceScalar> e, std::span<const TraceScalar> w) const {
+    require(w.size() == c.size(), "codegen: a multi-input delta block got " + std::to_string(w.size()) +
+                                      " inputs, expected " + std::to_string(c.size()),
+            at_parameter("w"));
+    const auto term = [&](double coef, const TraceScalar& v) { return TraceScalar(coef) * v; };
+    TraceScalar y = e[0];
+    for (std::size_t j = 0; j < c.size(); ++j)
+      if (c[j][0] != 0.0) y = y + term(c[j][0], w[j]);
+    const std::vector<TraceScalar> old(e.begin(), e.end());
+    for (int i = 1; i <= n; ++i) {
+      const auto ui = static_cast<std::size_t>(i);
+      TraceScalar inc = i < n ? old[ui] : TraceScalar(0.0);
+      bool any = i < n;
+      for (std::size_t j = 0; j < c.size(); ++j) {
+        if (c[j][ui] == 0.0) continue;
+        inc = any ? inc + term(c[j][ui], w[j]) : term(c[j][ui], w[j]);
         any = true;
       }
       if (a[ui] != 0.0) {

@@ -19,8 +19,18 @@
 ///
 /// Single precision (`CodegenOptions::linear_form`): each output-error block with feedback is
 /// written in delta-operator form (delta_form.hpp); its segment of the state holds its delta
-/// state, max(nfᵢ, nkᵢ + nbᵢ − 1) values, instead of past inputs and outputs. ARX stays in the
-/// direct form (its inputs share A and the offset: a multi-input delta block, not written).
+/// state, max(nfᵢ, nkᵢ + nbᵢ − 1) values, instead of past inputs and outputs. An ARX model with
+/// na > 0 becomes one multi-input delta block (`MultiInputDeltaBlock`): numerators zⁿB̃ᵢ per
+/// input and, for an offset c, the constant input 1 with B̃ = c, over zⁿA, n = max(na, nkᵢ +
+/// nbᵢ − 1). Its n-value state is an exact linear map of the direct form's past samples x
+/// (computed in double): first the observer-form (TDF-II) state of the same recursion,
+///
+///     s_k = Σ_{j=k..n} (Σᵢ bᵢ,ⱼ₋ₙₖᵢ uᵢ(t−1−j+k) − aⱼ y(t−1−j+k)),   k = 1 … n
+///
+/// (what the past samples add to the coming outputs; the offset acts at lag 0 and adds nothing),
+/// then its Taylor shift e = T s (delta_form.hpp). The map is many-to-one when nx > n (histories
+/// with the same free response share e). NAME_x0 — zero or the equilibrium's past samples — is
+/// mapped so; `generated_c_state(arx, x, options)` maps any past samples x.
 
 #include <algorithm>
 #include <cmath>
@@ -46,6 +56,54 @@ inline std::string shift_code(const std::string& x, int first, int count, const 
   if (count > 0) s += "  " + at(x, first) + " = " + newest + ";\n";
   return s;
 }
+/// The lags Lᵢ = nkᵢ + nbᵢ − 1 of an ARX model's inputs in the direct-form state.
+inline std::vector<int> arx_input_lags(const Arx& model) {
+  std::vector<int> lags;
+  for (int i = 0; i < model.num_inputs(); ++i) lags.push_back(std::max(0, model.nk(i) + model.nb(i) - 1));
+  return lags;
+}
+/// ARX as one δ block (file comment), if `o` asks for the delta form and A has feedback:
+/// numerators B̃ᵢ, then the offset's (a constant input, only if c ≠ 0), over A.
+inline std::optional<codegen::MultiInputDeltaBlock> arx_delta_block(const Arx& model, const CodegenOptions& o) {
+  if (!codegen::use_delta_form(o) || model.na() == 0) return std::nullopt;
+  int n = model.na();
+  std::vector<Eigen::VectorXd> beta;
+  for (int i = 0; i < model.num_inputs(); ++i) {
+    n = std::max(n, model.nk(i) + model.nb(i) - 1);
+    beta.push_back(model.b_polynomial(i));
+  }
+  if (model.offset() != 0.0) beta.push_back(Eigen::VectorXd::Constant(1, model.offset()));
+  return codegen::MultiInputDeltaBlock::from_tdf2(beta, model.a_polynomial(), n);
+}
+/// The TDF-II (observer form) state s of the ARX recursion with n states for the direct form's
+/// state x = [y(t−1) … y(t−na), u₁(t−1) … u₁(t−L₁), …]: the part of the next outputs that the
+/// past samples contribute, s_k = Σ_{j=k..n} (Σᵢ bᵢ,ⱼ₋ₙₖᵢ uᵢ(t−1−j+k) − aⱼ y(t−1−j+k)) (the
+/// offset acts at lag 0 only and adds nothing). In double.
+inline Eigen::VectorXd arx_tdf2_state(const Arx& model, int n, const Eigen::VectorXd& x) {
+  const std::vector<int> lags = arx_input_lags(model);
+  int nx = model.na();
+  for (int l : lags) nx += l;
+  require(x.size() == nx,
+          "codegen: the state has " + std::to_string(x.size()) + " values, the model has " + std::to_string(nx) +
+              " (past outputs and inputs)",
+          at_parameter("x"));
+  Eigen::VectorXd s = Eigen::VectorXd::Zero(n);
+  for (int k = 1; k <= n; ++k) {
+    double acc = 0.0;
+    for (int j = k; j <= n; ++j) {
+      const int lag = j - k + 1;  // sample t − lag; lag ≤ j, inside the state wherever a coefficient is nonzero
+      if (j <= model.na()) acc -= model.a()(j - 1) * x(lag - 1);
+      int off = model.na();
+      for (int i = 0; i < model.num_inputs(); ++i) {
+        const int bj = j - model.nk(i);
+        if (bj >= 0 && bj < model.nb(i)) acc += model.b(i)(bj) * x(off + lag - 1);
+        off += lags[static_cast<std::size_t>(i)];
+      }
+    }
+    s(k - 1) = acc;
+  }
+  return s;
+}
 inline Eigen::VectorXd equilibrium_inputs(const CodegenOptions& o, int nu) {
   if (!o.equilibrium_input) return Eigen::VectorXd::Zero(nu);
   require(o.equilibrium_input->size() == nu,
@@ -55,6 +113,16 @@ inline Eigen::VectorXd equilibrium_inputs(const CodegenOptions& o, int nu) {
   return *o.equilibrium_input;
 }
 }  // namespace codegen::detail
+
+/// The state of the C code `generate_c(model, options)` generates for the ARX state `x` of the
+/// direct form, [y(t−1) … y(t−na), u₁(t−1) … u₁(t−L₁), …] (the past samples `Arx::simulate`
+/// starts from): `x` itself in the direct form, the δ state T·s(x) (file comment) in the delta
+/// form — the values to pass to NAME_set_state.
+inline Eigen::VectorXd generated_c_state(const Arx& model, const Eigen::VectorXd& x, const CodegenOptions& options = {}) {
+  const auto db = codegen::detail::arx_delta_block(model, options);
+  const Eigen::VectorXd s = codegen::detail::arx_tdf2_state(model, db ? db->n : 0, x);  // checks x's size
+  return db ? db->state_from_tdf2(s) : x;
+}
 
 /// Generates C99 code for an ARX model (see the file comment). Throws `nlid::Error` on a bad
 /// name, a missing sample time, or an equilibrium of a model with an integrator.
@@ -101,9 +169,50 @@ inline GeneratedCode generate_c(const Arx& model, const CodegenOptions& options 
   } else {
     m.x0_doc = "zero (past outputs and inputs 0)";
   }
+  const std::string R = codegen::c_real();
+  if (const auto db = codegen::detail::arx_delta_block(model, options)) {
+    // Single precision: one multi-input block in delta form (file comment); the state is the
+    // delta state of the past samples above, mapped in double.
+    const int n = db->n;
+    const bool offset_input = db->c.size() > static_cast<std::size_t>(nu);
+    std::vector<std::string> names;
+    for (int i = 0; i < nu; ++i) names.push_back("cu" + std::to_string(i + 1));
+    if (offset_input) names.push_back("cc");
+    std::string inputs;
+    for (int i = 0; i < nu; ++i) inputs += " + cu" + std::to_string(i + 1) + "_k*u" + std::to_string(i + 1) + "(t)";
+    m.nx = n;
+    m.state_doc = "x = [e_1 .. e_" + std::to_string(n) +
+                  "] (single precision: the model as one block in delta-operator form, d = q - 1: y(t) = e_1(t)";
+    for (int i = 0; i < nu; ++i) m.state_doc += " + cu" + std::to_string(i + 1) + "_0*u" + std::to_string(i + 1) + "(t)";
+    m.state_doc += ", e_k(t+1) = e_k(t) + e_(k+1)(t)" + inputs + (offset_input ? " + cc_k" : "") +
+                   " - a_k*y(t), A(z) = d^n + a1 d^(n-1) + .. + an, Bi(z) = cui_0 d^n + .. + cui_n" +
+                   (offset_input ? ", offset c: cc_k = c*binomial(n, k)" : "") + "; " + db->describe(names) +
+                   "; e is a linear map of past outputs and inputs, nlid::generated_c_state)";
+    m.x0 = db->state_from_tdf2(codegen::detail::arx_tdf2_state(model, n, m.x0));
+    m.x0_doc += ", as its delta state";
+    const std::string X = "s->x";
+    const codegen::TracedFunction tf = codegen::trace_paths([&] {
+      std::vector<TraceScalar> e, w;
+      for (int k = 0; k < n; ++k) e.push_back(TraceScalar::signal(at(X, k)));
+      for (int i = 0; i < nu; ++i) w.push_back(TraceScalar::signal(at("u", i)));
+      if (offset_input) w.emplace_back(1.0);
+      std::vector<TraceScalar> r{db->step(std::span<TraceScalar>(e), std::span<const TraceScalar>(w))};
+      r.insert(r.end(), e.begin(), e.end());
+      return r;
+    });
+    std::vector<std::string> t{"y[0]"};
+    for (int k = 0; k < n; ++k) t.push_back(at("en", k));
+    std::string body = "  " + R + " en[" + std::to_string(n) + "];\n  int k;\n  (void)u;\n" + codegen::emit_c(tf, t, "  ");
+    body += "  for (k = 0; k < " + std::to_string(n) + "; ++k) s->x[k] = en[k];\n";
+    GeneratedCode g;
+    g.name = m.name;
+    g.header = codegen::ascii_text(codegen::make_header(m));
+    g.source = codegen::ascii_text(codegen::make_source_prelude(m, {}) + codegen::model_step_head(m.name) +
+                                   "  (void)s;\n" + body + "}\n\n" + codegen::checked_step_function(m.name));
+    return g;
+  }
   const std::string P = m.name + "_p", X = "s->x";
   int k = 0;
-  const std::string R = codegen::c_real();
   std::string body = "  " + R + " acc = " + (model.has_offset() ? at(P, model.num_parameters() - 1) : codegen::c_literal(model.offset())) +
                      ", drive = " + codegen::c_literal(0.0) + ";\n  (void)u;\n";
   for (int j = 1; j <= na; ++j) body += "  acc -= " + at(P, k++) + " * " + at(X, j - 1) + ";\n";
