@@ -1,12 +1,12 @@
 // Nonlinear distortion analysis: known answers from theory on a Wiener system excited by a
 // random-odd multisine — a linear system shows nothing on the empty lines and its frequency
 // response is recovered; a square term shows on the even lines only, a cube on the odd ones.
-#include <catch2/catch.hpp>
+#include "nlid/analysis/distortion.hpp"
 
+#include <catch2/catch.hpp>
 #include <cmath>
 #include <complex>
 
-#include "nlid/analysis/distortion.hpp"
 #include "nlid/data/input_design.hpp"
 
 namespace {
@@ -14,7 +14,9 @@ namespace {
 constexpr Eigen::Index kPeriod = 512;
 
 // x(t) = 0.9 x(t-1) + 0.1 u(t); y = x + a2 x² + a3 x³ + noise (σ = 1e-3), 1 + 4 periods.
-nlid::Experiment wiener(double a2, double a3, nlid::MultisineLines lines = nlid::MultisineLines::random_odd) {
+nlid::Experiment wiener(double a2, double a3,
+                        nlid::MultisineLines lines = nlid::MultisineLines::random_odd,
+                        double sigma = 1e-3) {
   nlid::MultisineOptions o;
   o.band = {0.0, 0.3};
   o.lines = lines;
@@ -22,7 +24,8 @@ nlid::Experiment wiener(double a2, double a3, nlid::MultisineLines lines = nlid:
   o.seed = 2;
   o.phases = nlid::MultisinePhases::random;
   const Eigen::VectorXd u = nlid::multisine(kPeriod, o);
-  const Eigen::VectorXd noise = nlid::random_gaussian(u.size(), {}, {-1e-3, 1e-3}, 17);
+  const Eigen::VectorXd noise = sigma > 0 ? nlid::random_gaussian(u.size(), {}, {-sigma, sigma}, 17)
+                                          : Eigen::VectorXd::Zero(u.size());
   Eigen::VectorXd y(u.size());
   double x = 0.0;
   for (Eigen::Index t = 0; t < u.size(); ++t) {
@@ -34,7 +37,8 @@ nlid::Experiment wiener(double a2, double a3, nlid::MultisineLines lines = nlid:
 
 }  // namespace
 
-TEST_CASE("Distortion analysis: a linear system shows no distortion and its FRF", "[analysis][distortion]") {
+TEST_CASE("Distortion analysis: a linear system shows no distortion and its FRF",
+          "[analysis][distortion]") {
   const nlid::DistortionAnalysis d = nlid::distortion_analysis(wiener(0.0, 0.0), kPeriod);
   CHECK(d.periods == 4);
   // Band 0.3 of Nyquist: lines 1 … 76; odd ones 1 … 75 (38), one of each 4 left out (9 groups).
@@ -48,16 +52,21 @@ TEST_CASE("Distortion analysis: a linear system shows no distortion and its FRF"
   CHECK(d.snr_db() > 30.0);
   double worst = 0.0;
   for (std::size_t i = 0; i < d.excited.size(); ++i) {
-    const double w = 2.0 * std::numbers::pi * static_cast<double>(d.excited[i]) / static_cast<double>(kPeriod);
+    const double w =
+        2.0 * std::numbers::pi * static_cast<double>(d.excited[i]) / static_cast<double>(kPeriod);
     const std::complex<double> g = 0.1 / (1.0 - 0.9 * std::polar(1.0, -w));
     worst = std::max(worst, std::abs(d.frf[static_cast<Eigen::Index>(i)] - g) / std::abs(g));
   }
   CHECK(worst < 0.02);
-  CHECK(d.frequency(d.excited.front()) == Approx(static_cast<double>(d.excited.front()) / (kPeriod * 0.01)));
-  CHECK_THAT(d.report(), Catch::Contains("no distortion above the noise: a linear model can explain these data"));
+  CHECK(d.frequency(d.excited.front()) ==
+        Approx(static_cast<double>(d.excited.front()) / (kPeriod * 0.01)));
+  CHECK_THAT(
+      d.report(),
+      Catch::Contains("no distortion above the noise: a linear model can explain these data"));
 }
 
-TEST_CASE("Distortion analysis: a square term shows on the even lines, a cube on the odd ones", "[analysis][distortion]") {
+TEST_CASE("Distortion analysis: a square term shows on the even lines, a cube on the odd ones",
+          "[analysis][distortion]") {
   const nlid::DistortionAnalysis even = nlid::distortion_analysis(wiener(0.5, 0.0), kPeriod);
   CHECK(even.even_detected());
   CHECK(even.even_db() > 20.0);
@@ -69,21 +78,46 @@ TEST_CASE("Distortion analysis: a square term shows on the even lines, a cube on
   CHECK_THAT(odd.report(), Catch::Contains("odd distortion:") && Catch::Contains("present") &&
                                Catch::Contains("a nonlinear structure is warranted"));
   // All lines excited: nothing to detect with, and the report says what to use instead.
-  const nlid::DistortionAnalysis full = nlid::distortion_analysis(wiener(0.5, 0.5, nlid::MultisineLines::all), kPeriod);
+  const nlid::DistortionAnalysis full =
+      nlid::distortion_analysis(wiener(0.5, 0.5, nlid::MultisineLines::all), kPeriod);
   CHECK(full.even_lines.empty());
   CHECK(full.odd_lines.empty());
   CHECK_FALSE(full.even_detected());
-  CHECK_THAT(full.report(), Catch::Contains("no empty even lines in the band (use odd or random-odd lines)"));
+  CHECK_THAT(full.report(),
+             Catch::Contains("no empty even lines in the band (use odd or random-odd lines)"));
 }
 
-TEST_CASE("Distortion analysis refuses records it cannot analyse, naming the parameter", "[analysis][distortion][errors]") {
+TEST_CASE("Distortion analysis of a noise-free (simulated) record compares with the rounding floor",
+          "[analysis][distortion]") {
+  // No noise: the spread between periods is zero, and "0 dB above the noise" would hide any
+  // distortion; the levels are taken against the DFT's rounding floor instead.
+  const nlid::DistortionAnalysis odd =
+      nlid::distortion_analysis(wiener(0.0, 0.05, nlid::MultisineLines::random_odd, 0.0), kPeriod);
+  CHECK(odd.noise_free());
+  CHECK(odd.odd_detected());
+  CHECK_FALSE(odd.even_detected());
+  CHECK_THAT(odd.report(), Catch::Contains("no measurable noise"));
+  const nlid::DistortionAnalysis lin =
+      nlid::distortion_analysis(wiener(0.0, 0.0, nlid::MultisineLines::random_odd, 0.0), kPeriod);
+  CHECK(lin.noise_free());
+  CHECK_FALSE(lin.odd_detected());
+  CHECK_FALSE(lin.even_detected());
+  CHECK(lin.snr_db() > 200.0);
+}
+
+TEST_CASE("Distortion analysis refuses records it cannot analyse, naming the parameter",
+          "[analysis][distortion][errors]") {
   const nlid::Experiment e = wiener(0.0, 0.0);
   CHECK_THROWS_WITH(nlid::distortion_analysis(e, 4), Catch::Contains("period must be >= 8"));
-  CHECK_THROWS_WITH(nlid::distortion_analysis(e, kPeriod, 4),
-                    Catch::Contains("hold 5 whole period(s) of 512; after skipping 4 at least 2 must remain"));
-  CHECK_THROWS_WITH(nlid::distortion_analysis(e, kPeriod, -1), Catch::Contains("skip_periods must be >= 0"));
-  const nlid::Experiment flat(Eigen::VectorXd::Constant(2048, 0.3), Eigen::VectorXd::Zero(2048), 0.01);
-  CHECK_THROWS_WITH(nlid::distortion_analysis(flat, kPeriod), Catch::Contains("no power at any line"));
+  CHECK_THROWS_WITH(
+      nlid::distortion_analysis(e, kPeriod, 4),
+      Catch::Contains("hold 5 whole period(s) of 512; after skipping 4 at least 2 must remain"));
+  CHECK_THROWS_WITH(nlid::distortion_analysis(e, kPeriod, -1),
+                    Catch::Contains("skip_periods must be >= 0"));
+  const nlid::Experiment flat(Eigen::VectorXd::Constant(2048, 0.3), Eigen::VectorXd::Zero(2048),
+                              0.01);
+  CHECK_THROWS_WITH(nlid::distortion_analysis(flat, kPeriod),
+                    Catch::Contains("no power at any line"));
   try {
     (void)nlid::distortion_analysis(e, 2000);
   } catch (const nlid::Error& err) {

@@ -94,5 +94,6 @@ inline Run sim(const std::string& args) { return run_tool(NLID_SIM_EXE, args); }
 inline Run codegen(const std::string& args) { return run_tool(NLID_CODEGEN_EXE, args); }
 inline Run diagnose(const std::string& args) { return run_tool(NLID_DIAGNOSE_EXE, args); }
 inline Run input(const std::string& args) { return run_tool(NLID_INPUT_EXE, args); }
+inline Run distortion(const std::string& args) { return run_tool(NLID_DISTORTION_EXE, args); }
 
 }  // namespace tool_test

@@ -19,7 +19,8 @@
 /// Levels are mean powers over lines in the excited band (from the lowest to the highest excited
 /// line) of the period-averaged spectrum Ȳ(k) = (1/P) Σ_p Y_p(k), Y_p(k) = Σ_t y_p(t) e^{−2πikt/N};
 /// the noise level is the mean over the same lines of var(Ȳ(k)) = Σ_p |Y_p(k) − Ȳ(k)|² / (P(P−1)),
-/// the expectation of |Ȳ(k)|² at a line that carries noise only. A detection-line level more than
+/// the expectation of |Ȳ(k)|² at a line that carries noise only (for a noise-free record, the
+/// DFT's rounding floor takes its place: `noise_floor`). A detection-line level more than
 /// `threshold_db` (default 6 dB, a factor 4 in power) above the noise level is reported as
 /// distortion. The frequency response at the excited lines, Ȳ(k)/Ū(k), is the best linear
 /// approximation of the system for this input class (for a linear system, its transfer function).
@@ -59,6 +60,15 @@ struct DistortionAnalysis {
   double noise_level = std::numeric_limits<double>::quiet_NaN();    ///< mean var(Ȳ) over the band
   double threshold_db = 6.0;  ///< detection threshold above the noise level
 
+  /// The level the others are compared with: the measured noise, or — for a noise-free record
+  /// (simulated data) — the rounding floor of the DFT, 10⁻²⁴ of the excited level (double
+  /// rounding leaves about 10⁻²⁹ of it on an empty line of a 1000-sample period).
+  [[nodiscard]] double noise_floor() const {
+    return std::max(noise_level, std::isfinite(excited_level) ? 1e-24 * excited_level : 0.0);
+  }
+  /// True when the record has no measurable noise and levels are relative to the rounding floor.
+  [[nodiscard]] bool noise_free() const { return !(noise_level > 1e-24 * excited_level); }
+
   /// Frequency of line k in Hz.
   [[nodiscard]] double frequency(Eigen::Index k) const {
     return static_cast<double>(k) / (static_cast<double>(period) * ts);
@@ -82,6 +92,7 @@ struct DistortionAnalysis {
                   periods, static_cast<long>(period), excited.size(), excited.empty() ? 0.0 : frequency(excited.front()),
                   excited.empty() ? 0.0 : frequency(excited.back()), snr_db());
     s += buf;
+    if (noise_free()) s += "  no measurable noise (a simulated record?): levels are relative to the DFT's rounding floor\n";
     const auto line = [&](const char* what, const std::vector<Eigen::Index>& lines, double level_db, bool detected) {
       if (lines.empty()) {
         std::snprintf(buf, sizeof buf, "  %s distortion: no empty %s lines in the band (use odd or random-odd lines)\n",
@@ -103,8 +114,9 @@ struct DistortionAnalysis {
 
  private:
   [[nodiscard]] double db(double level) const {
-    if (!std::isfinite(level) || !(noise_level > 0.0)) return std::numeric_limits<double>::quiet_NaN();
-    return 10.0 * std::log10(level / noise_level);
+    const double floor = noise_floor();
+    if (!std::isfinite(level) || !(floor > 0.0)) return std::numeric_limits<double>::quiet_NaN();
+    return 10.0 * std::log10(std::max(level, 1e-300) / floor);
   }
 };
 

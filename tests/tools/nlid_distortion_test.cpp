@@ -1,0 +1,106 @@
+// nlid-distortion end to end: a random-odd multisine written by nlid-input drives a known Wiener
+// system (written here as a CSV record); the tool reports the distortion theory predicts (none
+// for a linear system, even for a square term), writes the levels as JSON, and refuses bad
+// command lines (status 2) and records it cannot analyse (status 1, naming the file).
+#include <catch2/catch.hpp>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include "nlid/data/input_design.hpp"
+#include "nlid/io/json.hpp"
+#include "tool_runner.hpp"
+
+namespace fs = std::filesystem;
+using tool_test::q;
+using tool_test::Run;
+using tool_test::work_dir;
+
+namespace {
+
+// x(t) = 0.9 x(t-1) + 0.1 u(t), y = x + a2 x² + small deterministic "noise"; u a random-odd
+// multisine of 5 periods of 256 samples written by nlid-input.
+fs::path record(const std::string& name, double a2) {
+  const fs::path u = work_dir() / (name + "_u.csv");
+  const Run r = tool_test::input(
+      "--signal multisine --period 256 --periods 5 --band 0,0.4 --lines random-odd "
+      "--phases random --seed 3 --ts 0.01 --out " +
+      q(u));
+  REQUIRE(r.code == 0);
+  nlid::MultisineOptions o;
+  o.band = {0.0, 0.4};
+  o.lines = nlid::MultisineLines::random_odd;
+  o.phases = nlid::MultisinePhases::random;
+  o.seed = 3;
+  o.periods = 5;
+  const Eigen::VectorXd uu = nlid::multisine(256, o);
+  const Eigen::VectorXd noise = nlid::random_gaussian(uu.size(), {}, {-1e-3, 1e-3}, 5);
+  const fs::path p = work_dir() / (name + ".csv");
+  std::ofstream f(p);
+  f << "t,u,y\n";
+  f.precision(17);
+  double x = 0.0;
+  for (Eigen::Index t = 0; t < uu.size(); ++t) {
+    x = 0.9 * x + 0.1 * uu[t];
+    f << static_cast<double>(t) * 0.01 << "," << uu[t] << "," << x + a2 * x * x + noise[t] << "\n";
+  }
+  return p;
+}
+
+}  // namespace
+
+TEST_CASE("nlid-distortion reports what theory predicts and writes the levels",
+          "[tools][distortion]") {
+  const fs::path lin = record("dist_linear", 0.0);
+  Run r = tool_test::distortion("--data " + q(lin) + " --period 256");
+  INFO(r.err);
+  REQUIRE(r.code == 0);
+  CHECK_THAT(
+      r.out,
+      Catch::Contains("4 periods of 256 samples") &&
+          Catch::Contains("no distortion above the noise: a linear model can explain these data"));
+  const fs::path sq = record("dist_square", 0.5), js = work_dir() / "dist.json";
+  r = tool_test::distortion("--data " + q(sq) + " --period 256 --json " + q(js));
+  REQUIRE(r.code == 0);
+  CHECK_THAT(r.out, Catch::Contains("a nonlinear structure is warranted"));
+  nlid::Json j = nlid::read_json(js.string());
+  CHECK(j["even_detected"].as_bool());
+  CHECK_FALSE(j["odd_detected"].as_bool());
+  CHECK(j["even_db"].as_number() > 20.0);
+  CHECK(j["periods"].as_number() == 4.0);
+  CHECK(j["frf"]["frequency_hz"].size() == j["excited_lines"].size());
+  CHECK(j["frf"]["frequency_hz"][std::size_t{0}].as_number() ==
+        Approx(j["excited_lines"][std::size_t{0}].as_number() / 2.56));
+}
+
+TEST_CASE("nlid-distortion refuses bad command lines and records it cannot analyse",
+          "[tools][distortion][bad_input]") {
+  const fs::path rec = record("dist_bad", 0.0);
+  const std::string d = "--data " + q(rec);
+  Run r = tool_test::distortion(d);
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("--data and --period are required"));
+  r = tool_test::distortion(d + " --period 4");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("--period needs an integer from 8"));
+  r = tool_test::distortion(d + " --period 256 --skip -1");
+  CHECK(r.code == 2);
+  r = tool_test::distortion(d + " --period 256 --threshold x");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("--threshold needs a finite number"));
+  r = tool_test::distortion(d + " --period 256 --json " + q(rec));
+  CHECK(r.code == 2);
+  r = tool_test::distortion(d + " --period 256 --frequency 3");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("unknown option '--frequency'"));
+  r = tool_test::distortion(d +
+                            " --period 512");  // 1280 samples: 2 whole periods, 1 after the skip
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err,
+             Catch::Contains("at least 2 must remain") && Catch::Contains(rec.filename().string()));
+  r = tool_test::distortion(d + " --period 256 --output z");
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("z"));
+  CHECK(tool_test::distortion("--help").code == 0);
+}
