@@ -63,6 +63,64 @@ inline std::vector<double> taylor_shift_at_one(std::vector<double> p) {
   return p;
 }
 
+namespace detail {
+
+// v's first n + 1 entries, padded with zeros (coefficients of q⁻ʲ, j = 0 … n).
+inline std::vector<double> padded_coefficients(const Eigen::VectorXd& v, int n) {
+  std::vector<double> p(static_cast<std::size_t>(n) + 1, 0.0);
+  for (Eigen::Index j = 0; j < v.size() && j <= n; ++j) p[static_cast<std::size_t>(j)] = v(j);
+  return p;
+}
+
+// δ state e = T s of an n-state TDF-II state s, in double.
+inline Eigen::VectorXd delta_state_from_tdf2(int n, const Eigen::VectorXd& s) {
+  require(s.size() == n, "codegen: a linear block state has " + std::to_string(s.size()) + " values, expected " +
+                             std::to_string(n),
+          at_parameter("x0"));
+  const std::vector<double> e = taylor_shift_at_one(std::vector<double>(s.data(), s.data() + s.size()));
+  return Eigen::Map<const Eigen::VectorXd>(e.data(), n);
+}
+
+// "[v[first] … v[last]]" with 9 significant digits (the float values in the code).
+inline std::string coefficient_list(const std::vector<double>& v, std::size_t first) {
+  std::string s = "[";
+  char b[32];
+  for (std::size_t i = first; i < v.size(); ++i) {
+    std::snprintf(b, sizeof b, "%s%.9g", i > first ? " " : "", v[i]);
+    s += b;
+  }
+  return s + "]";
+}
+
+// One traced sample of the δ block with numerators c[j] (one per input w[j]) over a: returns
+// y(t) and advances the n-value state e. Exact zeros are left out.
+inline TraceScalar delta_step(int n, std::span<const std::vector<double>> c, const std::vector<double>& a,
+                              std::span<TraceScalar> e, std::span<const TraceScalar> w) {
+  const auto term = [&](double coef, const TraceScalar& v) { return TraceScalar(coef) * v; };
+  TraceScalar y = e[0];
+  for (std::size_t j = 0; j < c.size(); ++j)
+    if (c[j][0] != 0.0) y = y + term(c[j][0], w[j]);
+  const std::vector<TraceScalar> old(e.begin(), e.end());
+  for (int i = 1; i <= n; ++i) {
+    const auto ui = static_cast<std::size_t>(i);
+    TraceScalar inc = i < n ? old[ui] : TraceScalar(0.0);
+    bool any = i < n;
+    for (std::size_t j = 0; j < c.size(); ++j) {
+      if (c[j][ui] == 0.0) continue;
+      inc = any ? inc + term(c[j][ui], w[j]) : term(c[j][ui], w[j]);
+      any = true;
+    }
+    if (a[ui] != 0.0) {
+      inc = any ? inc - term(a[ui], y) : term(-a[ui], y);
+      any = true;
+    }
+    e[ui - 1] = any ? old[ui - 1] + inc : old[ui - 1];
+  }
+  return y;
+}
+
+}  // namespace detail
+
 /// One linear block in delta form: c[0 … n] (numerator) and a[0 … n] (a[0] = 1) as above.
 struct DeltaBlock {
   int n = 0;              ///< states
@@ -74,60 +132,27 @@ struct DeltaBlock {
   static DeltaBlock from_tdf2(const Eigen::VectorXd& beta, const Eigen::VectorXd& f, int n) {
     DeltaBlock d;
     d.n = n;
-    std::vector<double> b(static_cast<std::size_t>(n) + 1, 0.0), fp(static_cast<std::size_t>(n) + 1, 0.0);
-    for (Eigen::Index j = 0; j < beta.size() && j <= n; ++j) b[static_cast<std::size_t>(j)] = beta(j);
-    for (Eigen::Index j = 0; j < f.size() && j <= n; ++j) fp[static_cast<std::size_t>(j)] = f(j);
-    d.c = taylor_shift_at_one(b);
-    d.a = taylor_shift_at_one(fp);
+    d.c = taylor_shift_at_one(detail::padded_coefficients(beta, n));
+    d.a = taylor_shift_at_one(detail::padded_coefficients(f, n));
     return d;
   }
 
   /// δ state e = T s of nlid's TDF-II state s (n values), in double.
   [[nodiscard]] Eigen::VectorXd state_from_tdf2(const Eigen::VectorXd& s) const {
-    require(s.size() == n, "codegen: a linear block state has " + std::to_string(s.size()) + " values, expected " +
-                               std::to_string(n),
-            at_parameter("x0"));
-    const std::vector<double> e = taylor_shift_at_one(std::vector<double>(s.data(), s.data() + s.size()));
-    return Eigen::Map<const Eigen::VectorXd>(e.data(), n);
+    return detail::delta_state_from_tdf2(n, s);
   }
 
   /// "c0 .. cn = [...], a1 .. an = [...]" (9 significant digits: the float values in the code).
   [[nodiscard]] std::string describe() const {
-    const auto list = [](const std::vector<double>& v, std::size_t first) {
-      std::string s = "[";
-      char b[32];
-      for (std::size_t i = first; i < v.size(); ++i) {
-        std::snprintf(b, sizeof b, "%s%.9g", i > first ? " " : "", v[i]);
-        s += b;
-      }
-      return s + "]";
-    };
-    return "c0 .. c" + std::to_string(n) + " = " + list(c, 0) + ", a1 .. a" + std::to_string(n) + " = " + list(a, 1);
+    return "c0 .. c" + std::to_string(n) + " = " + detail::coefficient_list(c, 0) + ", a1 .. a" + std::to_string(n) +
+           " = " + detail::coefficient_list(a, 1);
   }
 
   /// One traced sample: returns y(t) for input w(t) and advances the δ state `e` (n values).
   /// The coefficients are literals of the code (rounded once to its precision); exact zeros are
   /// left out.
   [[nodiscard]] TraceScalar step(std::span<TraceScalar> e, const TraceScalar& w) const {
-    const auto term = [&](double coef, const TraceScalar& v) { return TraceScalar(coef) * v; };
-    TraceScalar y = e[0];
-    if (c[0] != 0.0) y = y + term(c[0], w);
-    const std::vector<TraceScalar> old(e.begin(), e.end());
-    for (int i = 1; i <= n; ++i) {
-      const auto ui = static_cast<std::size_t>(i);
-      TraceScalar inc = i < n ? old[ui] : TraceScalar(0.0);
-      bool any = i < n;
-      if (c[ui] != 0.0) {
-        inc = any ? inc + term(c[ui], w) : term(c[ui], w);
-        any = true;
-      }
-      if (a[ui] != 0.0) {
-        inc = any ? inc - term(a[ui], y) : term(-a[ui], y);
-        any = true;
-      }
-      e[ui - 1] = any ? old[ui - 1] + inc : old[ui - 1];
-    }
-    return y;
+    return detail::delta_step(n, std::span<const std::vector<double>>(&c, 1), a, e, std::span<const TraceScalar>(&w, 1));
   }
 };
 
@@ -144,41 +169,23 @@ struct MultiInputDeltaBlock {
   static MultiInputDeltaBlock from_tdf2(const std::vector<Eigen::VectorXd>& beta, const Eigen::VectorXd& f, int n) {
     MultiInputDeltaBlock d;
     d.n = n;
-    const auto padded = [n](const Eigen::VectorXd& v) {
-      std::vector<double> p(static_cast<std::size_t>(n) + 1, 0.0);
-      for (Eigen::Index j = 0; j < v.size() && j <= n; ++j) p[static_cast<std::size_t>(j)] = v(j);
-      return p;
-    };
-    for (const Eigen::VectorXd& b : beta) d.c.push_back(taylor_shift_at_one(padded(b)));
-    d.a = taylor_shift_at_one(padded(f));
+    for (const Eigen::VectorXd& b : beta) d.c.push_back(taylor_shift_at_one(detail::padded_coefficients(b, n)));
+    d.a = taylor_shift_at_one(detail::padded_coefficients(f, n));
     return d;
   }
 
   /// δ state e = T s of the TDF-II state s (n values), in double.
   [[nodiscard]] Eigen::VectorXd state_from_tdf2(const Eigen::VectorXd& s) const {
-    require(s.size() == n, "codegen: a linear block state has " + std::to_string(s.size()) + " values, expected " +
-                               std::to_string(n),
-            at_parameter("x0"));
-    const std::vector<double> e = taylor_shift_at_one(std::vector<double>(s.data(), s.data() + s.size()));
-    return Eigen::Map<const Eigen::VectorXd>(e.data(), n);
+    return detail::delta_state_from_tdf2(n, s);
   }
 
   /// "cI_0 .. cI_n = [...] (one list per input, named by `names`), a1 .. an = [...]".
   [[nodiscard]] std::string describe(const std::vector<std::string>& names) const {
-    const auto list = [](const std::vector<double>& v, std::size_t first) {
-      std::string s = "[";
-      char b[32];
-      for (std::size_t i = first; i < v.size(); ++i) {
-        std::snprintf(b, sizeof b, "%s%.9g", i > first ? " " : "", v[i]);
-        s += b;
-      }
-      return s + "]";
-    };
     std::string s;
     for (std::size_t i = 0; i < c.size(); ++i)
       s += (i < names.size() ? names[i] : "c" + std::to_string(i + 1)) + "_0 .. _" + std::to_string(n) + " = " +
-           list(c[i], 0) + ", ";
-    return s + "a1 .. a" + std::to_string(n) + " = " + list(a, 1);
+           detail::coefficient_list(c[i], 0) + ", ";
+    return s + "a1 .. a" + std::to_string(n) + " = " + detail::coefficient_list(a, 1);
   }
 
   /// One traced sample: returns y(t) for inputs w(t) (one per numerator; a literal 1 for a
@@ -187,27 +194,7 @@ struct MultiInputDeltaBlock {
     require(w.size() == c.size(), "codegen: a multi-input delta block got " + std::to_string(w.size()) +
                                       " inputs, expected " + std::to_string(c.size()),
             at_parameter("w"));
-    const auto term = [&](double coef, const TraceScalar& v) { return TraceScalar(coef) * v; };
-    TraceScalar y = e[0];
-    for (std::size_t j = 0; j < c.size(); ++j)
-      if (c[j][0] != 0.0) y = y + term(c[j][0], w[j]);
-    const std::vector<TraceScalar> old(e.begin(), e.end());
-    for (int i = 1; i <= n; ++i) {
-      const auto ui = static_cast<std::size_t>(i);
-      TraceScalar inc = i < n ? old[ui] : TraceScalar(0.0);
-      bool any = i < n;
-      for (std::size_t j = 0; j < c.size(); ++j) {
-        if (c[j][ui] == 0.0) continue;
-        inc = any ? inc + term(c[j][ui], w[j]) : term(c[j][ui], w[j]);
-        any = true;
-      }
-      if (a[ui] != 0.0) {
-        inc = any ? inc - term(a[ui], y) : term(-a[ui], y);
-        any = true;
-      }
-      e[ui - 1] = any ? old[ui - 1] + inc : old[ui - 1];
-    }
-    return y;
+    return detail::delta_step(n, c, a, e, w);
   }
 };
 
