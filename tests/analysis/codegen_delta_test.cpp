@@ -67,15 +67,41 @@ double rel_error(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
   return (a - b).cwiseAbs().maxCoeff() / b.cwiseAbs().maxCoeff();
 }
 
+// Single-precision code of `m` in `form`, started at the equilibrium for `u0` if given.
 template <class Model>
 nlid::GeneratedCode single_code(const Model& m, const std::string& name, nlid::codegen::LinearForm form,
-                                std::optional<double> u0 = std::nullopt) {
+                                std::optional<Eigen::VectorXd> u0 = std::nullopt) {
   nlid::CodegenOptions o;
   o.name = name;
   o.precision = nlid::codegen::Precision::single_precision;
   o.linear_form = form;
-  if (u0) o.equilibrium_input = Eigen::VectorXd::Constant(1, *u0);
+  o.equilibrium_input = std::move(u0);
   return nlid::generate_c(m, o);
+}
+
+// The float code in delta form tracks nlid's double run `ref` on `u`; the direct form is at least
+// ten times worse (and visibly wrong), so a silent fallback to the direct form fails.
+void check_delta_beats_direct(const nlid::GeneratedCode& delta, const nlid::GeneratedCode& direct,
+                              const Eigen::MatrixXd& u, const Eigen::VectorXd& ref, const std::string& tag) {
+  const double err_delta = rel_error(nlid_test::run_generated_c(delta, u, tag, true), ref);
+  const double err_direct = rel_error(nlid_test::run_generated_c(direct, u, tag + "_direct", true), ref);
+  INFO("input " << tag << ": delta form " << err_delta << ", direct form " << err_direct
+                << " (max |y_C - y_nlid| / max |y_nlid|)");
+  CHECK(err_delta <= 1e-5);
+  CHECK(err_direct >= 10.0 * err_delta);
+  CHECK(err_direct > 1e-3);
+}
+
+// Double code is the direct form whatever `automatic`/`direct` says; asking for delta is refused.
+template <class Model>
+void check_double_code_is_direct(const Model& m, const std::string& name) {
+  nlid::CodegenOptions o;
+  o.name = name;
+  const std::string automatic = nlid::generate_c(m, o).source;
+  o.linear_form = nlid::codegen::LinearForm::direct;
+  CHECK(nlid::generate_c(m, o).source == automatic);
+  o.linear_form = nlid::codegen::LinearForm::delta;
+  CHECK_THROWS_AS(nlid::generate_c(m, o), nlid::Error);
 }
 
 // Outputs of the generated code started with NAME_set_state(x) instead of NAME_init.
@@ -147,26 +173,11 @@ TEST_CASE("float code of a slow Hammerstein-Wiener block: the delta form tracks 
   CHECK(nlid_test::c_code_only(delta.source + delta.header).find("double") == std::string::npos);
   CHECK(single_code(m, "slowhw", LinearForm::delta).source == delta.source);  // automatic = delta in float
   int k = 0;
-  for (const Eigen::MatrixXd& u : {step_input(1.0), random_steps()}) {
-    const std::string tag = "delta_hw" + std::to_string(k++);
-    const Eigen::VectorXd ref = m.simulate(experiment(u), nlid::InitialCondition::zero).col(0);
-    const double err_delta = rel_error(nlid_test::run_generated_c(delta, u, tag, true), ref);
-    const double err_direct = rel_error(nlid_test::run_generated_c(direct, u, tag + "_direct", true), ref);
-    INFO("input " << tag << ": delta form " << err_delta << ", direct form " << err_direct
-                  << " (max |y_C - y_nlid| / max |y_nlid|)");
-    CHECK(err_delta <= 1e-5);
-    CHECK(err_direct >= 10.0 * err_delta);
-    CHECK(err_direct > 1e-3);
-  }
-  // Double code: `automatic` is the direct form, the same text as before the option existed;
-  // asking for delta in double is refused.
-  nlid::CodegenOptions o;
-  o.name = "slowhw_double";
-  const std::string automatic = nlid::generate_c(m, o).source;
-  o.linear_form = LinearForm::direct;
-  CHECK(nlid::generate_c(m, o).source == automatic);
-  o.linear_form = LinearForm::delta;
-  CHECK_THROWS_AS(nlid::generate_c(m, o), nlid::Error);
+  for (const Eigen::MatrixXd& u : {step_input(1.0), random_steps()})
+    check_delta_beats_direct(delta, direct, u, m.simulate(experiment(u), nlid::InitialCondition::zero).col(0),
+                             "delta_hw" + std::to_string(k++));
+  // Double code: `automatic` is the direct form, the same text as before the option existed.
+  check_double_code_is_direct(m, "slowhw_double");
 }
 
 TEST_CASE("float code in delta form starts from nlid's equilibrium and from an explicit state", "[codegen][delta]") {
@@ -176,7 +187,7 @@ TEST_CASE("float code in delta form starts from nlid's equilibrium and from an e
   u.topRows(200).setConstant(2.5);
   const nlid::Experiment e = experiment(u);
   // Equilibrium for u0 = 2.5 (y = 5): NAME_x0 is the delta state of nlid's steady state.
-  const nlid::GeneratedCode eq = single_code(m, "slowhw_eq", LinearForm::automatic, 2.5);
+  const nlid::GeneratedCode eq = single_code(m, "slowhw_eq", LinearForm::automatic, Eigen::VectorXd::Constant(1, 2.5));
   const Eigen::VectorXd ref_eq = m.simulate(e, nlid::InitialCondition::equilibrium).col(0);
   const Eigen::VectorXd y_eq = nlid_test::run_generated_c(eq, u, "delta_hw_eq", true);
   REQUIRE(y_eq.size() == ref_eq.size());
@@ -224,19 +235,14 @@ TEST_CASE("float code of a Wiener-Hammerstein chain writes each linear block in 
   const Eigen::VectorXd ref = m.simulate(experiment(u), nlid::InitialCondition::zero).col(0);
   const nlid::GeneratedCode delta = single_code(m, "slowwh", LinearForm::automatic);
   CHECK(delta.header.find("delta-operator form") != std::string::npos);
-  const double err_delta = rel_error(nlid_test::run_generated_c(delta, u, "delta_wh", true), ref);
-  const double err_direct =
-      rel_error(nlid_test::run_generated_c(single_code(m, "slowwh_direct", LinearForm::direct), u, "delta_wh_direct", true), ref);
-  INFO("delta form " << err_delta << ", direct form " << err_direct);
-  CHECK(err_delta <= 1e-5);
-  CHECK(err_direct >= 10.0 * err_delta);
+  check_delta_beats_direct(delta, single_code(m, "slowwh_direct", LinearForm::direct), u, ref, "delta_wh");
 
   // Equilibrium for u0 = -1.5 (stacked states of both blocks transformed).
   Eigen::MatrixXd ue = u;
   ue.topRows(300).setConstant(-1.5);
   const Eigen::VectorXd ref_eq = m.simulate(experiment(ue), nlid::InitialCondition::equilibrium).col(0);
-  const Eigen::VectorXd y_eq = nlid_test::run_generated_c(single_code(m, "slowwh_eq", LinearForm::automatic, -1.5), ue,
-                                                          "delta_wh_eq", true);
+  const Eigen::VectorXd y_eq = nlid_test::run_generated_c(
+      single_code(m, "slowwh_eq", LinearForm::automatic, Eigen::VectorXd::Constant(1, -1.5)), ue, "delta_wh_eq", true);
   REQUIRE(y_eq.size() == ref_eq.size());
   CHECK(std::abs(ref_eq(0) + 1.5) < 1e-9);
   for (int t = 0; t < 300; ++t) CHECK(std::abs(y_eq(t) - ref_eq(t)) <= 4e-7 * std::abs(ref_eq(t)));
@@ -253,17 +259,12 @@ TEST_CASE("float code of a slow output-error model writes its block in delta for
   const nlid::GeneratedCode delta = single_code(m, "slowoe", LinearForm::automatic);
   CHECK(delta.header.find("delta-operator form") != std::string::npos);
   CHECK(delta.header.find("#define SLOWOE_NUM_STATES 2") != std::string::npos);  // n = max(nf, nk + nb - 1)
-  const double err_delta = rel_error(nlid_test::run_generated_c(delta, u, "delta_oe", true), ref);
-  const double err_direct =
-      rel_error(nlid_test::run_generated_c(single_code(m, "slowoe_direct", LinearForm::direct), u, "delta_oe_direct", true), ref);
-  INFO("delta form " << err_delta << ", direct form " << err_direct);
-  CHECK(err_delta <= 1e-5);
-  CHECK(err_direct >= 10.0 * err_delta);
+  check_delta_beats_direct(delta, single_code(m, "slowoe_direct", LinearForm::direct), u, ref, "delta_oe");
 
   u.topRows(300).setConstant(2.0);
   const Eigen::VectorXd ref_eq = m.simulate(experiment(u), nlid::InitialCondition::equilibrium).col(0);
-  const Eigen::VectorXd y_eq = nlid_test::run_generated_c(single_code(m, "slowoe_eq", LinearForm::automatic, 2.0), u,
-                                                          "delta_oe_eq", true);
+  const Eigen::VectorXd y_eq = nlid_test::run_generated_c(
+      single_code(m, "slowoe_eq", LinearForm::automatic, Eigen::VectorXd::Constant(1, 2.0)), u, "delta_oe_eq", true);
   REQUIRE(y_eq.size() == ref_eq.size());
   CHECK(std::abs(ref_eq(0) - 4.5) < 1e-9);  // offset 0.5 + gain 2 * 2
   for (int t = 0; t < 300; ++t) CHECK(std::abs(y_eq(t) - ref_eq(t)) <= 4e-7 * std::abs(ref_eq(t)));
@@ -288,16 +289,6 @@ Eigen::MatrixXd random_steps2() {
   return u;
 }
 
-nlid::GeneratedCode single_code2(const nlid::Arx& m, const std::string& name, nlid::codegen::LinearForm form,
-                                 std::optional<Eigen::Vector2d> u0 = std::nullopt) {
-  nlid::CodegenOptions o;
-  o.name = name;
-  o.precision = nlid::codegen::Precision::single_precision;
-  o.linear_form = form;
-  if (u0) o.equilibrium_input = *u0;
-  return nlid::generate_c(m, o);
-}
-
 }  // namespace
 
 TEST_CASE("float code of a slow two-input ARX model with offset: one delta block tracks nlid", "[codegen][delta]") {
@@ -316,30 +307,17 @@ TEST_CASE("float code of a slow two-input ARX model with offset: one delta block
   CHECK(db->c[1][0] == 0.5e-6);                      // feedthrough b2,0
   CHECK(db->c[2] == std::vector<double>{1e-6, 3e-6, 3e-6, 1e-6});
 
-  const nlid::GeneratedCode delta = single_code2(m, "slowarx", LinearForm::automatic);
-  const nlid::GeneratedCode direct = single_code2(m, "slowarx_direct", LinearForm::direct);
+  const nlid::GeneratedCode delta = single_code(m, "slowarx", LinearForm::automatic);
+  const nlid::GeneratedCode direct = single_code(m, "slowarx_direct", LinearForm::direct);
   CHECK(delta.header.find("delta-operator form") != std::string::npos);
   CHECK(delta.header.find("#define SLOWARX_NUM_STATES 3") != std::string::npos);
   CHECK(direct.header.find("delta-operator form") == std::string::npos);
   CHECK(nlid_test::c_code_only(delta.source + delta.header).find("double") == std::string::npos);
-  CHECK(single_code2(m, "slowarx", LinearForm::delta).source == delta.source);  // automatic = delta in float
+  CHECK(single_code(m, "slowarx", LinearForm::delta).source == delta.source);  // automatic = delta in float
   const Eigen::MatrixXd u = random_steps2();
   const Eigen::VectorXd ref = m.simulate(experiment(u), nlid::InitialCondition::zero).col(0);
-  const double err_delta = rel_error(nlid_test::run_generated_c(delta, u, "delta_arx", true), ref);
-  const double err_direct = rel_error(nlid_test::run_generated_c(direct, u, "delta_arx_direct", true), ref);
-  INFO("delta form " << err_delta << ", direct form " << err_direct);
-  CHECK(err_delta <= 1e-5);
-  CHECK(err_direct >= 10.0 * err_delta);
-  CHECK(err_direct > 1e-3);
-
-  // Double code: the direct form whatever `automatic`/`direct` says; delta is refused.
-  nlid::CodegenOptions o;
-  o.name = "slowarx_double";
-  const std::string automatic = nlid::generate_c(m, o).source;
-  o.linear_form = LinearForm::direct;
-  CHECK(nlid::generate_c(m, o).source == automatic);
-  o.linear_form = LinearForm::delta;
-  CHECK_THROWS_AS(nlid::generate_c(m, o), nlid::Error);
+  check_delta_beats_direct(delta, direct, u, ref, "delta_arx");
+  check_double_code_is_direct(m, "slowarx_double");
 
   // No feedback (na = 0): the direct form in single precision too.
   const nlid::Arx fir(Eigen::VectorXd(0), {Eigen::Vector2d(0.5, 0.25)}, {1}, ts);
@@ -356,7 +334,7 @@ TEST_CASE("float code of a slow ARX model in delta form starts from nlid's equil
   // Equilibrium for u0 = (2.5, -1): y = 2*2.5 - 1 + 0.5 = 4.5.
   const Eigen::VectorXd ref_eq = m.simulate(experiment(u), nlid::InitialCondition::equilibrium).col(0);
   const Eigen::VectorXd y_eq =
-      nlid_test::run_generated_c(single_code2(m, "slowarx_eq", LinearForm::automatic, Eigen::Vector2d(2.5, -1.0)), u,
+      nlid_test::run_generated_c(single_code(m, "slowarx_eq", LinearForm::automatic, Eigen::Vector2d(2.5, -1.0)), u,
                                  "delta_arx_eq", true);
   REQUIRE(y_eq.size() == ref_eq.size());
   INFO("equilibrium start: first outputs " << y_eq(0) << " vs nlid " << ref_eq(0) << ", max rel. error "
@@ -382,7 +360,7 @@ TEST_CASE("float code of a slow ARX model in delta form starts from nlid's equil
   CHECK(nlid::generated_c_state(m, x, o) == x);  // the direct form's state is the past samples
   CHECK_THROWS_AS(nlid::generated_c_state(m, x.head(6), o), nlid::Error);
   const Eigen::VectorXd ref_x = yy.tail(u.rows());
-  const Eigen::VectorXd y_x = run_from_state(single_code2(m, "slowarx_x", LinearForm::automatic), u, xc, "delta_arx_x");
+  const Eigen::VectorXd y_x = run_from_state(single_code(m, "slowarx_x", LinearForm::automatic), u, xc, "delta_arx_x");
   REQUIRE(y_x.size() == ref_x.size());
   INFO("past samples " << x.transpose() << " -> delta state " << xc.transpose() << ": first outputs " << y_x(0) << ", "
                        << y_x(1) << " vs nlid " << ref_x(0) << ", " << ref_x(1));
