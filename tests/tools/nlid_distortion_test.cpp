@@ -8,6 +8,7 @@
 #include <fstream>
 #include <string>
 
+#include "nlid/data/csv.hpp"
 #include "nlid/data/input_design.hpp"
 #include "nlid/io/json.hpp"
 #include "tool_runner.hpp"
@@ -19,8 +20,8 @@ using tool_test::work_dir;
 
 namespace {
 
-// x(t) = 0.9 x(t-1) + 0.1 u(t), y = x + a2 x² + small deterministic "noise"; u a random-odd
-// multisine of 5 periods of 256 samples written by nlid-input.
+// x(t) = 0.9 x(t-1) + 0.1 u(t), y = x + a2 x² + small deterministic "noise"; u the random-odd
+// multisine of 5 periods of 256 samples that nlid-input writes (read back from its file).
 fs::path record(const std::string& name, double a2) {
   const fs::path u = work_dir() / (name + "_u.csv");
   const Run r = tool_test::input(
@@ -28,13 +29,8 @@ fs::path record(const std::string& name, double a2) {
       "--phases random --seed 3 --ts 0.01 --out " +
       q(u));
   REQUIRE(r.code == 0);
-  nlid::MultisineOptions o;
-  o.band = {0.0, 0.4};
-  o.lines = nlid::MultisineLines::random_odd;
-  o.phases = nlid::MultisinePhases::random;
-  o.seed = 3;
-  o.periods = 5;
-  const Eigen::VectorXd uu = nlid::multisine(256, o);
+  const Eigen::VectorXd uu = nlid::read_csv_table(u.string()).col("u");  // the tool's own file
+  REQUIRE(uu.size() == 5 * 256);
   const Eigen::VectorXd noise = nlid::random_gaussian(uu.size(), {}, {-1e-3, 1e-3}, 5);
   const fs::path p = work_dir() / (name + ".csv");
   std::ofstream f(p);
