@@ -32,13 +32,13 @@
 #include <complex>
 #include <cstdio>
 #include <limits>
-#include <numbers>
 #include <string>
 #include <vector>
 
 #include <Eigen/Core>
 
 #include "nlid/core/error.hpp"
+#include "nlid/data/detail/dft_table.hpp"
 #include "nlid/data/experiment.hpp"
 
 namespace nlid {
@@ -152,12 +152,8 @@ struct DistortionAnalysis {
   r.ts = e.ts();
   r.threshold_db = threshold_db;
   const Eigen::Index nk = period / 2 + 1;  // lines 0 … period/2
-  Eigen::VectorXd c(period), s(period);
-  for (Eigen::Index m = 0; m < period; ++m) {
-    const double a = 2.0 * std::numbers::pi * static_cast<double>(m) / static_cast<double>(period);
-    c[m] = std::cos(a);
-    s[m] = std::sin(a);
-  }
+  const detail::DftTable tab(period);
+  const Eigen::VectorXd &c = tab.cos, &s = tab.sin;
   // Y_p(k) for every analysed period; Ū averaged directly.
   std::vector<Eigen::VectorXcd> yp(static_cast<std::size_t>(p));
   Eigen::VectorXcd ubar = Eigen::VectorXcd::Zero(nk);

@@ -42,6 +42,7 @@
 #include <Eigen/Core>
 
 #include "nlid/core/error.hpp"
+#include "nlid/data/detail/dft_table.hpp"
 #include "nlid/data/filter.hpp"
 
 namespace nlid {
@@ -263,13 +264,8 @@ inline std::uint32_t prbs_next_state(int bits, std::uint32_t state) {
     phi[j] = o.phases == MultisinePhases::schroeder ? -std::numbers::pi * jj * (jj - 1.0) / nl
                                                     : 2.0 * std::numbers::pi * detail::uniform01(g);
   }
-  // cos(2π m/period) for m = (k·t) mod period, exact integer angles: no phase drift over long periods.
-  Eigen::VectorXd c(period), s(period);
-  for (Eigen::Index m = 0; m < period; ++m) {
-    const double a = 2.0 * std::numbers::pi * static_cast<double>(m) / static_cast<double>(period);
-    c[m] = std::cos(a);
-    s[m] = std::sin(a);
-  }
+  const detail::DftTable tab(period);  // entry m = (k·t) mod period: exact integer angles
+  const Eigen::VectorXd &c = tab.cos, &s = tab.sin;
   Eigen::VectorXd one = Eigen::VectorXd::Zero(period);
   for (std::size_t j = 0; j < k.size(); ++j) {
     const double cp = std::cos(phi[j]), sp = std::sin(phi[j]);
