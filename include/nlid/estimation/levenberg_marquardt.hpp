@@ -139,6 +139,34 @@ struct LmOptions {
   std::vector<std::string> parameter_names;
 };
 
+namespace detail {
+
+// The solver's form of `reg` for n parameters: weight = λ·R (λ where R is empty, 0 when λ = 0),
+// nominal = θ̄ (zero where empty).
+template <class W, class N>
+void regularization_terms(const LmRegularization& reg, Eigen::Index n, W& weight, N& nominal) {
+  weight.setZero(n);
+  nominal.setZero(n);
+  if (reg.lambda > 0.0) {
+    weight.setConstant(n, reg.lambda);
+    if (reg.weights.size() == n) weight = reg.lambda * reg.weights;
+    if (reg.nominal.size() == n) nominal = reg.nominal;
+  }
+}
+
+// ½ Σ_k weight_k (x_k − nominal_k)² over the first n entries.
+template <class W, class N, class X>
+double regularization_penalty(const W& weight, const N& nominal, const X& x, Eigen::Index n) {
+  double p = 0.0;
+  for (Eigen::Index k = 0; k < n; ++k) {
+    const double e = x[k] - nominal[k];
+    p += weight[k] * e * e;
+  }
+  return 0.5 * p;
+}
+
+}  // namespace detail
+
 /// The cost F(θ) a solve with these options minimises, for residuals r at θ: ½ Σ ρ(r_i²) of the
 /// robust loss plus the regularization penalty. Lets a caller rank points by the solver's own
 /// criterion (multi-start screening) so that the ranking and the solves' final costs agree.
@@ -147,16 +175,10 @@ struct LmOptions {
 template <class RDerived, class TDerived>
 double lm_cost(const LmOptions& o, const Eigen::MatrixBase<RDerived>& r, const Eigen::MatrixBase<TDerived>& theta) {
   double c = robust_cost(o.loss, r);
-  const LmRegularization& reg = o.regularization;
-  if (reg.lambda > 0.0) {
-    const Eigen::Index n = theta.size();
-    double p = 0.0;
-    for (Eigen::Index k = 0; k < n; ++k) {
-      const double w = reg.weights.size() == n ? reg.weights[k] : 1.0;
-      const double e = theta[k] - (reg.nominal.size() == n ? reg.nominal[k] : 0.0);
-      p += w * e * e;
-    }
-    c += 0.5 * reg.lambda * p;
+  if (o.regularization.lambda > 0.0) {
+    Eigen::VectorXd weight, nominal;
+    detail::regularization_terms(o.regularization, theta.size(), weight, nominal);
+    c += detail::regularization_penalty(weight, nominal, theta, theta.size());
   }
   return c;
 }
@@ -363,14 +385,7 @@ class LmEngine {
     upper_.setConstant(n, std::numeric_limits<double>::infinity());
     if (options_.lower_bounds.size() == n) lower_ = options_.lower_bounds;
     if (options_.upper_bounds.size() == n) upper_ = options_.upper_bounds;
-    const LmRegularization& reg = options_.regularization;
-    reg_weight_.setZero(n);
-    reg_nominal_.setZero(n);
-    if (reg.lambda > 0.0) {
-      reg_weight_.setConstant(n, reg.lambda);
-      if (reg.weights.size() == n) reg_weight_ = reg.lambda * reg.weights;
-      if (reg.nominal.size() == n) reg_nominal_ = reg.nominal;
-    }
+    detail::regularization_terms(options_.regularization, n, reg_weight_, reg_nominal_);
     regularized_ = (reg_weight_.array() > 0.0).any();
     fixed_.setZero(n);
     if (!options_.fixed.empty()) {
@@ -615,13 +630,7 @@ class LmEngine {
 
   // ½ Σ λ_R R_k (θ_k − θ̄_k)²: the regularization part of F.
   double penalty(const Vector& x) const {
-    if (!regularized_) return 0.0;
-    double p = 0.0;
-    for (int k = 0; k < n_; ++k) {
-      const double e = x[k] - reg_nominal_[k];
-      p += reg_weight_[k] * e * e;
-    }
-    return 0.5 * p;
+    return regularized_ ? detail::regularization_penalty(reg_weight_, reg_nominal_, x, n_) : 0.0;
   }
 
   // Copies θ into x_, checks it, projects free parameters onto the bounds.
