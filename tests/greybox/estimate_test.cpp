@@ -212,3 +212,61 @@ TEST_CASE("Values set by the user survive data-driven initialisation", "[greybox
   CHECK(m.parameter("b") > 1000.0);                              // rescaled from the default 100
   CHECK(m.initialized());
 }
+
+TEST_CASE("Uncertainty of the throttle estimate: the truth lies within a few sigma, names and units",
+          "[greybox][estimate][uncertainty]") {
+  const Dataset d = throttle_data(1.0);
+  GreyBox<physics::Throttle> m;
+  m.set_parameter("rest", 0.0);
+  m.fix("rest");
+  const nlid::GreyBoxEstimate r = estimate(m, d);
+  const nlid::ParameterUncertainty& u = r.uncertainty;
+  INFO(r.report());
+  // 7 parameters then x₀ = (y, v) of each of the two records.
+  REQUIRE(u.theta.size() == 11);
+  CHECK(u.names[0] == "c");
+  CHECK(u.names[7] == "x0[0].y");
+  CHECK(u.rank == 10);
+  CHECK(u.stddev[6] == 0.0);  // rest: fixed
+  const std::vector<std::pair<const char*, double>> truth = {
+      {"c", 30.0}, {"k", 400.0}, {"K", 1e5}, {"b", 56000.0}, {"lower_stop", 15.0}, {"upper_stop", 90.0}};
+  for (const auto& [name, value] : truth) {
+    const auto i = m.parameter_index(name);
+    INFO(name << " = " << u.theta[i] << " +- " << u.stddev[i]);
+    CHECK(u.theta[i] == m.parameter(name));
+    CHECK(u.stddev[i] > 0.0);
+    CHECK(std::abs(u.theta[i] - value) < 4.0 * u.stddev[i]);
+    CHECK(u.relative_percent(i) < 5.0);
+  }
+  // White measurement noise: the two formulas agree to within the window's own scatter.
+  CHECK(std::abs(u.lag1_correlation) < 0.1);
+  CHECK(u.stddev[0] / u.stddev_white[0] == Approx(1.0).margin(0.3));
+  CHECK_THAT(r.report(), Catch::Contains("c          = ") && Catch::Contains("+- ") &&
+                             Catch::Contains("rest       = 0  (fixed)") && !Catch::Contains("x0[0].y"));
+}
+
+TEST_CASE("Uncertainty of a grey-box estimate matches the spread over Monte Carlo records",
+          "[greybox][estimate][uncertainty]") {
+  // First-order lag, white noise: 60 records, each estimated from the truth with one LM run.
+  GreyBox<physics::FirstOrder> truth;
+  truth.set_parameters(Eigen::Vector3d(12.0, 35.0, 21.0));
+  const Eigen::MatrixXd u = nlid_test::steps({0.0, 1.0, 0.4, 0.8}, 25, 200);
+  const int replicates = 60;
+  Eigen::MatrixXd est(replicates, 3), sd(replicates, 3);
+  for (int k = 0; k < replicates; ++k) {
+    const Dataset d(nlid_test::simulated(truth, u, 1.0, Eigen::VectorXd::Constant(1, 21.0), 0.5,
+                                         100u + static_cast<unsigned>(k), "oven"));
+    GreyBox<physics::FirstOrder> m = truth;
+    const auto r = estimate(m, d, quick(1, 1));
+    est.row(k) = r.parameters.transpose();
+    sd.row(k) = r.uncertainty.stddev.head(3).transpose();
+  }
+  const Eigen::RowVector3d mean = est.colwise().mean();
+  const Eigen::RowVector3d spread =
+      ((est.rowwise() - mean).array().square().colwise().sum() / (replicates - 1)).sqrt();
+  for (int i = 0; i < 3; ++i) {
+    INFO("parameter " << i << ": spread " << spread[i] << ", predicted " << sd.col(i).mean());
+    // 60 replicates: the spread itself is known to about ±9 %.
+    CHECK(sd.col(i).mean() / spread[i] == Approx(1.0).margin(0.3));
+  }
+}

@@ -39,6 +39,7 @@
 #include "nlid/data/dataset.hpp"
 #include "nlid/estimation/levenberg_marquardt.hpp"
 #include "nlid/estimation/multi_start.hpp"
+#include "nlid/estimation/uncertainty.hpp"
 #include "nlid/models/greybox.hpp"
 #include "nlid/models/greybox_problem.hpp"
 
@@ -80,8 +81,12 @@ struct GreyBoxEstimate {
   LmSummary summary;                          ///< LM summary of the winning start
   MultiStartSummary multi_start;              ///< all starts
   double seconds = 0.0;                       ///< wall-clock time including initialisation
+  /// Standard deviations and correlations of all unknowns (parameters first, then the initial
+  /// states), from the residuals of the estimate (estimation/uncertainty.hpp); `report()` lists
+  /// the physical parameters with ±1σ.
+  ParameterUncertainty uncertainty;
 
-  /// Human-readable report: parameters, fit per experiment, multi-start agreement.
+  /// Human-readable report: parameters with ±1σ, fit per experiment, multi-start agreement.
   [[nodiscard]] std::string report() const {
     auto num = [](double v) {
       char b[32];
@@ -89,8 +94,13 @@ struct GreyBoxEstimate {
       return std::string(b);
     };
     std::string s = "Grey-box estimation: cost " + num(cost) + ", " + num(seconds) + " s\n";
-    for (Eigen::Index i = 0; i < parameters.size(); ++i) {
-      s += "  " + parameter_names[static_cast<std::size_t>(i)] + " = " + num(parameters[i]) + "\n";
+    if (uncertainty.theta.size() >= parameters.size() && parameters.size() > 0) {
+      s += uncertainty.report(static_cast<int>(parameters.size()));
+    } else {
+      for (Eigen::Index i = 0; i < parameters.size(); ++i) {
+        s += "  " + parameter_names[static_cast<std::size_t>(i)] + " = " + num(parameters[i]) + "\n";
+      }
+      if (!uncertainty.caveat.empty()) s += "  (" + uncertainty.caveat + ")\n";
     }
     for (Eigen::Index e = 0; e < fit.rows(); ++e) {
       s += "  fit " + experiment_names[static_cast<std::size_t>(e)] + ":";
@@ -287,6 +297,27 @@ GreyBoxEstimate estimate(GreyBox<P>& model, const Dataset& data,
                                                           : data[e].name());
   }
   model.set_estimated_initial_states(out.initial_states);
+
+  // Uncertainty in the model's own units: one residual series per experiment and output (rows
+  // are sample-major, so output j of experiment e starts at its offset + j with stride n_y).
+  UncertaintyOptions uo;
+  uo.fixed = ms.lm.fixed;
+  uo.names = ms.lm.parameter_names;
+  uo.lower_bounds = ms.lm.lower_bounds.cwiseProduct(scale);
+  uo.upper_bounds = ms.lm.upper_bounds.cwiseProduct(scale);
+  uo.caveat = uncertainty_caveat(options.multi_start.lm);
+  const int ny = model.output_dimension();
+  for (std::size_t e = 0; e < data.size(); ++e) {
+    for (int j = 0; j < ny; ++j) {
+      uo.series.push_back({problem.residual_offset(e) + j, static_cast<Eigen::Index>(data[e].size()), ny});
+    }
+  }
+  // The estimate stands even where its uncertainty cannot be computed; the report says why.
+  try {
+    out.uncertainty = parameter_uncertainty(problem, theta, uo);
+  } catch (const Error& err) {
+    out.uncertainty.caveat = std::string("no uncertainty: ") + err.what();
+  }
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return out;
 }
