@@ -1,9 +1,11 @@
-// A Wiener model (linear dynamics, then a saturation) recovered from data: the estimator starts
-// from its own data-driven initialisation, and the result reads as B/F polynomials and limits.
+// A Wiener model (linear dynamics, then a saturation) recovered from noisy data: the estimator
+// starts from its own data-driven initialisation, the result reads as B/F polynomials and limits,
+// and each parameter comes with its standard deviation.
 #include <iostream>
 #include <random>
 
 #include "nlid/models/estimate.hpp"
+#include "nlid/models/uncertainty.hpp"
 #include "nlid/nonlinearities/saturation.hpp"
 #include "nlid/nonlinearities/unit_gain.hpp"
 
@@ -20,8 +22,18 @@ int main() {
   Eigen::MatrixXd u(1000, 1);
   for (int t = 0; t < 1000; ++t) u(t, 0) = t % 25 == 0 ? level(gen) : u(t - 1, 0);
   const nlid::Experiment e0(u, Eigen::VectorXd::Zero(1000), 0.01, "steps");
-  const nlid::Experiment data(u, truth.simulate(e0), 0.01, "steps");
+  Eigen::VectorXd y = truth.simulate(e0);
+  std::normal_distribution<double> noise(0.0, 0.01);
+  for (Eigen::Index t = 0; t < y.size(); ++t) y[t] += noise(gen);
+  const nlid::Dataset data{nlid::Experiment(u, y, 0.01, "steps")};
 
-  const Wiener est = nlid::estimate(Wiener{}, nlid::Dataset{data});  // zero initial state
-  std::cout << est.describe() << "parameter error: " << (est.parameters() - th).cwiseAbs().maxCoeff() << "\n";
+  const Wiener est = nlid::estimate(Wiener{}, data);  // zero initial state
+  std::cout << est.describe();
+  // How well the data determine each parameter: errors beyond 3 sigma would be suspect.
+  const nlid::ParameterUncertainty unc = nlid::parameter_uncertainty(est, data);
+  std::cout << unc.report();
+  for (int i = 0; i < 6; ++i) {
+    std::cout << "  " << unc.names[static_cast<std::size_t>(i)] << ": error " << est.parameters()[i] - th[i] << " = "
+              << (est.parameters()[i] - th[i]) / unc.stddev[i] << " sigma\n";
+  }
 }

@@ -2,7 +2,8 @@
 /// @file
 /// Umbrella header of the model layer: nonlinear ARX (`Nlarx`), Hammerstein–Wiener
 /// (`HammersteinWiener` with `TransferFunctionBlock`), their estimation (`estimate`), and the
-/// grey-box models (`GreyBox`, integrators, physics catalogue, batched runs of many parameter sets).
+/// grey-box models (`GreyBox`, integrators, physics catalogue, batched runs of many parameter sets),
+/// and the parameter uncertainty of estimated models (`parameter_uncertainty`).
 
 #include "nlid/models/concepts.hpp"
 #include "nlid/models/estimate.hpp"
@@ -13,3 +14,4 @@
 #include "nlid/models/integrators.hpp"
 #include "nlid/models/nlarx.hpp"
 #include "nlid/models/transfer_function_block.hpp"
+#include "nlid/models/uncertainty.hpp"
