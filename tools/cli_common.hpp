@@ -17,7 +17,6 @@
 #include <limits>
 #include <map>
 #include <new>
-#include <set>
 #include <stdexcept>
 #include <string>
 #include <system_error>
@@ -71,18 +70,6 @@ inline double parse_number(const std::string& flag, const std::string& v) {
   if (v.empty() || pos != v.size() || !std::isfinite(x)) throw UsageError(flag + " needs a finite number, got '" + v + "'");
   return x;
 }
-
-/// Options that take one value: a second occurrence is an error (it used to win silently).
-class OnceOnly {
- public:
-  void operator()(const std::string& flag) {
-    if (!seen_.insert(flag).second)
-      throw UsageError("option " + flag + " is given twice; it takes one value");
-  }
-
- private:
-  std::set<std::string> seen_;
-};
 
 /// One option of a tool's command line. Every tool's messages for a bad command line come from
 /// parse_options, so the six tools word them alike.
