@@ -1,7 +1,7 @@
 #pragma once
-// What every command-line tool does the same way: exit codes, integer options with a range,
-// options that may be given once, output paths checked before any work, library messages in the
-// tools' words, and a top level that turns every exception into one line and an exit code.
+// What every command-line tool does the same way: exit codes, the command-line parser, integer
+// options with a range, output paths checked before any work, library messages in the tools'
+// words, and a top level that turns every exception into one line and an exit code.
 //
 // Exit codes (docs/tools.md): 0 success; 1 the command line is fine but a file, the data or the
 // model is not, or the computation failed (out of memory, a diverging model); 2 the command line
@@ -15,8 +15,8 @@
 #include <filesystem>
 #include <iostream>
 #include <limits>
+#include <map>
 #include <new>
-#include <set>
 #include <stdexcept>
 #include <string>
 #include <system_error>
@@ -71,17 +71,84 @@ inline double parse_number(const std::string& flag, const std::string& v) {
   return x;
 }
 
-/// Options that take one value: a second occurrence is an error (it used to win silently).
-class OnceOnly {
- public:
-  void operator()(const std::string& flag) {
-    if (!seen_.insert(flag).second)
-      throw UsageError("option " + flag + " is given twice; it takes one value");
-  }
-
- private:
-  std::set<std::string> seen_;
+/// One option of a tool's command line. Every tool's messages for a bad command line come from
+/// parse_options, so the six tools word them alike.
+struct OptionSpec {
+  enum Kind {
+    once,       ///< takes one value; a second occurrence is an error (it used to win silently)
+    repeated,   ///< takes a value, any number of times (--est, --val)
+    flag,       ///< a switch without a value; given twice it means the same
+  };
+  std::string name;
+  Kind kind = once;
+  std::vector<std::string> allowed = {};  ///< the values it accepts; empty: any (the tool checks)
 };
+
+/// What parse_options read: the values of each option given, in command-line order (a flag holds
+/// one empty value per occurrence), or `help` when -h or --help came first.
+struct ParsedOptions {
+  bool help = false;
+  std::map<std::string, std::vector<std::string>> given;
+
+  bool has(const std::string& name) const { return given.count(name) > 0; }
+  std::string get(const std::string& name, const std::string& fallback = "") const {
+    const auto it = given.find(name);
+    return it == given.end() ? fallback : it->second.back();
+  }
+  std::vector<std::string> all(const std::string& name) const {
+    const auto it = given.find(name);
+    return it == given.end() ? std::vector<std::string>() : it->second;
+  }
+  /// The value as an integer in [lo, hi] (parse_integer), or `fallback` if the option is not given.
+  long get_integer(const std::string& name, long lo, long hi, long fallback) const {
+    return has(name) ? parse_integer(name, get(name), lo, hi) : fallback;
+  }
+  int get_int(const std::string& name, int lo, int hi, int fallback) const {
+    return static_cast<int>(get_integer(name, lo, hi, fallback));
+  }
+  /// The value as a finite number (parse_number), or `fallback` if the option is not given.
+  double get_number(const std::string& name, double fallback) const {
+    return has(name) ? parse_number(name, get(name)) : fallback;
+  }
+};
+
+/// Reads argv against `options`. The first problem, in command-line order, is a usage error naming
+/// the word: an unknown option (no tool takes positional arguments, so any other word is one too),
+/// an option without its value, a once-option given twice, a value not among `allowed`. -h or
+/// --help stops the scan (what follows is not checked). `dashed_value_is_missing`: a value that
+/// starts with "--" counts as missing, as nlid-diagnose has always read "--est --val b.csv" (a
+/// forgotten file); the other tools have always taken such a word as the value.
+inline ParsedOptions parse_options(int argc, const char* const* argv, const std::vector<OptionSpec>& options,
+                                   bool dashed_value_is_missing = false) {
+  ParsedOptions r;
+  for (int i = 1; i < argc; ++i) {
+    const std::string k = argv[i];
+    if (k == "-h" || k == "--help") {
+      r.help = true;
+      return r;
+    }
+    const auto spec = std::find_if(options.begin(), options.end(), [&](const OptionSpec& o) { return o.name == k; });
+    if (spec == options.end()) throw UsageError("unknown option '" + k + "'");
+    std::vector<std::string>& values = r.given[k];
+    if (spec->kind == OptionSpec::flag) {
+      values.emplace_back();
+      continue;
+    }
+    if (i + 1 >= argc || (dashed_value_is_missing && std::string(argv[i + 1]).rfind("--", 0) == 0))
+      throw UsageError("option " + k + " needs a value");
+    const std::string v = argv[++i];
+    if (spec->kind == OptionSpec::once && !values.empty())
+      throw UsageError("option " + k + " is given twice; it takes one value");
+    const auto& ok = spec->allowed;
+    if (!ok.empty() && std::find(ok.begin(), ok.end(), v) == ok.end()) {
+      std::string list = ok.front();  // "a, b or c"
+      for (std::size_t j = 1; j < ok.size(); ++j) list += (j + 1 < ok.size() ? ", " : " or ") + ok[j];
+      throw UsageError(k + " must be " + list + ", got '" + v + "'");
+    }
+    values.push_back(v);
+  }
+  return r;
+}
 
 /// True if `a` and `b` name the same file: std::filesystem::equivalent when both exist (hard
 /// links, symbolic links, ./x vs x), else their weakly canonical paths are compared.

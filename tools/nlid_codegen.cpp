@@ -58,8 +58,6 @@ constexpr const char* kUsage =
 
 using nlid_tools::UsageError;
 
-using nlid_tools::parse_number;
-
 // "throttle-nlarx5.json" -> "throttle_nlarx5": the default prefix of the generated names.
 std::string identifier_from(const std::string& path) {
   std::string s = std::filesystem::path(path).stem().string();
@@ -118,47 +116,32 @@ std::string extrapolation_problem(const nlid::AnyModel& m, const std::string& mo
 int main(int argc, char** argv) {
   std::string stage = "reading the command line", sizes;
   return nlid_tools::guarded_main("nlid-codegen", kUsage, "", stage, sizes, [&]() -> int {
-    std::string model, out, name, x0 = "zero", precision = "double", linear_form = "auto";
-    double ts = 0.0, u0 = 0.0;
-    bool u0_given = false, allow_extrapolation = false;
-    int substeps = 0;
-    nlid_tools::OnceOnly once;
-    for (int i = 1; i < argc; ++i) {
-      const std::string k = argv[i];
-      if (k == "-h" || k == "--help") {
-        std::cout << kUsage;
-        return nlid_tools::exit_ok;
-      }
-      if (k == "--allow-extrapolation") {  // a switch: no value (given twice, it means the same)
-        allow_extrapolation = true;
-        continue;
-      }
-      const bool known = k == "--model" || k == "--out" || k == "--name" || k == "--x0" || k == "--precision" ||
-                         k == "--linear-form" || k == "--ts" || k == "--u0" || k == "--substeps";
-      if (!known) throw UsageError("unknown option '" + k + "'");
-      if (i + 1 >= argc) throw UsageError("option " + k + " needs a value");
-      const std::string v = argv[++i];
-      once(k);
-      if (k == "--model") model = v;
-      else if (k == "--out") out = v;
-      else if (k == "--name") name = v;
-      else if (k == "--x0") x0 = v;
-      else if (k == "--precision") precision = v;
-      else if (k == "--linear-form") linear_form = v;
-      else if (k == "--ts") {
-        ts = parse_number(k, v);
-        if (!(ts > 0)) throw UsageError("--ts must be positive, got '" + v + "'");
-      } else if (k == "--u0") {
-        u0 = parse_number(k, v);
-        u0_given = true;
-      } else if (k == "--substeps") substeps = nlid_tools::parse_int(k, v, 1, 1000000);
+    using nlid_tools::OptionSpec;
+    const nlid_tools::ParsedOptions a =
+        nlid_tools::parse_options(argc, argv,
+                                  {{"--model"},
+                                   {"--out"},
+                                   {"--name"},
+                                   {"--ts"},
+                                   {"--substeps"},
+                                   {"--x0", OptionSpec::once, {"zero", "equilibrium"}},
+                                   {"--u0"},
+                                   {"--allow-extrapolation", OptionSpec::flag},
+                                   {"--precision", OptionSpec::once, {"double", "single"}},
+                                   {"--linear-form", OptionSpec::once, {"auto", "direct", "delta"}}});
+    if (a.help) {
+      std::cout << kUsage;
+      return nlid_tools::exit_ok;
     }
+    const std::string model = a.get("--model"), out = a.get("--out"), name = a.get("--name"),
+                      x0 = a.get("--x0", "zero"), precision = a.get("--precision", "double"),
+                      linear_form = a.get("--linear-form", "auto");
+    const double ts = a.get_number("--ts", 0.0);
+    if (a.has("--ts") && !(ts > 0)) throw UsageError("--ts must be positive, got '" + a.get("--ts") + "'");
+    const double u0 = a.get_number("--u0", 0.0);
+    const bool u0_given = a.has("--u0"), allow_extrapolation = a.has("--allow-extrapolation");
+    const int substeps = a.get_int("--substeps", 1, 1000000, 0);
     if (model.empty() || out.empty()) throw UsageError("--model and --out are required");
-    if (x0 != "zero" && x0 != "equilibrium") throw UsageError("--x0 must be zero or equilibrium, got '" + x0 + "'");
-    if (precision != "double" && precision != "single")
-      throw UsageError("--precision must be double or single, got '" + precision + "'");
-    if (linear_form != "auto" && linear_form != "direct" && linear_form != "delta")
-      throw UsageError("--linear-form must be auto, direct or delta, got '" + linear_form + "'");
     if (linear_form == "delta" && precision != "single")
       throw UsageError("--linear-form delta is for --precision single (double code is nlid's direct form, bit for bit)");
     if (u0_given && x0 != "equilibrium") throw UsageError("--u0 sets the input of --x0 equilibrium; give both");

@@ -65,72 +65,51 @@ using nlid_tools::UsageError;
 int main(int argc, char** argv) {
   std::string stage = "reading the command line", sizes;
   return nlid_tools::guarded_main("nlid-diagnose", usage, "error: ", stage, sizes, [&]() -> int {
-    std::vector<std::string> est_files, val_files;
-    std::string baseline, input = "u", output = "y", json_path, html_path, save_path;
-    nlid_tools::RecordOptions record;
-    bool quiet = false;
-    nlid::DiagnoseOptions opt;
-    nlid_tools::OnceOnly once;
-    std::vector<std::string> args(argv + 1, argv + argc);
-    if (args.empty()) throw UsageError("no arguments");
-    static const char* const with_value[] = {"--baseline",  "--est",    "--val",       "--input",   "--output",
-                                             "--time",      "--ts",     "--delimiter", "--decimal", "--decimate",
-                                             "--starts",    "--max-effects", "--threads", "--json",  "--html",
-                                             "--save",      "--x0",     "--effects"};
-    for (std::size_t i = 0; i < args.size(); ++i) {
-      const std::string& a = args[i];
-      if (a == "--help" || a == "-h") {
-        std::cout << usage;
-        return nlid_tools::exit_ok;
-      }
-      if (a == "--quiet") {
-        quiet = true;
-        continue;
-      }
-      bool known = false;
-      for (const char* f : with_value) known = known || a == f;
-      if (!known) throw UsageError("unknown option '" + a + "'");
-      if (i + 1 >= args.size() || args[i + 1].rfind("--", 0) == 0) throw UsageError("option " + a + " needs a value");
-      const std::string& v = args[++i];
-      if (a != "--est" && a != "--val") once(a);
-      if (a == "--baseline") baseline = v;
-      else if (a == "--est") est_files.push_back(v);
-      else if (a == "--val") val_files.push_back(v);
-      else if (a == "--input") input = v;
-      else if (a == "--output") output = v;
-      else if (a == "--time" || a == "--ts" || a == "--delimiter" || a == "--decimal") {
-        try {
-          nlid_tools::parse_record_option(a, v, record);
-        } catch (const nlid::Error& e) {
-          throw UsageError(e.what());
-        }
-      }
-      else if (a == "--decimate") opt.decimate = nlid_tools::parse_int(a, v, 1, 1000000);
-      else if (a == "--starts") opt.starts = nlid_tools::parse_int(a, v, 1, 10000);
-      else if (a == "--max-effects") opt.max_effects = nlid_tools::parse_int(a, v, 0, 100);
-      else if (a == "--threads") opt.threads = nlid_tools::parse_int(a, v, 1, 4096);
-      else if (a == "--json") json_path = v;
-      else if (a == "--html") html_path = v;
-      else if (a == "--save") save_path = v;
-      else if (a == "--x0") {
-        if (v == "estimate") opt.initial_condition = nlid::InitialCondition::estimate;
-        else if (v == "zero") opt.initial_condition = nlid::InitialCondition::zero;
-        else throw UsageError("--x0 must be 'estimate' or 'zero', got '" + v + "'");
-      } else if (a == "--effects") {
-        std::stringstream ss(v);
-        std::string name;
-        while (std::getline(ss, name, ','))
-          if (!name.empty()) opt.effects.push_back(name);
-      }
+    if (argc < 2) throw UsageError("no arguments");
+    using nlid_tools::OptionSpec;
+    const nlid_tools::ParsedOptions a = nlid_tools::parse_options(
+        argc, argv,
+        nlid_tools::with_record_options({{"--baseline"},
+                                         {"--est", OptionSpec::repeated},
+                                         {"--val", OptionSpec::repeated},
+                                         {"--input"},
+                                         {"--output"},
+                                         {"--decimate"},
+                                         {"--x0", OptionSpec::once, {"estimate", "zero"}},
+                                         {"--starts"},
+                                         {"--max-effects"},
+                                         {"--effects"},
+                                         {"--threads"},
+                                         {"--json"},
+                                         {"--html"},
+                                         {"--save"},
+                                         {"--quiet", OptionSpec::flag}}),
+        /*dashed_value_is_missing=*/true);
+    if (a.help) {
+      std::cout << usage;
+      return nlid_tools::exit_ok;
     }
+    const std::vector<std::string> est_files = a.all("--est"), val_files = a.all("--val");
+    const std::string baseline = a.get("--baseline"), input = a.get("--input", "u"), output = a.get("--output", "y"),
+                      json_path = a.get("--json"), html_path = a.get("--html"), save_path = a.get("--save");
+    const bool quiet = a.has("--quiet");
+    nlid::DiagnoseOptions opt;
+    opt.decimate = a.get_int("--decimate", 1, 1000000, opt.decimate);
+    opt.starts = a.get_int("--starts", 1, 10000, opt.starts);
+    opt.max_effects = a.get_int("--max-effects", 0, 100, opt.max_effects);
+    opt.threads = a.get_int("--threads", 1, 4096, opt.threads);
+    if (a.has("--x0"))
+      opt.initial_condition = a.get("--x0") == "zero" ? nlid::InitialCondition::zero : nlid::InitialCondition::estimate;
+    {
+      std::stringstream ss(a.get("--effects"));
+      std::string name;
+      while (std::getline(ss, name, ','))
+        if (!name.empty()) opt.effects.push_back(name);
+    }
+    const nlid_tools::RecordOptions record = nlid_tools::record_options_from(a);
     if (baseline.empty()) throw UsageError("--baseline is required");
     if (est_files.empty()) throw UsageError("at least one --est file is required");
     if (val_files.empty()) throw UsageError("at least one --val file is required");
-    try {
-      nlid_tools::check_record_options(record);
-    } catch (const nlid::Error& e) {
-      throw UsageError(e.what());
-    }
     // Unknown names fail before any file is read (they list the known ones), located at the flag.
     try {
       (void)nlid::make_physics(baseline);

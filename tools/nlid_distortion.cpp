@@ -43,53 +43,21 @@ int main(int argc, char** argv) {
   std::string stage = "reading the command line", sizes;
   return nlid_tools::guarded_main("nlid-distortion", usage_text(), "", stage, sizes, [&]() -> int {
     using nlid_tools::UsageError;
-    std::string data, json, input = "u", output = "y";
-    long period = 0;
-    int skip = 1;
-    double threshold = 6.0;
-    nlid_tools::RecordOptions record;
-    nlid_tools::OnceOnly once;
-    for (int i = 1; i < argc; ++i) {
-      const std::string k = argv[i];
-      if (k == "-h" || k == "--help") {
-        std::cout << usage_text();
-        return nlid_tools::exit_ok;
-      }
-      const bool known = k == "--data" || k == "--period" || k == "--skip" || k == "--threshold" ||
-                         k == "--input" || k == "--output" || k == "--json" || k == "--time" ||
-                         k == "--ts" || k == "--delimiter" || k == "--decimal";
-      if (!known) throw UsageError("unknown option '" + k + "'");
-      if (i + 1 >= argc) throw UsageError("option " + k + " needs a value");
-      const std::string v = argv[++i];
-      once(k);
-      if (k == "--data")
-        data = v;
-      else if (k == "--period")
-        period = nlid_tools::parse_integer(k, v, 8, 100000000);
-      else if (k == "--skip")
-        skip = nlid_tools::parse_int(k, v, 0, 1000000);
-      else if (k == "--threshold")
-        threshold = nlid_tools::parse_number(k, v);
-      else if (k == "--input")
-        input = v;
-      else if (k == "--output")
-        output = v;
-      else if (k == "--json")
-        json = v;
-      else {
-        try {
-          nlid_tools::parse_record_option(k, v, record);
-        } catch (const nlid::Error& e) {
-          throw UsageError(e.what());
-        }
-      }
+    const nlid_tools::ParsedOptions a = nlid_tools::parse_options(
+        argc, argv,
+        nlid_tools::with_record_options(
+            {{"--data"}, {"--period"}, {"--skip"}, {"--threshold"}, {"--input"}, {"--output"}, {"--json"}}));
+    if (a.help) {
+      std::cout << usage_text();
+      return nlid_tools::exit_ok;
     }
+    const std::string data = a.get("--data"), json = a.get("--json"), input = a.get("--input", "u"),
+                      output = a.get("--output", "y");
+    const long period = a.get_integer("--period", 8, 100000000, 0);
+    const int skip = a.get_int("--skip", 0, 1000000, 1);
+    const double threshold = a.get_number("--threshold", 6.0);
+    const nlid_tools::RecordOptions record = nlid_tools::record_options_from(a);
     if (data.empty() || period == 0) throw UsageError("--data and --period are required");
-    try {
-      nlid_tools::check_record_options(record);
-    } catch (const nlid::Error& e) {
-      throw UsageError(e.what());
-    }
     if (!json.empty()) {
       nlid_tools::check_outputs_distinct({{"--json", json}}, {{"--data", data}});
       nlid_tools::check_output_file("--json", json);

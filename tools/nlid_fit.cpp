@@ -13,6 +13,7 @@
 #include <cstdio>
 #include <iostream>
 #include <limits>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -51,61 +52,45 @@ struct Args {
 
 using nlid_tools::UsageError;
 
-bool takes_value(const std::string& k) {
-  static const char* const known[] = {"--model",      "--est",  "--val",  "--input", "--output",    "--save",
-                                      "--decimate",   "--rows", "--time", "--ts",    "--delimiter", "--decimal",
-                                      "--iterations"};
-  for (const char* f : known)
-    if (k == f) return true;
-  return false;
-}
-
-Args parse(int argc, char** argv) {
+// The command line as Args; nullopt when it asks for the help text.
+std::optional<Args> parse(int argc, char** argv) {
+  using nlid_tools::OptionSpec;
+  const nlid_tools::ParsedOptions p = nlid_tools::parse_options(
+      argc, argv,
+      nlid_tools::with_record_options({{"--model"},
+                                       {"--est", OptionSpec::repeated},
+                                       {"--val", OptionSpec::repeated},
+                                       {"--input"},
+                                       {"--output"},
+                                       {"--save"},
+                                       {"--decimate"},
+                                       {"--rows"},
+                                       {"--iterations"}}));
+  if (p.help) return std::nullopt;
   Args a;
-  nlid_tools::OnceOnly once;
-  for (int i = 1; i < argc; ++i) {
-    const std::string k = argv[i];
-    if (k == "-h" || k == "--help") {
-      std::cout << usage_text();
-      std::exit(0);
-    }
-    if (!takes_value(k)) throw UsageError("unknown option '" + k + "'");
-    if (i + 1 >= argc) throw UsageError("option " + k + " needs a value");
-    const std::string v = argv[++i];
-    if (k != "--est" && k != "--val") once(k);
-    if (k == "--model") a.model = v;
-    else if (k == "--est") a.est.push_back(v);
-    else if (k == "--val") a.val.push_back(v);
-    else if (k == "--input") a.input = v;
-    else if (k == "--output") a.output = v;
-    else if (k == "--save") a.save = v;
-    else if (k == "--decimate") a.decimate = nlid_tools::parse_int(k, v, 1, 1000000);
-    else if (k == "--iterations") a.iterations = nlid_tools::parse_int(k, v, 0, 1000000);
-    else if (k == "--rows") {
-      const auto c = v.find(':');
-      if (c == std::string::npos) throw UsageError("--rows needs FIRST:LAST, got '" + v + "'");
-      a.first = nlid_tools::parse_integer("--rows FIRST", v.substr(0, c), 0, std::numeric_limits<long>::max());
-      a.last = nlid_tools::parse_integer("--rows LAST", v.substr(c + 1), 0, std::numeric_limits<long>::max());
-      if (a.last <= a.first) throw UsageError("--rows " + v + " needs 0 <= FIRST < LAST (rows FIRST..LAST-1 are kept)");
-    } else {
-      try {
-        nlid_tools::parse_record_option(k, v, a.record);
-      } catch (const nlid::Error& e) {
-        throw UsageError(e.what());
-      }
-    }
+  a.model = p.get("--model");
+  a.est = p.all("--est");
+  a.val = p.all("--val");
+  a.input = p.get("--input", a.input);
+  a.output = p.get("--output", a.output);
+  a.save = p.get("--save");
+  a.decimate = p.get_int("--decimate", 1, 1000000, a.decimate);
+  a.iterations = p.get_int("--iterations", 0, 1000000, a.iterations);
+  if (p.has("--rows")) {
+    const std::string v = p.get("--rows");
+    const auto c = v.find(':');
+    if (c == std::string::npos) throw UsageError("--rows needs FIRST:LAST, got '" + v + "'");
+    a.first = nlid_tools::parse_integer("--rows FIRST", v.substr(0, c), 0, std::numeric_limits<long>::max());
+    a.last = nlid_tools::parse_integer("--rows LAST", v.substr(c + 1), 0, std::numeric_limits<long>::max());
+    if (a.last <= a.first) throw UsageError("--rows " + v + " needs 0 <= FIRST < LAST (rows FIRST..LAST-1 are kept)");
   }
+  a.record = nlid_tools::record_options_from(p);
   if (a.model.empty()) throw UsageError("--model SPEC is required");
   if (a.est.empty()) throw UsageError("at least one --est FILE is required");
   if (a.save.empty()) throw UsageError("--save FILE is required");
-  try {
-    nlid_tools::check_record_options(a.record);
-  } catch (const nlid::Error& e) {
-    throw UsageError(e.what());
-  }
   std::vector<nlid_tools::FlagPath> inputs;
-  for (const auto& p : a.est) inputs.emplace_back("--est", p);
-  for (const auto& p : a.val) inputs.emplace_back("--val", p);
+  for (const auto& f : a.est) inputs.emplace_back("--est", f);
+  for (const auto& f : a.val) inputs.emplace_back("--val", f);
   nlid_tools::check_outputs_distinct({{"--save", a.save}}, inputs);
   return a;
 }
@@ -155,7 +140,12 @@ void print_fit_row(const char* role, const nlid::AnyModel& m, const nlid::Experi
 int main(int argc, char** argv) {
   std::string stage = "reading the command line", sizes;
   return nlid_tools::guarded_main("nlid-fit", usage_text(), "", stage, sizes, [&]() -> int {
-    const Args a = parse(argc, argv);
+    const std::optional<Args> parsed = parse(argc, argv);
+    if (!parsed) {
+      std::cout << usage_text();
+      return nlid_tools::exit_ok;
+    }
+    const Args& a = *parsed;
     nlid::ModelSpec spec;
     try {
       spec = nlid::parse_model_spec(a.model);

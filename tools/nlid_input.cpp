@@ -75,67 +75,64 @@ int main(int argc, char** argv) {
         {"multisine", {"--period", "--periods", "--band", "--lines", "--phases", "--seed"}},
     };
     const std::vector<std::string> common = {"--signal", "--ts", "--out", "--levels", "--column"};
-    std::map<std::string, std::string> opt;
-    nlid_tools::OnceOnly once;
-    for (int i = 1; i < argc; ++i) {
-      const std::string k = argv[i];
-      if (k == "-h" || k == "--help") {
-        std::cout << kUsage;
-        return nlid_tools::exit_ok;
-      }
-      bool known = std::find(common.begin(), common.end(), k) != common.end();
-      for (const auto& [s, keys] : applies)
-        known = known || std::find(keys.begin(), keys.end(), k) != keys.end();
-      if (!known) throw UsageError("unknown option '" + k + "'");
-      if (i + 1 >= argc) throw UsageError("option " + k + " needs a value");
-      once(k);
-      opt[k] = argv[++i];
+    using nlid_tools::OptionSpec;
+    const nlid_tools::ParsedOptions a = nlid_tools::parse_options(
+        argc, argv,
+        {{"--signal", OptionSpec::once, {"prbs", "random-steps", "random-binary", "random-gaussian", "multisine"}},
+         {"--ts"},
+         {"--out"},
+         {"--levels"},
+         {"--column"},
+         {"--bits"},
+         {"--periods"},
+         {"--hold"},
+         {"--samples"},
+         {"--seed"},
+         {"--band"},
+         {"--period"},
+         {"--lines", OptionSpec::once, {"all", "odd", "random-odd"}},
+         {"--phases", OptionSpec::once, {"schroeder", "random"}}});
+    if (a.help) {
+      std::cout << kUsage;
+      return nlid_tools::exit_ok;
     }
-    auto has = [&](const std::string& k) { return opt.count(k) > 0; };
-    if (!has("--signal") || !has("--ts") || !has("--out"))
+    if (!a.has("--signal") || !a.has("--ts") || !a.has("--out"))
       throw UsageError("--signal, --ts and --out are required");
-    const std::string signal = opt["--signal"];
+    const std::string signal = a.get("--signal");
     const auto it = applies.find(signal);
-    if (it == applies.end())
-      throw UsageError(
-          "--signal must be prbs, random-steps, random-binary, random-gaussian or multisine, got "
-          "'" +
-          signal + "'");
-    for (const auto& [k, v] : opt) {
+    for (const auto& [k, v] : a.given) {
       if (std::find(common.begin(), common.end(), k) != common.end()) continue;
       if (std::find(it->second.begin(), it->second.end(), k) == it->second.end())
         throw UsageError("option " + k + " does not apply to --signal " + signal);
     }
-    const double ts = nlid_tools::parse_number("--ts", opt["--ts"]);
+    const double ts = nlid_tools::parse_number("--ts", a.get("--ts"));
     if (!(ts > 0.0))
-      throw UsageError("--ts needs a positive sample time in seconds, got '" + opt["--ts"] + "'");
+      throw UsageError("--ts needs a positive sample time in seconds, got '" + a.get("--ts") + "'");
     nlid::InputLevels levels;
-    if (has("--levels")) {
-      const auto [lo, hi] = parse_pair("--levels", opt["--levels"]);
-      if (!(lo < hi)) throw UsageError("--levels needs LO < HI, got '" + opt["--levels"] + "'");
+    if (a.has("--levels")) {
+      const auto [lo, hi] = parse_pair("--levels", a.get("--levels"));
+      if (!(lo < hi)) throw UsageError("--levels needs LO < HI, got '" + a.get("--levels") + "'");
       levels = {lo, hi};
     }
     nlid::InputBand band;
-    if (has("--band")) {
-      const auto [lo, hi] = parse_pair("--band", opt["--band"]);
+    if (a.has("--band")) {
+      const auto [lo, hi] = parse_pair("--band", a.get("--band"));
       if (!(lo >= 0.0 && lo < hi && hi <= 1.0))
         throw UsageError(
             "--band needs 0 <= LO < HI <= 1 (fractions of the Nyquist frequency), got '" +
-            opt["--band"] + "'");
+            a.get("--band") + "'");
       band = {lo, hi};
     }
-    const std::string column = has("--column") ? opt["--column"] : "u";
+    const std::string column = a.get("--column", "u");
     if (column.empty() || column == "t" || column.find_first_of(",;\"\n\r\t") != std::string::npos)
       throw UsageError("--column needs a plain name other than 't', got '" + column + "'");
-    const auto seed = static_cast<std::uint64_t>(
-        has("--seed") ? nlid_tools::parse_integer("--seed", opt["--seed"], 0,
-                                                  std::numeric_limits<long>::max())
-                      : 1);
+    const auto seed =
+        static_cast<std::uint64_t>(a.get_integer("--seed", 0, std::numeric_limits<long>::max(), 1));
     auto required = [&](const std::string& k) {
-      if (!has(k)) throw UsageError("--signal " + signal + " needs " + k);
-      return opt[k];
+      if (!a.has(k)) throw UsageError("--signal " + signal + " needs " + k);
+      return a.get(k);
     };
-    const std::string out = opt["--out"];
+    const std::string out = a.get("--out");
     nlid_tools::check_output_file("--out", out);
 
     Eigen::VectorXd u;
@@ -146,10 +143,8 @@ int main(int argc, char** argv) {
       if (signal == "prbs") {
         const int bits =
             nlid_tools::parse_int("--bits", required("--bits"), 2, nlid::prbs_max_bits);
-        const int periods =
-            has("--periods") ? nlid_tools::parse_int("--periods", opt["--periods"], 1, 1000000) : 1;
-        const int hold =
-            has("--hold") ? nlid_tools::parse_int("--hold", opt["--hold"], 1, 1000000) : 1;
+        const int periods = a.get_int("--periods", 1, 1000000, 1);
+        const int hold = a.get_int("--hold", 1, 1000000, 1);
         if (((1L << bits) - 1) * static_cast<long>(periods) * hold > (1L << 31))
           throw UsageError("(2^--bits - 1) x --periods x --hold is more than 2^31 samples");
         stage = "generating the PRBS";
@@ -165,24 +160,12 @@ int main(int argc, char** argv) {
         o.band = band;
         o.levels = levels;
         o.seed = seed;
-        o.periods =
-            has("--periods") ? nlid_tools::parse_int("--periods", opt["--periods"], 1, 1000000) : 1;
-        const std::string lines = has("--lines") ? opt["--lines"] : "all";
-        if (lines == "all")
-          o.lines = nlid::MultisineLines::all;
-        else if (lines == "odd")
-          o.lines = nlid::MultisineLines::odd;
-        else if (lines == "random-odd")
-          o.lines = nlid::MultisineLines::random_odd;
-        else
-          throw UsageError("--lines must be all, odd or random-odd, got '" + lines + "'");
-        const std::string phases = has("--phases") ? opt["--phases"] : "schroeder";
-        if (phases == "schroeder")
-          o.phases = nlid::MultisinePhases::schroeder;
-        else if (phases == "random")
-          o.phases = nlid::MultisinePhases::random;
-        else
-          throw UsageError("--phases must be schroeder or random, got '" + phases + "'");
+        o.periods = a.get_int("--periods", 1, 1000000, 1);
+        const std::string lines = a.get("--lines"), phases = a.get("--phases");
+        o.lines = lines == "odd"          ? nlid::MultisineLines::odd
+                  : lines == "random-odd" ? nlid::MultisineLines::random_odd
+                                          : nlid::MultisineLines::all;
+        o.phases = phases == "random" ? nlid::MultisinePhases::random : nlid::MultisinePhases::schroeder;
         const long period =
             nlid_tools::parse_integer("--period", required("--period"), 4, 10000000);
         if (period * static_cast<long>(o.periods) > (1L << 31))
@@ -205,7 +188,7 @@ int main(int argc, char** argv) {
                 hi <= static_cast<double>(n)))
             throw UsageError(
                 "--hold needs whole sample counts 1 <= MIN <= MAX <= --samples, got '" +
-                opt["--hold"] + "'");
+                a.get("--hold") + "'");
           stage = "generating the random steps";
           u = nlid::random_steps(n, static_cast<Eigen::Index>(lo), static_cast<Eigen::Index>(hi),
                                  levels, seed);

@@ -40,43 +40,23 @@ int main(int argc, char** argv) {
   std::string stage = "reading the command line", sizes;
   return nlid_tools::guarded_main("nlid-sim", usage_text(), "", stage, sizes, [&]() -> int {
     using nlid_tools::UsageError;
-    std::string model, input, out, x0 = "zero", column;
-    int decimate = 1;
-    nlid_tools::RecordOptions record;
-    nlid_tools::OnceOnly once;
-    for (int i = 1; i < argc; ++i) {
-      const std::string k = argv[i];
-      if (k == "-h" || k == "--help") {
-        std::cout << usage_text();
-        return nlid_tools::exit_ok;
-      }
-      const bool known = k == "--model" || k == "--input" || k == "--out" || k == "--x0" || k == "--column" ||
-                         k == "--decimate" || k == "--time" || k == "--ts" || k == "--delimiter" || k == "--decimal";
-      if (!known) throw UsageError("unknown option '" + k + "'");
-      if (i + 1 >= argc) throw UsageError("option " + k + " needs a value");
-      const std::string v = argv[++i];
-      once(k);
-      if (k == "--model") model = v;
-      else if (k == "--input") input = v;
-      else if (k == "--out") out = v;
-      else if (k == "--x0") x0 = v;
-      else if (k == "--column") column = v;
-      else if (k == "--decimate") decimate = nlid_tools::parse_int(k, v, 1, 1000000);
-      else {
-        try {
-          nlid_tools::parse_record_option(k, v, record);
-        } catch (const nlid::Error& e) {
-          throw UsageError(e.what());
-        }
-      }
+    const nlid_tools::ParsedOptions a = nlid_tools::parse_options(
+        argc, argv,
+        nlid_tools::with_record_options({{"--model"},
+                                         {"--input"},
+                                         {"--out"},
+                                         {"--x0", nlid_tools::OptionSpec::once, {"zero", "equilibrium"}},
+                                         {"--column"},
+                                         {"--decimate"}}));
+    if (a.help) {
+      std::cout << usage_text();
+      return nlid_tools::exit_ok;
     }
+    const std::string model = a.get("--model"), input = a.get("--input"), out = a.get("--out"),
+                      x0 = a.get("--x0", "zero"), column = a.get("--column");
+    const int decimate = a.get_int("--decimate", 1, 1000000, 1);
+    const nlid_tools::RecordOptions record = nlid_tools::record_options_from(a);
     if (model.empty() || input.empty() || out.empty()) throw UsageError("--model, --input and --out are required");
-    try {
-      nlid_tools::check_record_options(record);
-    } catch (const nlid::Error& e) {
-      throw UsageError(e.what());
-    }
-    if (x0 != "zero" && x0 != "equilibrium") throw UsageError("--x0 must be zero or equilibrium, got '" + x0 + "'");
     nlid_tools::check_outputs_distinct({{"--out", out}}, {{"--model", model}, {"--input", input}});
     nlid_tools::check_output_file("--out", out);
 

@@ -65,6 +65,28 @@ inline void check_record_options(const RecordOptions& o) {
     throw nlid::Error("--decimal , needs another field separator, e.g. --delimiter ';'", nlid::at_parameter("--decimal"));
 }
 
+inline constexpr const char* record_option_names[] = {"--time", "--ts", "--delimiter", "--decimal"};
+
+/// The options in a tool's table (parse_options), after the tool's own.
+inline std::vector<OptionSpec> with_record_options(std::vector<OptionSpec> options) {
+  for (const char* name : record_option_names) options.push_back({name});
+  return options;
+}
+
+/// The record options of a parsed command line. The tools treat a bad value, or a pair that
+/// cannot work together, as a bad command line (exit 2), with the option named.
+inline RecordOptions record_options_from(const ParsedOptions& p) {
+  RecordOptions o;
+  try {
+    for (const char* name : record_option_names)
+      if (p.has(name)) parse_record_option(name, p.get(name), o);
+    check_record_options(o);
+  } catch (const nlid::Error& e) {
+    throw UsageError(e.what());
+  }
+  return o;
+}
+
 /// True if the header of `path` (its first line that is neither blank nor a '#' comment), split
 /// as read_csv splits it, names a column `name`. Unreadable or malformed files answer true:
 /// read_csv then reports the problem with its location.

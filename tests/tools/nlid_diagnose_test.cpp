@@ -36,7 +36,7 @@ TEST_CASE("nlid-diagnose: help and usage errors", "[tools][diagnose]") {
   CHECK_THAT(r.err, Catch::Contains("--decimate needs an integer from 1 to 1000000, got 'zero'"));
   r = diagnose("--baseline throttle --est a.csv --val b.csv --x0 measured");
   CHECK(r.code == 2);
-  CHECK_THAT(r.err, Catch::Contains("--x0 must be 'estimate' or 'zero'"));
+  CHECK_THAT(r.err, Catch::Contains("--x0 must be estimate or zero, got 'measured'"));
 }
 
 TEST_CASE("nlid-diagnose: unknown baseline lists the catalogue", "[tools][diagnose]") {
