@@ -146,17 +146,32 @@ struct ParameterUncertainty {
       }
       s += line + "\n";
     }
-    for (const Eigen::VectorXd& v : unidentifiable) {
-      std::string combo;
+    // At most five directions, each by its five largest relative changes: an over-parametrised
+    // network can have dozens, each touching most parameters a little.
+    constexpr std::size_t max_directions = 5;
+    constexpr std::size_t max_terms = 5;
+    for (std::size_t dir = 0; dir < unidentifiable.size() && dir < max_directions; ++dir) {
+      const Eigen::VectorXd& v = unidentifiable[dir];
+      auto size_of = [&](Eigen::Index i) { return theta[i] != 0.0 ? std::abs(v[i] / theta[i]) : std::abs(v[i]); };
+      std::vector<Eigen::Index> order;
       for (Eigen::Index i = 0; i < v.size(); ++i) {
-        if (v[i] == 0.0) continue;
+        if (v[i] != 0.0 && (theta[i] == 0.0 || 100.0 * size_of(i) >= 0.01)) order.push_back(i);
+      }
+      std::stable_sort(order.begin(), order.end(), [&](Eigen::Index a, Eigen::Index b) { return size_of(a) > size_of(b); });
+      std::string combo;
+      for (std::size_t t = 0; t < order.size() && t < max_terms; ++t) {
+        const Eigen::Index i = order[t];
         const double rel = theta[i] != 0.0 ? 100.0 * v[i] / std::abs(theta[i]) : 0.0;
-        if (theta[i] != 0.0 && std::abs(rel) < 0.01) continue;
         if (!combo.empty()) combo += " with ";
         combo += names[static_cast<std::size_t>(i)] + " " +
                  (theta[i] != 0.0 ? (rel >= 0 ? "+" : "") + num(rel) + " %" : (v[i] >= 0 ? "+" : "") + num(v[i]));
       }
+      if (order.size() > max_terms) combo += " (and " + std::to_string(order.size() - max_terms) + " smaller changes)";
       s += "  not identifiable from these data: " + combo + " leaves the residuals unchanged\n";
+    }
+    if (unidentifiable.size() > max_directions) {
+      s += "  ... and " + std::to_string(unidentifiable.size() - max_directions) +
+           " more undetermined directions (ParameterUncertainty::unidentifiable)\n";
     }
     for (Eigen::Index i = 0; i < n; ++i) {
       for (Eigen::Index j = i + 1; j < n; ++j) {
@@ -346,7 +361,8 @@ ParameterUncertainty parameter_uncertainty(const Pb& problem, const Eigen::Vecto
   const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(H);
   const double lmax = std::max(eig.eigenvalues().maxCoeff(), 0.0);
   Eigen::MatrixXd Hpinv = Eigen::MatrixXd::Zero(k, k);
-  std::vector<bool> undetermined(static_cast<std::size_t>(k), false);
+  // Share of each parameter's unit vector in the undetermined subspace.
+  Eigen::VectorXd null_share = Eigen::VectorXd::Zero(k);
   for (Eigen::Index j = 0; j < k; ++j) {
     const double lam = eig.eigenvalues()[j];
     const Eigen::VectorXd v = eig.eigenvectors().col(j);
@@ -362,8 +378,7 @@ ParameterUncertainty parameter_uncertainty(const Pb& problem, const Eigen::Vecto
       const int i = idx[static_cast<std::size_t>(c)];
       const double vi = d[c] > 0.0 ? v[c] / d[c] : v[c];
       delta[i] = vi;
-      // A parameter takes part if its share of the direction is not negligible.
-      if (std::abs(v[c]) > 1e-3) undetermined[static_cast<std::size_t>(c)] = true;
+      null_share[c] += v[c] * v[c];
       big = std::max(big, theta[i] != 0.0 ? std::abs(vi / theta[i]) : std::abs(vi));
     }
     if (big > 0.0) delta *= 0.01 / big;
@@ -373,9 +388,14 @@ ParameterUncertainty parameter_uncertainty(const Pb& problem, const Eigen::Vecto
     }
     out.unidentifiable.push_back(delta);
   }
-  for (Eigen::Index c = 0; c < k; ++c) {
-    if (d[c] == 0.0) undetermined[static_cast<std::size_t>(c)] = true;
-  }
+  // A parameter is not identifiable if more than 1 % of its squared unit vector lies in the
+  // undetermined subspace (a 10 % component): moving along those directions moves it freely.
+  // Below that, the pseudo-inverse's value is its deviation with the undetermined combinations
+  // pinned — the case of parameters that only graze a nearly degenerate direction, e.g. the
+  // linear block of a Hammerstein–Wiener model whose estimated initial states include a mode
+  // that decays within a sample.
+  std::vector<bool> undetermined(static_cast<std::size_t>(k), false);
+  for (Eigen::Index c = 0; c < k; ++c) undetermined[static_cast<std::size_t>(c)] = d[c] == 0.0 || null_share[c] > 0.01;
 
   // White: σ² D⁻¹ H⁺ D⁻¹.
   const Eigen::MatrixXd Pw = out.noise_variance * dinv.asDiagonal() * Hpinv * dinv.asDiagonal();

@@ -6,9 +6,11 @@
 ///
 /// The criterion is read from the model's estimation report — prediction or simulation focus,
 /// and the initial condition (estimated initial states are taken from the report and counted as
-/// unknowns, as they were during estimation) — unless the options say otherwise. Computed after
-/// estimation rather than inside it: one Jacobian pass plus the lag sums, which for a 47-parameter
-/// nlarx5 cost about as much as a third of its estimation, and are wanted only when asked for.
+/// unknowns, as they were during estimation) — unless the options say otherwise, so the same
+/// call also answers "how well would these (other) data determine the model". Computed on
+/// request rather than inside `estimate()`: cheap (one Jacobian pass plus the lag sums: 32 ms
+/// for the study's nlarx5, whose estimation takes 0.6 s; 8 ms for nlhw1), but for network
+/// nonlinearities mostly a statement about the parametrisation (below).
 ///
 /// What to expect: the linear parts and the saturation limits of a Hammerstein–Wiener model are
 /// usually well determined; the units of a sigmoid or wavelet network are not individually
