@@ -243,6 +243,24 @@ TEST_CASE("Uncertainty of the throttle estimate: the truth lies within a few sig
   CHECK(u.stddev[0] / u.stddev_white[0] == Approx(1.0).margin(0.3));
   CHECK_THAT(r.report(), Catch::Contains("c          = ") && Catch::Contains("+- ") &&
                              Catch::Contains("rest       = 0  (fixed)") && !Catch::Contains("x0[0].y"));
+
+  // Afterwards, from the model alone: the same numbers to the solvers' tolerances (initial
+  // states re-fitted with the parameters held land where estimation left them) ...
+  const nlid::ParameterUncertainty again = nlid::parameter_uncertainty(m, d);
+  for (int i = 0; i < 11; ++i) CHECK(again.stddev[i] == Approx(u.stddev[i]).epsilon(1e-3));
+  // ... also for a copy that has the parameters but no stored initial states.
+  GreyBox<physics::Throttle> copy;
+  copy.set_parameters(m.parameters());
+  copy.fix("rest");
+  const nlid::ParameterUncertainty fresh = nlid::parameter_uncertainty(copy, d);
+  for (int i = 0; i < 6; ++i) CHECK(fresh.stddev[i] == Approx(u.stddev[i]).epsilon(1e-3));
+  // Another initial condition: no state unknowns.
+  nlid::GreyBoxUncertaintyOptions zero;
+  zero.initial_condition = InitialCondition::zero;
+  CHECK(nlid::parameter_uncertainty(m, d, zero).theta.size() == 7);
+  // Data the physics cannot read are named.
+  const Dataset wide(nlid::Experiment(Eigen::MatrixXd::Zero(40, 2), Eigen::VectorXd::Zero(40), 0.01, "wide"));
+  CHECK_THROWS_WITH(nlid::parameter_uncertainty(m, wide), Catch::Contains("wide"));
 }
 
 TEST_CASE("Uncertainty of a grey-box estimate matches the spread over Monte Carlo records",

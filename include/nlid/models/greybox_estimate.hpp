@@ -160,7 +160,87 @@ class ScaledProblem {
   Eigen::VectorXd scale_;
 };
 
+// Uncertainty of θ = [p; x₀…] of `problem` in the model's own units: the model's names, bounds
+// and fixed flags (initial states free and unbounded), one residual series per experiment and
+// output (rows are sample-major: output j of experiment e starts at its offset + j, stride n_y).
+template <Physics P>
+ParameterUncertainty greybox_uncertainty(const GreyBox<P>& model, const GreyBoxProblem<P>& problem, const Dataset& data,
+                                         const Eigen::VectorXd& theta, UncertaintyOptions uo) {
+  const int n = problem.num_parameters(), np = model.num_parameters(), nx = model.state_dimension();
+  const double inf = std::numeric_limits<double>::infinity();
+  uo.fixed = problem.fixed_mask();
+  uo.lower_bounds = Eigen::VectorXd::Constant(n, -inf);
+  uo.upper_bounds = Eigen::VectorXd::Constant(n, inf);
+  uo.names.clear();
+  for (int i = 0; i < np; ++i) {
+    const ParameterInfo& q = model.parameter_info()[static_cast<std::size_t>(i)];
+    uo.lower_bounds[i] = q.lower;
+    uo.upper_bounds[i] = q.upper;
+    uo.names.push_back(q.name);
+  }
+  for (std::size_t e = 0; e < data.size() && problem.state_column(e) >= 0; ++e) {
+    for (int i = 0; i < nx; ++i) {
+      uo.names.push_back("x0[" + std::to_string(e) + "]." + model.state_info()[static_cast<std::size_t>(i)].name);
+    }
+  }
+  const int ny = model.output_dimension();
+  uo.series.clear();
+  for (std::size_t e = 0; e < data.size(); ++e) {
+    for (int j = 0; j < ny; ++j) {
+      uo.series.push_back({problem.residual_offset(e) + j, static_cast<Eigen::Index>(data[e].size()), ny});
+    }
+  }
+  return parameter_uncertainty(problem, theta, uo);
+}
+
 }  // namespace detail
+
+/// Settings of `parameter_uncertainty(GreyBox, data)`.
+struct GreyBoxUncertaintyOptions {
+  /// How each experiment's simulation starts. `estimate`: x₀ per experiment is an unknown, first
+  /// fitted to these data with the parameters held (starting from the model's stored states
+  /// when there is one per experiment), as estimation would have left it.
+  InitialCondition initial_condition = InitialCondition::estimate;
+  /// Formula settings (names, series, bounds and fixed flags are filled in from the model).
+  UncertaintyOptions uncertainty;
+};
+
+/// Uncertainty of a grey-box model's parameters on `data` at its current values — e.g. of a model
+/// loaded from a file, or "how well would this other record determine the parameters". (An
+/// estimation reports the same in `GreyBoxEstimate::uncertainty`.) Throws `nlid::Error` for data
+/// that do not fit the physics, an inapplicable initial condition, or a model that cannot be
+/// simulated on the data.
+template <Physics P>
+ParameterUncertainty parameter_uncertainty(const GreyBox<P>& model, const Dataset& data,
+                                           const GreyBoxUncertaintyOptions& options = {}) {
+  require(data.size() > 0, "parameter_uncertainty: empty data set", at_parameter("data"));
+  model.check_channels(data);
+  const int np = model.num_parameters(), nx = model.state_dimension();
+  const GreyBoxProblem<P> problem(model.physics(), model.integrator(), data, options.initial_condition,
+                                  model.fixed_flags());
+  Eigen::VectorXd theta(problem.num_parameters());
+  theta.head(np) = model.parameters();
+  if (options.initial_condition == InitialCondition::estimate) {
+    // Initial states fitted with the parameters held: the residuals the formula assumes are
+    // those at an optimum.
+    const GreyBoxProblem<P> states(model.physics(), model.integrator(), data, InitialCondition::estimate, {}, true,
+                                   model.parameters());
+    Eigen::VectorXd x(states.num_parameters());
+    const auto& stored = model.estimated_initial_states();
+    bool have = stored.size() == data.size();
+    for (const auto& x0 : stored) have = have && x0.size() == nx;
+    if (have) {
+      for (std::size_t e = 0; e < data.size(); ++e) x.segment(states.state_column(e), nx) = stored[e];
+    } else {
+      states.refresh_initial_states(x);
+    }
+    LmOptions lm;
+    lm.max_iterations = 50;
+    solve_least_squares(states, x, lm);
+    theta.tail(x.size()) = x;
+  }
+  return detail::greybox_uncertainty(model, problem, data, theta, options.uncertainty);
+}
 
 /// Estimates the free parameters of `model` (and initial states) from `data` by simulation
 /// error; updates the model and returns the report. Throws `nlid::Error` on a channel mismatch,
@@ -298,23 +378,11 @@ GreyBoxEstimate estimate(GreyBox<P>& model, const Dataset& data,
   }
   model.set_estimated_initial_states(out.initial_states);
 
-  // Uncertainty in the model's own units: one residual series per experiment and output (rows
-  // are sample-major, so output j of experiment e starts at its offset + j with stride n_y).
-  UncertaintyOptions uo;
-  uo.fixed = ms.lm.fixed;
-  uo.names = ms.lm.parameter_names;
-  uo.lower_bounds = ms.lm.lower_bounds.cwiseProduct(scale);
-  uo.upper_bounds = ms.lm.upper_bounds.cwiseProduct(scale);
-  uo.caveat = uncertainty_caveat(options.multi_start.lm);
-  const int ny = model.output_dimension();
-  for (std::size_t e = 0; e < data.size(); ++e) {
-    for (int j = 0; j < ny; ++j) {
-      uo.series.push_back({problem.residual_offset(e) + j, static_cast<Eigen::Index>(data[e].size()), ny});
-    }
-  }
   // The estimate stands even where its uncertainty cannot be computed; the report says why.
+  UncertaintyOptions uo;
+  uo.caveat = uncertainty_caveat(options.multi_start.lm);
   try {
-    out.uncertainty = parameter_uncertainty(problem, theta, uo);
+    out.uncertainty = detail::greybox_uncertainty(model, problem, data, theta, uo);
   } catch (const Error& err) {
     out.uncertainty.caveat = std::string("no uncertainty: ") + err.what();
   }
