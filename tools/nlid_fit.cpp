@@ -190,6 +190,8 @@ int main(int argc, char** argv) {
     nlid::SpecFitOptions fo;
     fo.iterations = a.iterations;
     fo.progress = [](const std::string& s) { std::cerr << "  " << s << "\n"; };
+    std::optional<nlid::ParameterUncertainty> uncertainty;
+    fo.uncertainty = [&uncertainty](const nlid::ParameterUncertainty& u) { uncertainty = u; };
     // With regularization the cost includes the penalty, so it no longer measures the fit.
     const bool penalised = spec.lambda > 0.0;
     fo.callback = [yss, penalised](const nlid::IterationReport& r) {
@@ -216,6 +218,9 @@ int main(int argc, char** argv) {
     std::printf("%-12s %-30s %10s %14s\n", "data", "experiment", "fit %", "rmse");
     for (const auto& e : est) print_fit_row("estimation", m, e);
     for (const auto& e : val) print_fit_row("validation", m, e);
+    // How well the estimation data determine the model's parameters (nlarx, hw, greybox; the
+    // estimated initial states are unknowns of the formula but not listed).
+    if (uncertainty) std::printf("%s", uncertainty->report(static_cast<int>(m.parameters().size())).c_str());
     std::printf("saved %s\n", a.save.c_str());
     return nlid_tools::exit_ok;
   });

@@ -116,7 +116,7 @@ TEST_CASE("white formula: a linear regression's covariance is sigma^2 (X'X)^-1 e
   CHECK_THAT(u.report(), Contains("white residuals") && Contains("a = ") && Contains("+- "));
 }
 
-TEST_CASE("correlated formula: H^-1 S H^-1 with Bartlett-weighted lag sums inside each series",
+TEST_CASE("correlated formula: H^-1 S H^-1 with Bartlett-weighted lag sums inside each series, leverage-corrected",
           "[estimation][uncertainty]") {
   std::mt19937_64 gen(5);
   const Quadratic q(ar1_noise(120, 0.6, 0.1, gen));
@@ -128,10 +128,15 @@ TEST_CASE("correlated formula: H^-1 S H^-1 with Bartlett-weighted lag sums insid
   o.series = {{0, 50, 1}, {50, 70, 1}};  // two records: no lag product crosses row 49 → 50
   const ParameterUncertainty u = nlid::parameter_uncertainty(pb, th, o);
 
-  // The defining sums, written out (in parameter units: the normalisation cancels).
+  // The defining sums, written out (in parameter units: the normalisation cancels), with each
+  // residual divided by √(1 − h_t), h_t the leverage of row t.
   const Eigen::VectorXd e = q.X * th - q.y;
+  const Eigen::Matrix3d XtXi = (q.X.transpose() * q.X).inverse();
   Eigen::Matrix3d S = Eigen::Matrix3d::Zero();
-  auto g = [&](Eigen::Index t) -> Eigen::Vector3d { return q.X.row(t).transpose() * e[t]; };
+  auto g = [&](Eigen::Index t) -> Eigen::Vector3d {
+    const double h = q.X.row(t) * XtXi * q.X.row(t).transpose();
+    return q.X.row(t).transpose() * e[t] / std::sqrt(1.0 - h);
+  };
   for (Eigen::Index t = 0; t < 120; ++t) S += g(t) * g(t).transpose();
   for (const auto& s : o.series) {
     for (int tau = 1; tau <= 3; ++tau) {
@@ -142,8 +147,7 @@ TEST_CASE("correlated formula: H^-1 S H^-1 with Bartlett-weighted lag sums insid
     }
   }
   S *= 120.0 / 117.0;
-  const Eigen::Matrix3d Hi = (q.X.transpose() * q.X).inverse();
-  const Eigen::Matrix3d P = Hi * S * Hi;
+  const Eigen::Matrix3d P = XtXi * S * XtXi;
   CHECK(u.max_lag == 3);
   CHECK((u.covariance - P).cwiseAbs().maxCoeff() < 1e-10 * P.cwiseAbs().maxCoeff());
 

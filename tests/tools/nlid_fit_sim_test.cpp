@@ -53,6 +53,10 @@ TEST_CASE("nlid-fit + nlid-sim: a nonlinear ARX model of a known first-order lag
   INFO(f.err);
   REQUIRE(f.code == 0);
   CHECK_THAT(f.out, Catch::Contains("fit"));
+  // Each parameter with its standard deviation on the estimation data, before the last line.
+  CHECK_THAT(f.out, Catch::Contains("Parameter uncertainty (1 sigma; correlated residuals") && Catch::Contains("+- ") &&
+                        Catch::Contains("unknowns, rank 3;"));
+  CHECK(f.out.find("Parameter uncertainty") < f.out.find("saved "));
   REQUIRE(fs::exists(model));
   const nlid::Json j = nlid::Json::parse(slurp(model));
   CHECK(j["format"].as_string() == "nlid-model");

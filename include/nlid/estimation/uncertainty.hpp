@@ -14,7 +14,8 @@
 /// formula then understates the spread of θ̂ — several times over on real records. So the
 /// default estimates S from the residuals themselves (Newey & West 1987: the lag sums weighted
 /// by Bartlett's window 1 − τ/(M+1), which keeps S positive semi-definite), with M from
-/// Andrews' (1991) AR(1) plug-in rule unless a lag is given. Both standard deviations are
+/// Andrews' (1991) AR(1) plug-in rule unless a lag is given, after prewhitening the scores
+/// (Andrews & Monahan 1992) and undoing each residual's shrinkage by its leverage (HC2). Both standard deviations are
 /// returned; their ratio says how far from white the residuals are.
 ///
 /// Identifiability. H is formed from the column-normalised Jacobian (every column scaled to
@@ -402,7 +403,13 @@ ParameterUncertainty parameter_uncertainty(const Pb& problem, const Eigen::Vecto
   Eigen::MatrixXd P = Pw;
   if (options.residuals == ResidualModel::correlated) {
     // Scores ĝ(t) = Ĵ(t)ᵀ e(t); S = Σ_t ĝĝᵀ + Σ_{τ=1..M} w_τ Σ_t (ĝ(t)ĝ(t−τ)ᵀ + ĝ(t−τ)ĝ(t)ᵀ).
-    Eigen::MatrixXd G = r.asDiagonal() * Jn;
+    // Leverage (MacKinnon & White 1985, "HC2"): a residual that parameters can fit on their own
+    // — the first samples of a record whose initial state is estimated — comes out shrunk by
+    // √(1 − h_t), h_t = ψ̂(t)ᵀH⁺ψ̂(t), and would make those parameters look exact; divide it back.
+    const Eigen::VectorXd h = ((Jn * Hpinv).cwiseProduct(Jn)).rowwise().sum();
+    Eigen::VectorXd rs(m);
+    for (Eigen::Index t = 0; t < m; ++t) rs[t] = r[t] / std::sqrt(std::max(1.0 - h[t], 1e-6));
+    Eigen::MatrixXd G = rs.asDiagonal() * Jn;
     // Prewhitening (Andrews & Monahan 1992): a VAR(1) fit ĝ(t) ≈ A ĝ(t−1) takes the slow part
     // out of the scores, the window estimates what is left, and (I − A)⁻¹ puts the slow part back.
     // A window alone underestimates S badly when the scores are strongly correlated.

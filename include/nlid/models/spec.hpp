@@ -64,6 +64,7 @@
 #include "nlid/models/greybox_estimate.hpp"
 #include "nlid/models/series.hpp"
 #include "nlid/models/series_estimate.hpp"
+#include "nlid/models/uncertainty.hpp"
 #include "nlid/nonlinearities/any_nonlinearity.hpp"
 #include "nlid/regressors/expression.hpp"
 
@@ -117,6 +118,10 @@ struct SpecFitOptions {
   std::function<bool(const IterationReport&)> callback;
   /// Initialisation stage messages (series models).
   std::function<void(const std::string&)> progress;
+  /// If set, receives the parameter uncertainty of the estimate on the estimation data (nlarx,
+  /// hw: `parameter_uncertainty(model, data)`; greybox: `GreyBoxEstimate::uncertainty`). Not
+  /// called for the linear and series families (ARX and OE keep their own deviations).
+  std::function<void(const ParameterUncertainty&)> uncertainty;
 };
 
 namespace detail {
@@ -467,12 +472,16 @@ AnyModel fit_model_spec_kind(const ModelSpec& s, const Dataset& data, const Spec
       RegressorList r = RegressorList::lagged(od.na, std::vector<int>(static_cast<std::size_t>(nu), od.nb),
                                               std::vector<int>(static_cast<std::size_t>(nu), od.nk));
       const int nr = static_cast<int>(r.size());
-      DynamicNlarx m(std::move(r), detail::make_spec_nonlinearity(s.nonlinearities[0], nr));
-      return AnyModel(estimate(std::move(m), data, eo), info);
+      DynamicNlarx m = estimate(DynamicNlarx(std::move(r), detail::make_spec_nonlinearity(s.nonlinearities[0], nr)), data, eo);
+      if (o.uncertainty) o.uncertainty(parameter_uncertainty(m, data));
+      return AnyModel(std::move(m), info);
     }
-    DynamicHammersteinWiener m(detail::make_spec_nonlinearity(s.nonlinearities[0], 1), detail::make_spec_block(s.orders[0]),
-                               detail::make_spec_nonlinearity(s.nonlinearities[1], 1));
-    return AnyModel(estimate(std::move(m), data, eo), info);
+    DynamicHammersteinWiener m = estimate(
+        DynamicHammersteinWiener(detail::make_spec_nonlinearity(s.nonlinearities[0], 1), detail::make_spec_block(s.orders[0]),
+                                 detail::make_spec_nonlinearity(s.nonlinearities[1], 1)),
+        data, eo);
+    if (o.uncertainty) o.uncertainty(parameter_uncertainty(m, data));
+    return AnyModel(std::move(m), info);
   }
   if (s.family == "wh")
     return detail::fit_series_spec(DynamicWienerHammerstein(detail::make_spec_block(s.orders[0]),
@@ -490,7 +499,8 @@ AnyModel fit_model_spec_kind(const ModelSpec& s, const Dataset& data, const Spec
   DynamicGreyBox g = make_greybox(s.physics);
   GreyBoxEstimateOptions go;
   if (s.initial_condition) go.initial_condition = *s.initial_condition;
-  (void)estimate(g, data, go);
+  const GreyBoxEstimate ge = estimate(g, data, go);
+  if (o.uncertainty && ge.uncertainty.theta.size() > 0) o.uncertainty(ge.uncertainty);
   return AnyModel(std::move(g), info);
 }
 }  // namespace detail
