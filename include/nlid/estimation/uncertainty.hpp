@@ -167,12 +167,16 @@ struct ParameterUncertainty {
         combo += names[static_cast<std::size_t>(i)] + " " +
                  (theta[i] != 0.0 ? (rel >= 0 ? "+" : "") + num(rel) + " %" : (v[i] >= 0 ? "+" : "") + num(v[i]));
       }
-      if (order.size() > max_terms) combo += " (and " + std::to_string(order.size() - max_terms) + " smaller changes)";
+      if (order.size() > max_terms) {
+        const std::size_t more = order.size() - max_terms;
+        combo += " (and " + std::to_string(more) + (more == 1 ? " smaller change)" : " smaller changes)");
+      }
       s += "  not identifiable from these data: " + combo + " leaves the residuals unchanged\n";
     }
     if (unidentifiable.size() > max_directions) {
-      s += "  ... and " + std::to_string(unidentifiable.size() - max_directions) +
-           " more undetermined directions (ParameterUncertainty::unidentifiable)\n";
+      const std::size_t more = unidentifiable.size() - max_directions;
+      s += "  ... and " + std::to_string(more) + (more == 1 ? " more undetermined direction" : " more undetermined directions") +
+           " (ParameterUncertainty::unidentifiable)\n";
     }
     for (Eigen::Index i = 0; i < n; ++i) {
       for (Eigen::Index j = i + 1; j < n; ++j) {
