@@ -12,7 +12,10 @@
 // A binary input shows the model two points of the driver's curve; every model fits its own
 // record, only the multi-level ones also fit the validation records (table in docs/data.md).
 // Then, before any model: a random-odd multisine at two amplitudes and `distortion_analysis`
-// say whether a linear model could do, and whether the nonlinearity is even or odd.
+// say whether a linear model could do, and whether the nonlinearity is even or odd. And for a
+// physics model, before the experiment: `parameter_uncertainty` of the grey box at the expected
+// parameter values on each design's simulated record says how well that record would determine
+// c, k, K, b and the stops.
 //
 //   example_input_design [--out DIR]      (writes DIR/input_design.csv: the three inputs)
 #include <algorithm>
@@ -30,6 +33,7 @@
 #include "nlid/data.hpp"
 #include "nlid/models/estimate.hpp"
 #include "nlid/models/greybox.hpp"
+#include "nlid/models/greybox_estimate.hpp"
 #include "nlid/models/physics/throttle.hpp"
 #include "nlid/nonlinearities/sigmoid_network.hpp"
 #include "nlid/regressors.hpp"
@@ -144,6 +148,31 @@ int main(int argc, char** argv) {
       const nlid::DistortionAnalysis d = nlid::distortion_analysis(probe, 1000);
       std::printf("u in [%.2f, %.2f] (valve %.0f to %.0f deg):\n%s", lv.low, lv.high, probe.y().minCoeff(),
                   probe.y().maxCoeff(), d.report().c_str());
+    }
+    // Before the experiment, for the physics model: the grey box at the plant's values (no driver
+    // curve: the structure is right), each design's record simulated with the same 0.1° noise,
+    // and the standard deviations the record would leave on each parameter — a design that never
+    // reaches a stop cannot determine the stop's stiffness.
+    std::printf("\nGrey-box parameters (1 sigma, %% of the value) that each 60 s record would determine\n");
+    const nlid::GreyBox<nlid::physics::Throttle> physics = plant();
+    std::printf("%-10s", "input");
+    for (int i = 0; i < 6; ++i) std::printf(" %11s", physics.parameter_names()[static_cast<std::size_t>(i)].c_str());
+    std::printf("\n");
+    for (std::size_t j = 0; j < inputs.size(); ++j) {
+      const Eigen::VectorXd& u = inputs[j].second;
+      const nlid::Experiment in(u, Eigen::VectorXd::Zero(u.size()), ts, inputs[j].first);
+      const Eigen::MatrixXd y = physics.simulate(in, nlid::InitialCondition::equilibrium);
+      const Eigen::VectorXd noise = nlid::random_gaussian(u.size(), {}, {-0.1, 0.1}, 40 + j);
+      const nlid::Dataset rec{nlid::Experiment(u, y.col(0) + noise, ts, inputs[j].first)};
+      const nlid::ParameterUncertainty unc = nlid::parameter_uncertainty(physics, rec);
+      std::printf("%-10s", inputs[j].first.c_str());
+      // Beyond 1000 % a parameter is not determined by the record in any useful sense.
+      for (int i = 0; i < 6; ++i) {
+        const double pct = unc.relative_percent(i);
+        if (pct < 1000.0) std::printf(" %10.3g%%", pct);
+        else std::printf(" %11s", "undetermined");
+      }
+      std::printf("\n");
     }
     std::printf("\nwrote %s/input_design.csv\n", out_dir.c_str());
   } catch (const nlid::Error& e) {
