@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <random>
 #include <string>
 #include <vector>
@@ -287,6 +288,50 @@ TEST_CASE("model file: grey-box throttle by catalogue name, parameter table and 
   const std::string bad = write_text("greybox_unknown.json",
                                      edited(read_text(path), "\"physics\": \"throttle\"", "\"physics\": \"pendulum\""));
   CHECK_THAT(error_of([&] { (void)load_model(bad); }), Catch::Contains("pendulum"));
+}
+
+TEST_CASE("model file: a grey box keeps its parameters' standard deviations, infinite ones included") {
+  GreyBox<physics::Throttle> g;
+  CHECK(g.parameter_stddev().size() == 0);
+  const Eigen::Index n = g.num_parameters();
+  Eigen::VectorXd sd = Eigen::VectorXd::LinSpaced(n, 0.5, 3.5);
+  sd[2] = std::numeric_limits<double>::infinity();  // K: not identifiable
+  sd[n - 1] = 0.0;                                    // rest: fixed
+  g.fix("rest");
+  g.set_parameter_stddev(sd);
+  CHECK_THAT(g.describe(), Catch::Contains("estimated +- 0.5") && Catch::Contains("+- inf (not identifiable)"));
+  const std::string path = temp_path("greybox_stddev.json");
+  save_model(path, g);
+  const auto typed = load_model<GreyBox<physics::Throttle>>(path);
+  REQUIRE(typed.parameter_stddev().size() == n);
+  CHECK(bit_equal(typed.parameter_stddev(), sd));
+  const AnyModel any = load_model(path);
+  const auto* dyn = any.target<DynamicGreyBox>();
+  REQUIRE(dyn != nullptr);
+  CHECK(bit_equal(dyn->parameter_stddev(), sd));
+
+  // A changed value makes the deviations stale: they are dropped, and a file without them loads.
+  GreyBox<physics::Throttle> changed = typed;
+  changed.set_parameter("c", 25.0);
+  CHECK(changed.parameter_stddev().size() == 0);
+  save_model(temp_path("greybox_no_stddev.json"), changed);
+  CHECK(read_text(temp_path("greybox_no_stddev.json")).find("stddev") == std::string::npos);
+  CHECK(load_model<GreyBox<physics::Throttle>>(temp_path("greybox_no_stddev.json")).parameter_stddev().size() == 0);
+
+  // Bad deviations in a file are located.
+  const std::string text = read_text(path);
+  const auto at = text.find("\"stddev\"");
+  REQUIRE(at != std::string::npos);
+  const std::string first = text.substr(at, text.find(',', at) - at);  // "stddev": [\n  0.5
+  const std::string negative = write_text("greybox_stddev_negative.json", edited(text, first, first.substr(0, first.size() - 3) + "-0.5"));
+  CHECK_THAT(error_of([&] { (void)load_model(negative); }),
+             Catch::Contains("standard deviation of c must be >= 0") && Catch::Contains("stddev"));
+  Eigen::VectorXd wrong(2);
+  wrong << 1.0, 2.0;
+  CHECK_THROWS_WITH(g.set_parameter_stddev(wrong), Catch::Contains("2 standard deviations for 7 parameters"));
+  Eigen::VectorXd nan_sd = sd;
+  nan_sd[1] = std::nan("");
+  CHECK_THROWS_WITH(g.set_parameter_stddev(nan_sd), Catch::Contains("standard deviation of k must be >= 0"));
 }
 
 TEST_CASE("model file: a grey box's integrator options round-trip field by field") {

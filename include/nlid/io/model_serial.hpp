@@ -189,9 +189,13 @@ inline Json parameters_json(const std::vector<std::string>& names, const Eigen::
 }
 
 /// θ of `n` values from "parameters"; checks the count.
-inline Eigen::VectorXd read_parameters(const JsonView& file, int n) {
+inline Eigen::VectorXd read_parameters(const JsonView& file, int n, bool with_stddev = false) {
   const JsonView p = file.at("parameters");
-  p.check_keys({"names", "values"});
+  if (with_stddev) {
+    p.check_keys({"names", "values", "stddev"});
+  } else {
+    p.check_keys({"names", "values"});
+  }
   const Eigen::VectorXd th = read_vector(p.at("values"));
   if (th.size() != n) {
     p.at("values").fail("the file has " + std::to_string(th.size()) + " parameter values at " +
@@ -548,6 +552,7 @@ struct ModelSerial<GreyBox<P>> {
     s["states"] = Json(std::move(states));
     j["structure"] = std::move(s);
     j["parameters"] = detail::parameters_json(m.parameter_names(), Eigen::VectorXd(m.parameters()));
+    if (m.parameter_stddev().size() > 0) j["parameters"]["stddev"] = extended_vector(m.parameter_stddev());
     Json::Array x0;
     for (const auto& x : m.estimated_initial_states()) x0.push_back(extended_vector(x));
     j["estimated_initial_states"] = Json(std::move(x0));
@@ -579,7 +584,7 @@ struct ModelSerial<GreyBox<P>> {
     }
     const JsonView table = s.at("parameter_table");
     detail::expect_channel_count(table, table.as_array().size(), m.num_parameters(), "parameters");
-    const Eigen::VectorXd values = detail::read_parameters(file, m.num_parameters());
+    const Eigen::VectorXd values = detail::read_parameters(file, m.num_parameters(), true);
     const auto names = m.parameter_names();
     for (int i = 0; i < m.num_parameters(); ++i) {
       const JsonView q = table.at(static_cast<std::size_t>(i));
@@ -620,6 +625,17 @@ struct ModelSerial<GreyBox<P>> {
       }
     }
     m.set_estimated_initial_states(std::move(x0));
+    // After the values: setting a value clears the deviations.
+    if (file.at("parameters").contains("stddev")) {
+      const JsonView sd = file.at("parameters").at("stddev");
+      const Eigen::VectorXd v = read_extended_vector(sd);
+      if (v.size() == 0) sd.fail("empty standard deviations at " + sd.path_text() + " (leave the key out instead)");
+      try {
+        m.set_parameter_stddev(v);
+      } catch (const Error& e) {
+        sd.fail(e.message() + " (at " + sd.path_text() + ")");
+      }
+    }
     m.set_units(info.output_units.empty() ? std::string() : info.output_units[0],
                 info.input_units.empty() ? std::string() : info.input_units[0]);
     info.report = report_from_json(file.at("report"));

@@ -185,6 +185,7 @@ class GreyBox {
       params_[static_cast<std::size_t>(i)].value = p[i];
       user_set_[static_cast<std::size_t>(i)] = true;
     }
+    stddev_.resize(0);  // deviations belong to the values they were computed for
   }
   /// Index of a parameter by name; throws `nlid::Error` listing the known names.
   [[nodiscard]] int parameter_index(std::string_view name) const {
@@ -207,6 +208,7 @@ class GreyBox {
     check_value(params_[i], value);
     params_[i].value = value;
     user_set_[i] = true;
+    stddev_.resize(0);
   }
   /// Sets hard bounds of a named parameter (lower ≤ value ≤ upper must hold afterwards).
   void set_bounds(std::string_view name, double lower, double upper) {
@@ -256,6 +258,27 @@ class GreyBox {
     require(p.size() == num_parameters(), "parameter count mismatch");
     for (int i = 0; i < num_parameters(); ++i) check_value(params_[static_cast<std::size_t>(i)], p[i]);
     for (int i = 0; i < num_parameters(); ++i) params_[static_cast<std::size_t>(i)].value = p[i];
+    stddev_.resize(0);
+  }
+
+  /// Standard deviations of the parameter values (1σ; 0 for a fixed parameter, +∞ for one the
+  /// data did not determine), as the last estimation left them (`GreyBoxEstimate::uncertainty`);
+  /// empty when unknown. Kept in model files; cleared when a value changes.
+  [[nodiscard]] const Eigen::VectorXd& parameter_stddev() const { return stddev_; }
+  /// Sets the standard deviations (n_p entries, each >= 0 or +inf; empty clears them). Throws
+  /// `nlid::Error` naming the parameter of a negative or NaN entry, or on a size mismatch.
+  void set_parameter_stddev(Eigen::VectorXd sd) {
+    require(sd.size() == 0 || sd.size() == num_parameters(),
+            "grey-box model '" + name() + "': " + std::to_string(sd.size()) + " standard deviations for " +
+                std::to_string(num_parameters()) + " parameters",
+            at_parameter("stddev"));
+    for (Eigen::Index i = 0; i < sd.size(); ++i) {
+      const std::string& q = params_[static_cast<std::size_t>(i)].name;
+      require(sd[i] >= 0.0, "grey-box model '" + name() + "': the standard deviation of " + q + " must be >= 0 (or inf), got " +
+                                detail::format_number(sd[i]),
+              at_parameter(q));
+    }
+    stddev_ = std::move(sd);
   }
 
   // ---- integrator ------------------------------------------------------------------------------
@@ -467,7 +490,7 @@ class GreyBox {
   }
 
   /// Human-readable account: equation, states, and every parameter with value, unit, bounds and
-  /// status (estimated / fixed), plus the integrator.
+  /// status (estimated / fixed, with ±1σ when known), plus the integrator.
   [[nodiscard]] std::string describe() const {
     std::string s = "Grey-box model '" + name() + "'";
     if constexpr (detail::HasEquation<P>) s += ": " + physics_.equation();
@@ -487,6 +510,10 @@ class GreyBox {
       std::string unit = detail::substitute_units(q.unit, y_unit_, u_unit_);
       line += unit + std::string(unit.size() < 18 ? 18 - unit.size() : 1, ' ');
       line += q.fixed ? "fixed" : "estimated";
+      if (stddev_.size() == num_parameters() && !q.fixed) {
+        const double sd = stddev_[&q - params_.data()];
+        line += std::isfinite(sd) ? " +- " + detail::format_number(sd) : std::string(" +- inf (not identifiable)");
+      }
       if (std::isfinite(q.lower) || std::isfinite(q.upper)) {
         line += "  bounds [" + detail::format_number(q.lower) + ", " + detail::format_number(q.upper) + "]";
       }
@@ -575,6 +602,7 @@ class GreyBox {
   std::string y_unit_, u_unit_;
   std::vector<std::string> input_names_, output_names_;
   std::vector<Eigen::VectorXd> initial_states_;
+  Eigen::VectorXd stddev_;
   Eigen::Index initial_state_window_ = 2000;
 };
 

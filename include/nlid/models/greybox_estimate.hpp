@@ -383,6 +383,7 @@ GreyBoxEstimate estimate(GreyBox<P>& model, const Dataset& data,
   uo.caveat = uncertainty_caveat(options.multi_start.lm);
   try {
     out.uncertainty = detail::greybox_uncertainty(model, problem, data, theta, uo);
+    model.set_parameter_stddev(out.uncertainty.stddev.head(np));
   } catch (const Error& err) {
     out.uncertainty.caveat = std::string("no uncertainty: ") + err.what();
   }
