@@ -146,7 +146,6 @@ TEST_CASE("correlated formula: H^-1 S H^-1 with Bartlett-weighted lag sums insid
       }
     }
   }
-  S *= 120.0 / 117.0;
   const Eigen::Matrix3d P = XtXi * S * XtXi;
   CHECK(u.max_lag == 3);
   CHECK((u.covariance - P).cwiseAbs().maxCoeff() < 1e-10 * P.cwiseAbs().maxCoeff());
@@ -227,10 +226,46 @@ TEST_CASE("prewhitened formula: VAR(1) inside each series, Andrews' lag, Bartlet
     }
   }
   const Eigen::Matrix3d R = (Eigen::Matrix3d::Identity() - A).inverse();
-  S = R * S * R.transpose() * (150.0 / 147.0);
+  S = R * S * R.transpose();
   const Eigen::Matrix3d P = d.cwiseInverse().asDiagonal() * (Hi * S * Hi) * d.cwiseInverse().asDiagonal();
   INFO("code:\n" << u.covariance << "\nwritten out:\n" << P);
   CHECK((u.covariance - P).cwiseAbs().maxCoeff() < 1e-9 * P.cwiseAbs().maxCoeff());
+}
+
+TEST_CASE("correlated formula, white noise and many parameters per sample: unbiased like the white one",
+          "[estimation][uncertainty]") {
+  // HC2 already makes E[e_t²/(1 − h_t)] = σ² for homoscedastic residuals; a further N/(N − k)
+  // (the white formula's degrees-of-freedom correction) inflates the variance by that factor —
+  // 1.5 here, with k = 10 parameters on N = 30 rows.
+  const int N = 30, k = 10, replicates = 2000;
+  std::mt19937_64 gen(31);
+  std::normal_distribution<double> nd(0.0, 1.0);
+  Eigen::MatrixXd X(N, k);
+  for (Eigen::Index i = 0; i < X.size(); ++i) X.data()[i] = nd(gen);
+  const Eigen::VectorXd truth = (X.transpose() * X).inverse().diagonal();  // σ = 1
+  Eigen::VectorXd y(N);
+  auto pb = nlid::make_problem<nlid::Dynamic>(k, N, [&](const Eigen::VectorXd& th, Eigen::VectorXd& r, Eigen::MatrixXd* J) {
+    r = X * th - y;
+    if (J) *J = X;
+    return true;
+  });
+  UncertaintyOptions lag0;
+  lag0.max_lag = 0;
+  lag0.prewhiten = false;
+  UncertaintyOptions white;
+  white.residuals = ResidualModel::white;
+  double mean_lag0 = 0.0, mean_default = 0.0, mean_white = 0.0;
+  for (int rep = 0; rep < replicates; ++rep) {
+    for (Eigen::Index i = 0; i < N; ++i) y[i] = nd(gen);
+    const Eigen::VectorXd th = X.colPivHouseholderQr().solve(y);
+    mean_lag0 += nlid::parameter_uncertainty(pb, th, lag0).covariance.diagonal().cwiseQuotient(truth).mean() / replicates;
+    mean_default += nlid::parameter_uncertainty(pb, th).covariance.diagonal().cwiseQuotient(truth).mean() / replicates;
+    mean_white += nlid::parameter_uncertainty(pb, th, white).covariance.diagonal().cwiseQuotient(truth).mean() / replicates;
+  }
+  INFO("E[variance] / truth: lag 0 " << mean_lag0 << ", default " << mean_default << ", white " << mean_white);
+  CHECK(mean_white == Approx(1.0).margin(0.05));
+  CHECK(mean_lag0 == Approx(1.0).margin(0.05));  // exactly unbiased in expectation
+  CHECK(mean_default == Approx(1.0).margin(0.15));
 }
 
 TEST_CASE("Monte Carlo, white noise: both formulas match the spread of the estimates",
