@@ -290,6 +290,37 @@ TEST_CASE("model specs carry a regularization lambda into the estimation", "[io]
   CHECK((m.parameters() - want).cwiseAbs().maxCoeff() < 1e-6);
 }
 
+TEST_CASE("fit_model_spec: the uncertainty callback carries the regularisation caveat, and a fit whose uncertainty "
+          "cannot be computed still stands",
+          "[io][uncertainty]") {
+  const int n = 200;
+  Eigen::MatrixXd u(n, 1), y(n, 1);
+  y(0, 0) = 1.0;
+  for (int k = 0; k < n; ++k) u(k, 0) = (k / 17) % 2 ? 1.0 : -0.4;
+  for (int k = 1; k < n; ++k) y(k, 0) = 0.6 * y(k - 1, 0) + 0.8 * u(k - 1, 0) + 0.3 + 0.05 * std::sin(1.7 * k);
+  std::vector<ParameterUncertainty> got;
+  std::vector<std::string> messages;
+  SpecFitOptions fo;
+  fo.uncertainty = [&got](const ParameterUncertainty& pu) { got.push_back(pu); };
+  fo.progress = [&messages](const std::string& s) { messages.push_back(s); };
+  // lambda: the penalty pulls θ off the least-squares optimum, which the report must say.
+  (void)fit_model_spec(parse_model_spec("nlarx:na=1,nb=1,nk=1:linear:focus=prediction:lambda=50"),
+                       Dataset(Experiment(u, y, 0.01, "steps")), fo);
+  REQUIRE(got.size() == 1);
+  CHECK_THAT(got[0].caveat, Catch::Contains("regularised"));
+  CHECK_THAT(got[0].report(), Catch::Contains("note: regularised"));
+  // Three residuals for three parameters: estimation accepts it, the uncertainty has no degrees
+  // of freedom left; the model is still returned and the progress callback says why.
+  got.clear();
+  const Dataset tiny(Experiment(u.topRows(4), y.topRows(4), 0.01, "tiny"));
+  AnyModel m;
+  REQUIRE_NOTHROW(m = fit_model_spec(parse_model_spec("nlarx:na=1,nb=1,nk=1:linear:focus=prediction"), tiny, fo));
+  CHECK(m.parameters().size() == 3);
+  CHECK(got.empty());
+  REQUIRE_FALSE(messages.empty());
+  CHECK_THAT(messages.back(), Catch::Contains("no parameter uncertainty") && Catch::Contains("degrees of freedom"));
+}
+
 TEST_CASE("model specs refuse a key or map given twice and options that do nothing", "[io][errors]") {
   using Catch::Contains;
   CHECK_THROWS_WITH(parse_model_spec("linear:arx:na=2,na=5,nb=1,nk=0"), Contains("'na' is given twice"));

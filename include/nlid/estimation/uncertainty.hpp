@@ -454,9 +454,9 @@ ParameterUncertainty parameter_uncertainty(const Pb& problem, const Eigen::Vecto
         S.noalias() += w * (A + A.transpose());
       }
     }
+    // No N/(N − k) on top: the leverage division is already the degrees-of-freedom correction
+    // (E[e_t²/(1 − h_t)] = σ² for white residuals; Σh_t = k), and both would inflate S by N/(N − k).
     S = recolor * S * recolor.transpose();
-    // Degrees-of-freedom correction, as σ² divides by N − k.
-    S *= static_cast<double>(out.observations) / static_cast<double>(out.degrees_of_freedom);
     P = dinv.asDiagonal() * (Hpinv * S * Hpinv) * dinv.asDiagonal();
   }
 

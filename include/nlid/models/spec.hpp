@@ -120,7 +120,8 @@ struct SpecFitOptions {
   std::function<void(const std::string&)> progress;
   /// If set, receives the parameter uncertainty of the estimate on the estimation data (nlarx,
   /// hw: `parameter_uncertainty(model, data)`; greybox: `GreyBoxEstimate::uncertainty`). Not
-  /// called for the linear and series families (ARX and OE keep their own deviations).
+  /// called for the linear and series families (ARX and OE keep their own deviations), nor when
+  /// the uncertainty cannot be computed: `progress` then says why, and the fit still returns.
   std::function<void(const ParameterUncertainty&)> uncertainty;
 };
 
@@ -390,6 +391,24 @@ AnyModel fit_series_spec(M model, const ModelSpec& s, const Dataset& data, const
   return AnyModel(std::move(m), info);
 }
 
+// Hands `o.uncertainty` the model's uncertainty on its estimation data. The estimate stands even
+// where the uncertainty cannot be computed (estimation accepts as many residuals as unknowns,
+// which leaves no degrees of freedom for the noise level): the progress callback says why.
+template <class M>
+void spec_uncertainty(const M& m, const Dataset& data, const LmOptions& solver, const SpecFitOptions& o) {
+  if (!o.uncertainty) return;
+  ModelUncertaintyOptions uo;
+  uo.uncertainty.caveat = uncertainty_caveat(solver);
+  ParameterUncertainty u;
+  try {
+    u = parameter_uncertainty(m, data, uo);
+  } catch (const Error& err) {
+    if (o.progress) o.progress(std::string("no parameter uncertainty: ") + err.what());
+    return;
+  }
+  o.uncertainty(u);
+}
+
 }  // namespace detail
 
 /// The unestimated structure of a spec (for inspection: `describe()`, parameter names).
@@ -473,14 +492,14 @@ AnyModel fit_model_spec_kind(const ModelSpec& s, const Dataset& data, const Spec
                                               std::vector<int>(static_cast<std::size_t>(nu), od.nk));
       const int nr = static_cast<int>(r.size());
       DynamicNlarx m = estimate(DynamicNlarx(std::move(r), detail::make_spec_nonlinearity(s.nonlinearities[0], nr)), data, eo);
-      if (o.uncertainty) o.uncertainty(parameter_uncertainty(m, data));
+      detail::spec_uncertainty(m, data, eo.solver, o);
       return AnyModel(std::move(m), info);
     }
     DynamicHammersteinWiener m = estimate(
         DynamicHammersteinWiener(detail::make_spec_nonlinearity(s.nonlinearities[0], 1), detail::make_spec_block(s.orders[0]),
                                  detail::make_spec_nonlinearity(s.nonlinearities[1], 1)),
         data, eo);
-    if (o.uncertainty) o.uncertainty(parameter_uncertainty(m, data));
+    detail::spec_uncertainty(m, data, eo.solver, o);
     return AnyModel(std::move(m), info);
   }
   if (s.family == "wh")
@@ -501,6 +520,7 @@ AnyModel fit_model_spec_kind(const ModelSpec& s, const Dataset& data, const Spec
   if (s.initial_condition) go.initial_condition = *s.initial_condition;
   const GreyBoxEstimate ge = estimate(g, data, go);
   if (o.uncertainty && ge.uncertainty.theta.size() > 0) o.uncertainty(ge.uncertainty);
+  if (o.uncertainty && ge.uncertainty.theta.size() == 0 && o.progress) o.progress(ge.uncertainty.caveat);
   return AnyModel(std::move(g), info);
 }
 }  // namespace detail
