@@ -374,6 +374,11 @@ TEST_CASE("bad input to parameter_uncertainty is named", "[estimation][uncertain
   o.series = {{30, 20, 1}};
   fails(o, "residual series 0 (offset 30, length 20, stride 1) is empty or reaches outside the 40 residuals");
   o = {};
+  o.series = {{0, 25, 1}, {20, 20, 1}};
+  fails(o, "residual row 20 is in two series (the second is series 1)");
+  o.series = {{0, 20, 1}, {21, 19, 1}};
+  fails(o, "residual row 20 is in no series; the series must cover all 40 residuals");
+  o = {};
   o.rank_tolerance = 0.0;
   fails(o, "rank_tolerance must be in (0, 1)");
   o = {};
@@ -436,4 +441,34 @@ TEST_CASE("many undetermined directions: the report lists five, each by its five
   }
   CHECK(lines == 5);
   CHECK_THAT(rep, Contains("... and 2 more undetermined directions"));
+}
+
+TEST_CASE("edge cases: nothing free, a lag longer than the record, one short record beside a long one",
+          "[estimation][uncertainty]") {
+  std::mt19937_64 gen(29);
+  const Quadratic q(ar1_noise(60, 0.8, 0.1, gen));
+  const auto pb = q.problem();
+  const Eigen::Vector3d th = q.solve();
+
+  // Every parameter fixed: zeros, not an error about degrees of freedom.
+  UncertaintyOptions fixed;
+  fixed.fixed = {true, true, true};
+  const ParameterUncertainty none = nlid::parameter_uncertainty(pb, th, fixed);
+  CHECK(none.stddev.isZero());
+  CHECK(none.rank == 0);
+
+  // A window longer than the only series is cut to what the series has.
+  UncertaintyOptions wide;
+  wide.max_lag = 1000;
+  CHECK(nlid::parameter_uncertainty(pb, th, wide).max_lag == 59);
+
+  // A 3-sample record beside a 57-sample one does not shrink the automatic window to nothing.
+  UncertaintyOptions one, two;
+  one.prewhiten = two.prewhiten = false;
+  two.series = {{0, 57, 1}, {57, 3, 1}};
+  const ParameterUncertainty a = nlid::parameter_uncertainty(pb, th, one);
+  const ParameterUncertainty b = nlid::parameter_uncertainty(pb, th, two);
+  INFO("one series: " << a.max_lag << " lags, with the short one split off: " << b.max_lag);
+  CHECK(b.max_lag >= a.max_lag - 1);
+  CHECK(b.max_lag > 1);
 }

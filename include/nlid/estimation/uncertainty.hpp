@@ -93,7 +93,9 @@ struct ParameterUncertainty {
   ResidualModel residuals = ResidualModel::correlated;  ///< what `stddev`/`covariance` assume
   Eigen::VectorXd stddev;          ///< 1σ per parameter: 0 if fixed, +∞ if not identifiable
   Eigen::VectorXd stddev_white;    ///< 1σ from the white-residual formula σ²(JᵀJ)⁻¹
-  Eigen::MatrixXd covariance;      ///< n × n (rows/columns of fixed parameters zero)
+  /// n × n; rows/columns of fixed and on-bound parameters zero. For an unidentifiable parameter
+  /// they hold the pseudo-inverse's (finite) values while its `stddev` is +∞: use `stddev`.
+  Eigen::MatrixXd covariance;
   Eigen::MatrixXd correlation;     ///< n × n; NaN where a standard deviation is 0 or ∞
   std::vector<bool> free;          ///< estimated and off its bounds
   std::vector<bool> at_bound;      ///< estimated but resting on a bound (treated as fixed)
@@ -200,8 +202,8 @@ inline Eigen::Index series_row(const ResidualSeries& s, Eigen::Index t) { return
 // M = 1.1447 (α L)^{1/3}, α = Σ 4ρ²σ⁴/((1−ρ)⁶(1+ρ)²) / Σ σ⁴/(1−ρ)⁴ (σ²: innovation variance).
 // ρ is clipped to ±0.97: nearer to 1 the rule asks for windows as long as the record, where the
 // lag sums of scores that add to zero at the optimum (the normal equations) collapse towards 0.
-inline int andrews_lag(const Eigen::MatrixXd& G, const std::vector<ResidualSeries>& series, Eigen::Index mean_length,
-                       Eigen::Index shortest) {
+inline int andrews_lag(const Eigen::MatrixXd& G, const std::vector<ResidualSeries>& series, double typical_length,
+                       Eigen::Index longest) {
   double num = 0.0, den = 0.0;
   for (Eigen::Index a = 0; a < G.cols(); ++a) {
     double sxy = 0.0, sxx = 0.0;
@@ -227,9 +229,11 @@ inline int andrews_lag(const Eigen::MatrixXd& G, const std::vector<ResidualSerie
   }
   if (!(den > 0.0)) return 0;
   const double alpha = num / den;
-  const double m = 1.1447 * std::cbrt(alpha * static_cast<double>(mean_length));
-  // At most a quarter of the shortest series: longer windows see too few lag products.
-  return static_cast<int>(std::clamp(std::ceil(m), 0.0, std::max(0.0, static_cast<double>(shortest / 4))));
+  const double m = 1.1447 * std::cbrt(alpha * typical_length);
+  // At most a quarter of the longest series: longer windows see too few lag products. (Not the
+  // shortest: one short record beside long ones would cut everybody's window; a short series
+  // simply contributes the lags it has.)
+  return static_cast<int>(std::clamp(std::ceil(m), 0.0, std::max(0.0, static_cast<double>(longest / 4))));
 }
 
 }  // namespace detail
@@ -285,7 +289,8 @@ ParameterUncertainty parameter_uncertainty(const Pb& problem, const Eigen::Vecto
 
   std::vector<ResidualSeries> series = options.series;
   if (series.empty()) series.push_back({0, m, 1});
-  Eigen::Index total_length = 0, shortest = m;
+  Eigen::Index total_length = 0, longest = 0;
+  std::vector<unsigned char> covered(static_cast<std::size_t>(m), 0);
   for (std::size_t k = 0; k < series.size(); ++k) {
     const ResidualSeries& s = series[k];
     const bool ok = s.length >= 1 && s.stride >= 1 && s.offset >= 0 && s.offset + (s.length - 1) * s.stride < m;
@@ -294,7 +299,27 @@ ParameterUncertainty parameter_uncertainty(const Pb& problem, const Eigen::Vecto
                     ") is empty or reaches outside the " + std::to_string(m) + " residuals",
             at_parameter("series"));
     total_length += s.length;
-    shortest = std::min(shortest, s.length);
+    longest = std::max(longest, s.length);
+    // Each row in exactly one series: an overlap would count its lag products twice, and a row
+    // outside every series would be neither prewhitened nor windowed.
+    for (Eigen::Index t = 0; t < s.length; ++t) {
+      unsigned char& c = covered[static_cast<std::size_t>(detail::series_row(s, t))];
+      require(c == 0, std::string(who) + "residual row " + std::to_string(detail::series_row(s, t)) +
+                          " is in two series (the second is series " + std::to_string(k) + ")",
+              at_parameter("series"));
+      c = 1;
+    }
+  }
+  // The length of the series a sample belongs to, on average (Σ L² / Σ L): the T of Andrews'
+  // rule. Equal records give their length; a short record beside long ones hardly matters.
+  double typical_length = 0.0;
+  for (const ResidualSeries& s : series) typical_length += static_cast<double>(s.length) * static_cast<double>(s.length);
+  typical_length /= static_cast<double>(total_length);
+  for (Eigen::Index row = 0; row < m; ++row) {
+    require(covered[static_cast<std::size_t>(row)] != 0,
+            std::string(who) + "residual row " + std::to_string(row) + " is in no series; the series must cover all " +
+                std::to_string(m) + " residuals",
+            at_parameter("series"));
   }
 
   const ParameterVector<Pb::num_params> th = theta;
@@ -333,6 +358,14 @@ ParameterUncertainty parameter_uncertainty(const Pb& problem, const Eigen::Vecto
     if (r[row] != 0.0 || (k > 0 && J.row(row).cwiseAbs().maxCoeff() > 0.0)) ++out.observations;
   }
   out.degrees_of_freedom = out.observations - k;
+  out.covariance = Eigen::MatrixXd::Zero(n, n);
+  out.stddev = Eigen::VectorXd::Zero(n);
+  out.stddev_white = Eigen::VectorXd::Zero(n);
+  out.correlation = Eigen::MatrixXd::Constant(n, n, std::numeric_limits<double>::quiet_NaN());
+  if (k == 0) {  // nothing estimated: nothing uncertain, whatever the data
+    out.noise_variance = out.degrees_of_freedom > 0 ? r.squaredNorm() / static_cast<double>(out.degrees_of_freedom) : 0.0;
+    return out;
+  }
   require(out.degrees_of_freedom > 0, std::string(who) + std::to_string(out.observations) +
                                           " data rows for " + std::to_string(k) +
                                           " free parameters: no degrees of freedom left for the noise level");
@@ -351,11 +384,6 @@ ParameterUncertainty parameter_uncertainty(const Pb& problem, const Eigen::Vecto
     out.lag1_correlation = sxx > 0.0 ? sxy / sxx : 0.0;
   }
 
-  out.covariance = Eigen::MatrixXd::Zero(n, n);
-  out.stddev = Eigen::VectorXd::Zero(n);
-  out.stddev_white = Eigen::VectorXd::Zero(n);
-  out.correlation = Eigen::MatrixXd::Constant(n, n, std::numeric_limits<double>::quiet_NaN());
-  if (k == 0) return out;
 
   // Column-normalised Jacobian Ĵ = J D⁻¹; a column without effect is its own null direction.
   Eigen::VectorXd d = J.colwise().norm().transpose();
@@ -432,6 +460,8 @@ ParameterUncertainty parameter_uncertainty(const Pb& problem, const Eigen::Vecto
       Eigen::JacobiSVD<Eigen::MatrixXd> svd(A, Eigen::ComputeFullU | Eigen::ComputeFullV);
       Eigen::VectorXd sv = svd.singularValues().cwiseMin(0.97);
       A = svd.matrixU() * sv.asDiagonal() * svd.matrixV().transpose();
+      // The first score of each series stays as it is (Andrews & Monahan drop it): for short
+      // series a slight overestimate of S, never an underestimate.
       Eigen::MatrixXd V = G;
       for (const ResidualSeries& s : series) {
         for (Eigen::Index t = s.length - 1; t >= 1; --t) {
@@ -441,9 +471,10 @@ ParameterUncertainty parameter_uncertainty(const Pb& problem, const Eigen::Vecto
       G = std::move(V);
       recolor = (Eigen::MatrixXd::Identity(k, k) - A).inverse();
     }
-    out.max_lag = options.max_lag >= 0 ? options.max_lag
-                                       : detail::andrews_lag(G, series, total_length / static_cast<Eigen::Index>(series.size()),
-                                                             shortest);
+    // A given lag beyond the longest series has no lag products to add; the report states the
+    // lag actually used.
+    out.max_lag = options.max_lag >= 0 ? static_cast<int>(std::min<Eigen::Index>(options.max_lag, longest - 1))
+                                       : detail::andrews_lag(G, series, typical_length, longest);
     Eigen::MatrixXd S = G.transpose() * G;
     for (const ResidualSeries& s : series) {
       Eigen::MatrixXd Gs(s.length, k);
