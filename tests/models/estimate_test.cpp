@@ -12,21 +12,11 @@
 #include "nlid/nonlinearities/sigmoid_network.hpp"
 #include "nlid/nonlinearities/unit_gain.hpp"
 #include "nlid/regressors.hpp"
+#include "test_inputs.hpp"
+
+using nlid_test::random_steps;
 
 namespace {
-// Random steps (held for 5..40 samples) in [lo, hi]: rich in amplitude and frequency.
-Eigen::MatrixXd steps(int n, double lo, double hi, unsigned seed) {
-  std::mt19937 gen(seed);
-  std::uniform_real_distribution<double> level(lo, hi);
-  std::uniform_int_distribution<int> hold(5, 40);
-  Eigen::MatrixXd u(n, 1);
-  int t = 0;
-  while (t < n) {
-    const double v = level(gen);
-    for (int k = hold(gen); k > 0 && t < n; --k) u(t++, 0) = v;
-  }
-  return u;
-}
 
 using Wiener = nlid::HammersteinWiener<nlid::UnitGain, nlid::TransferFunctionBlock<2, 2, 1>, nlid::Saturation>;
 
@@ -46,8 +36,8 @@ nlid::Experiment simulate_truth(const Wiener& truth, const Eigen::MatrixXd& u, c
 TEST_CASE("Wiener [2 2 1] + saturation: B, F and the limits are recovered", "[models][estimate]") {
   Wiener truth;
   truth.set_parameters(wiener_truth());
-  const nlid::Dataset data{simulate_truth(truth, steps(800, -2.0, 2.0, 1), "a"),
-                           simulate_truth(truth, steps(600, -2.0, 2.0, 2), "b")};
+  const nlid::Dataset data{simulate_truth(truth, random_steps(800, -2.0, 2.0, 1), "a"),
+                           simulate_truth(truth, random_steps(600, -2.0, 2.0, 2), "b")};
   // Both limits must actually be active in the data, else they are not identifiable.
   CHECK(data[0].y().maxCoeff() == Approx(1.0));
   CHECK(data[0].y().minCoeff() == Approx(-0.8));
@@ -64,7 +54,7 @@ TEST_CASE("Wiener [2 2 1] + saturation: B, F and the limits are recovered", "[mo
 TEST_CASE("HW started from a given linear block with initialize = false", "[models][estimate]") {
   Wiener truth;
   truth.set_parameters(wiener_truth());
-  const nlid::Dataset data{simulate_truth(truth, steps(600, -2.0, 2.0, 3), "c")};
+  const nlid::Dataset data{simulate_truth(truth, random_steps(600, -2.0, 2.0, 3), "c")};
   Wiener start;
   Eigen::VectorXd th(6);
   th << 0.12, 0.05, -1.45, 0.66, -0.7, 0.9;  // e.g. an earlier OE model plus the stops' guess
@@ -88,7 +78,7 @@ TEST_CASE("sigmoid-net NARX: the estimated model fits fresh noise-free data > 99
   th << 0.5, 0.2, 0.3, 0.1, 1.0, -0.8, 0.5, 0.3, 0.0, 1.5, 0.0, 0.4, -1.0, 0.5, 0.2, 2.0, 0.0, 0.5, -0.3;
   truth.set_parameters(th);
   auto make = [&](unsigned seed, const std::string& name) {
-    const Eigen::MatrixXd u = steps(700, -1.5, 1.5, seed);
+    const Eigen::MatrixXd u = random_steps(700, -1.5, 1.5, seed);
     const nlid::Experiment e0(u, Eigen::VectorXd::Zero(700), 0.1, name);
     return nlid::Experiment(u, truth.simulate(e0), 0.1, name);
   };
@@ -109,7 +99,7 @@ TEST_CASE("sigmoid-net NARX: the estimated model fits fresh noise-free data > 99
 TEST_CASE("multi-start NARX: starts compared by estimation cost, the cheapest continued", "[models][estimate]") {
   using Model = nlid::Nlarx<nlid::LaggedRegressors<2, 1, 0>, nlid::SigmoidNet<3, 2>>;
   // A plant with a sign-like (steep) nonlinearity in the velocity: friction-like.
-  const Eigen::MatrixXd u = steps(800, -1.0, 1.0, 21);
+  const Eigen::MatrixXd u = random_steps(800, -1.0, 1.0, 21);
   Eigen::VectorXd y = Eigen::VectorXd::Zero(800);
   for (Eigen::Index t = 2; t < 800; ++t) {
     const double v = y(t - 1) - y(t - 2);
@@ -152,7 +142,7 @@ TEST_CASE("multi-experiment simulation focus with estimated initial states", "[m
   std::vector<nlid::Experiment> exps;
   const Eigen::Vector2d x0s[2] = {{8.0, 7.5}, {-2.0, -1.0}};
   for (int i = 0; i < 2; ++i) {
-    const Eigen::MatrixXd u = steps(300, -3.0, 3.0, 20 + i);
+    const Eigen::MatrixXd u = random_steps(300, -3.0, 3.0, 20 + i);
     Eigen::VectorXd y(300);
     REQUIRE(truth.simulate<double>(u, nlid::detail::as_const_span(th), nlid::detail::as_const_span(x0s[i]),
                                    nlid::detail::as_span(y)));
@@ -174,7 +164,7 @@ TEST_CASE("regularized prediction focus is the ridge estimate of the regressors"
   // estimate has a closed form.
   using Model = nlid::Nlarx<nlid::LaggedRegressors<1, 1, 1>, nlid::LinearMap<2>>;
   const int n = 120;
-  const Eigen::MatrixXd u = steps(n, -1.0, 1.0, 9);
+  const Eigen::MatrixXd u = random_steps(n, -1.0, 1.0, 9);
   std::mt19937 gen(4);
   std::normal_distribution<double> noise(0.0, 0.3);
   Eigen::VectorXd y(n);
@@ -221,7 +211,7 @@ TEST_CASE("regularization leaves estimated initial states free", "[models][estim
   th << 1.3, -0.45, 0.2, 0.7;
   truth.set_parameters(th);
   const Eigen::Vector2d x0(8.0, 7.5);
-  const Eigen::MatrixXd u = steps(300, -3.0, 3.0, 20);
+  const Eigen::MatrixXd u = random_steps(300, -3.0, 3.0, 20);
   Eigen::VectorXd y(300);
   REQUIRE(truth.simulate<double>(u, nlid::detail::as_const_span(th), nlid::detail::as_const_span(x0),
                                  nlid::detail::as_span(y)));
@@ -244,7 +234,7 @@ TEST_CASE("Huber loss resists outliers that pull least squares off", "[models][e
   Model truth;
   Eigen::Vector3d th(0.8, 0.5, 0.0);
   truth.set_parameters(th);
-  const Eigen::MatrixXd u = steps(400, -1.0, 1.0, 5);
+  const Eigen::MatrixXd u = random_steps(400, -1.0, 1.0, 5);
   nlid::Experiment e(u, Eigen::VectorXd::Zero(400), 1.0, "out");
   Eigen::VectorXd y = truth.simulate(e).col(0);
   for (int t = 13; t < 400; t += 37) y(t) += 25.0;  // spikes: sensor glitches
@@ -264,8 +254,8 @@ TEST_CASE("Huber loss resists outliers that pull least squares off", "[models][e
 
 TEST_CASE("estimation refuses bad data, naming the experiment", "[models][estimate]") {
   using Model = nlid::Nlarx<nlid::LaggedRegressors<4, 2, 1>, nlid::LinearMap<6>>;
-  const nlid::Experiment ok(steps(50, -1, 1, 7), Eigen::VectorXd::Zero(50), 1.0, "long");
-  const nlid::Experiment tiny(steps(4, -1, 1, 8), Eigen::VectorXd::Zero(4), 1.0, "tiny");
+  const nlid::Experiment ok(random_steps(50, -1, 1, 7), Eigen::VectorXd::Zero(50), 1.0, "long");
+  const nlid::Experiment tiny(random_steps(4, -1, 1, 8), Eigen::VectorXd::Zero(4), 1.0, "tiny");
   CHECK_THROWS_WITH(nlid::estimate(Model{}, nlid::Dataset{ok, tiny}),
                     Catch::Contains("experiment 'tiny' has 4 samples") && Catch::Contains("experiment 1"));
   CHECK_THROWS_WITH(nlid::estimate(Model{}, nlid::Dataset{}), Catch::Contains("no experiments"));
@@ -291,7 +281,7 @@ TEST_CASE("more free parameters than residuals is refused before initialisation"
   // parameters; 2 units have 17.
   using Net3 = nlid::Nlarx<nlid::LaggedRegressors<2, 2, 1>, nlid::SigmoidNet<4, 3>>;
   using Net2 = nlid::Nlarx<nlid::LaggedRegressors<2, 2, 1>, nlid::SigmoidNet<4, 2>>;
-  const Eigen::MatrixXd u = steps(20, -1, 1, 11);
+  const Eigen::MatrixXd u = random_steps(20, -1, 1, 11);
   Eigen::VectorXd y(20);
   for (int t = 0; t < 20; ++t) y(t) = std::tanh(u(t, 0)) + 0.1 * t;
   const nlid::Dataset d{nlid::Experiment(u, y, 1.0, "short")};
@@ -319,7 +309,7 @@ TEST_CASE("more free parameters than residuals is refused before initialisation"
 TEST_CASE("missing samples are refused by name, a constant rest record is estimated, its fit undefined",
           "[models][estimate]") {
   using Net = nlid::Nlarx<nlid::LaggedRegressors<2, 2, 0>, nlid::SigmoidNet<4, 2>>;
-  const Eigen::MatrixXd u = steps(300, -1, 1, 12);
+  const Eigen::MatrixXd u = random_steps(300, -1, 1, 12);
   Eigen::VectorXd y(300);
   double s = 0.0;
   for (int t = 0; t < 300; ++t) y(t) = s = 0.8 * s + 0.2 * std::tanh(2.0 * u(t, 0));
@@ -359,7 +349,7 @@ TEST_CASE("simulation focus that cannot start says which experiment diverges", "
   // stably: start from an explicitly unstable model with initialize = false.
   Model start;
   start.set_parameters(Eigen::Vector3d(1.5, 1.0, 0.0));
-  const nlid::Experiment e(steps(3000, -1, 1, 9), Eigen::VectorXd::Ones(3000), 1.0, "drift");
+  const nlid::Experiment e(random_steps(3000, -1, 1, 9), Eigen::VectorXd::Ones(3000), 1.0, "drift");
   nlid::EstimateOptions o;
   o.focus = nlid::Focus::simulation;
   o.initialize = false;

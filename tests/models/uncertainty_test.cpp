@@ -13,23 +13,14 @@
 #include "nlid/nonlinearities/saturation.hpp"
 #include "nlid/nonlinearities/unit_gain.hpp"
 #include "nlid/regressors.hpp"
+#include "test_inputs.hpp"
 
 using Catch::Matchers::Contains;
 
+using nlid_test::random_steps;
+
 namespace {
 
-Eigen::MatrixXd random_steps(int n, double lo, double hi, unsigned seed) {
-  std::mt19937 gen(seed);
-  std::uniform_real_distribution<double> level(lo, hi);
-  std::uniform_int_distribution<int> hold(5, 40);
-  Eigen::MatrixXd u(n, 1);
-  int t = 0;
-  while (t < n) {
-    const double v = level(gen);
-    for (int k = hold(gen); k > 0 && t < n; --k) u(t++, 0) = v;
-  }
-  return u;
-}
 
 using Arx = nlid::Nlarx<nlid::LaggedRegressors<2, 1, 0>, nlid::LinearMap<3>>;
 
