@@ -278,6 +278,28 @@ std::vector<int> model_free_states(const M& model) {
   return free;
 }
 
+/// Appends each experiment's estimated initial-state entries (those `model_free_states` frees,
+/// read from the segments' x0) to θ (holding the model's parameters on entry) and their names,
+/// and sets each segment's `free_offset`; returns the freed entries. One layout of the unknowns
+/// for the simulation stage and for `parameter_uncertainty`.
+template <class M>
+std::vector<int> append_initial_states(const M& model, std::vector<EstimationSegment>& segs, Eigen::VectorXd& theta,
+                                       std::vector<std::string>& names) {
+  const auto np = theta.size();
+  std::vector<int> free = model_free_states(model);
+  theta.conservativeResize(np + static_cast<Eigen::Index>(free.size() * segs.size()));
+  int off = 0;
+  for (std::size_t e = 0; e < segs.size(); ++e) {
+    segs[e].free_offset = off;
+    for (std::size_t k = 0; k < free.size(); ++k) {
+      theta(np + off + static_cast<Eigen::Index>(k)) = segs[e].x0(free[k]);
+      names.push_back("x0[" + std::to_string(e) + "][" + std::to_string(free[k]) + "]");
+    }
+    off += static_cast<int>(free.size());
+  }
+  return free;
+}
+
 /// Main simulation-focus stage shared by both model kinds: builds the functor, extends θ by the
 /// estimated initial states, solves, and writes the states back into the segments.
 template <class M>
@@ -288,19 +310,7 @@ LmSummary simulation_stage(const M& model, std::vector<EstimationSegment>& segs,
   std::vector<int> free;
   std::vector<std::string> names = model.parameter_names();
   Eigen::VectorXd full = theta;
-  if (ic == InitialCondition::estimate) {
-    free = model_free_states(model);
-    full.conservativeResize(np + static_cast<Eigen::Index>(free.size() * segs.size()));
-    int off = 0;
-    for (std::size_t e = 0; e < segs.size(); ++e) {
-      segs[e].free_offset = off;
-      for (std::size_t k = 0; k < free.size(); ++k) {
-        full(np + off + static_cast<Eigen::Index>(k)) = segs[e].x0(free[k]);
-        names.push_back("x0[" + std::to_string(e) + "][" + std::to_string(free[k]) + "]");
-      }
-      off += static_cast<int>(free.size());
-    }
-  }
+  if (ic == InitialCondition::estimate) free = append_initial_states(model, segs, full, names);
   const LmOptions o = extend_options(solver, np, static_cast<int>(full.size()) - np, names);
   LmSummary summary;
   bool done = false;

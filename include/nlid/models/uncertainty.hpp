@@ -93,19 +93,7 @@ ParameterUncertainty simulation_uncertainty(const M& model, std::vector<Estimati
   std::vector<int> free;
   std::vector<std::string> names = model.parameter_names();
   Eigen::VectorXd theta = model.parameters();
-  if (ic == InitialCondition::estimate) {
-    free = model_free_states(model);
-    theta.conservativeResize(np + static_cast<Eigen::Index>(free.size() * segs.size()));
-    int off = 0;
-    for (std::size_t e = 0; e < segs.size(); ++e) {
-      segs[e].free_offset = off;
-      for (std::size_t k = 0; k < free.size(); ++k) {
-        theta(np + off + static_cast<Eigen::Index>(k)) = segs[e].x0(free[k]);
-        names.push_back("x0[" + std::to_string(e) + "][" + std::to_string(free[k]) + "]");
-      }
-      off += static_cast<int>(free.size());
-    }
-  }
+  if (ic == InitialCondition::estimate) free = append_initial_states(model, segs, theta, names);
   extend_uncertainty_options(o, np, static_cast<int>(theta.size()) - np);
   o.names = names;
   o.series.clear();
