@@ -28,6 +28,7 @@
 #include "nlid/io/json_eigen.hpp"
 #include "nlid/models/equilibrium.hpp"
 #include "nlid/models/greybox.hpp"
+#include "nlid/models/simulation_band.hpp"
 #include "nlid/models/greybox_estimate.hpp"
 #include "nlid/models/physics/throttle.hpp"
 
@@ -69,6 +70,12 @@ int main(int argc, char** argv) {
     rule("Fit (%) of the simulated output, initial state estimated");
     const nlid::CompareResult fit = nlid::compare(model, all, nlid::InitialCondition::estimate);
     std::cout << fit.table();
+
+    rule("Simulation band from the parameters' uncertainty: can the parameters explain the error?");
+    // The band holds each record's estimated initial state; est.uncertainty is the covariance the
+    // estimation computed (correlated residuals), so the band includes c/k/b's strong correlation.
+    const nlid::SimulationBand band = nlid::simulation_band(model, all, est.uncertainty);
+    std::cout << band.report();
 
     rule("Linearisation at the equilibrium holding the valve at 45 degrees");
     const nlid::OperatingPoint op45 = nlid::equilibrium_for_output(model, 45.0, 0.3);
@@ -115,6 +122,17 @@ int main(int argc, char** argv) {
     nlid::Json fits = nlid::Json::object();
     for (std::size_t e = 0; e < fit.experiment_names.size(); ++e) fits[fit.experiment_names[e]] = fit.fit(static_cast<Eigen::Index>(e), 0);
     j["fit_percent"] = fits;
+    nlid::Json bands = nlid::Json::object();
+    for (std::size_t e = 0; e < band.experiment_names.size(); ++e) {
+      const auto k = static_cast<Eigen::Index>(e);
+      bands[band.experiment_names[e]] = nlid::Json::object({{"rms_sigma", band.rms_stddev(k, 0)},
+                                                            {"max_sigma", band.max_stddev(k, 0)},
+                                                            {"rms_error", band.rms_error(k, 0)},
+                                                            {"reachable_share", band.reachable_share(k, 0)},
+                                                            {"shift_sigmas", band.shift_sigmas(k, 0)},
+                                                            {"plausible_share", band.plausible_share(k, 0)}});
+    }
+    j["simulation_band"] = bands;
     j["linearization"] = nlid::Json::object({{"u0", op45.u(0)},
                                              {"y0", op45.y(0)},
                                              {"A", nlid::to_json(lin.discrete.a())},

@@ -13,5 +13,6 @@
 #include "nlid/models/hammerstein_wiener.hpp"
 #include "nlid/models/integrators.hpp"
 #include "nlid/models/nlarx.hpp"
+#include "nlid/models/simulation_band.hpp"
 #include "nlid/models/transfer_function_block.hpp"
 #include "nlid/models/uncertainty.hpp"
