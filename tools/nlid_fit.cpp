@@ -192,6 +192,10 @@ int main(int argc, char** argv) {
     fo.progress = [](const std::string& s) { std::cerr << "  " << s << "\n"; };
     std::optional<nlid::ParameterUncertainty> uncertainty;
     fo.uncertainty = [&uncertainty](const nlid::ParameterUncertainty& u) { uncertainty = u; };
+    // On the validation records: is what the model misses there within its parameters' reach?
+    std::optional<nlid::SimulationBand> band;
+    fo.band_data = val;
+    fo.band = [&band](const nlid::SimulationBand& b) { band = b; };
     // With regularization the cost includes the penalty, so it no longer measures the fit.
     const bool penalised = spec.lambda > 0.0;
     fo.callback = [yss, penalised](const nlid::IterationReport& r) {
@@ -221,6 +225,7 @@ int main(int argc, char** argv) {
     // How well the estimation data determine the model's parameters (nlarx, hw, greybox; the
     // estimated initial states are unknowns of the formula but not listed).
     if (uncertainty) std::printf("%s", uncertainty->report(static_cast<int>(m.parameters().size())).c_str());
+    if (band) std::printf("validation records: %s", band->report().c_str());
     std::printf("saved %s\n", a.save.c_str());
     return nlid_tools::exit_ok;
   });

@@ -57,6 +57,13 @@ TEST_CASE("nlid-fit + nlid-sim: a nonlinear ARX model of a known first-order lag
   CHECK_THAT(f.out, Catch::Contains("Parameter uncertainty (1 sigma; correlated residuals") && Catch::Contains("+- ") &&
                         Catch::Contains("unknowns, rank 3;"));
   CHECK(f.out.find("Parameter uncertainty") < f.out.find("saved "));
+  // The validation record's simulation band, with a verdict on its error: the structure is exact,
+  // so what is left is the white measurement noise, which no parameter change reaches.
+  const std::string vname = val.filename().string();
+  CHECK_THAT(f.out, Catch::Contains("validation records: Simulation band (1 sigma") &&
+                        Catch::Contains("  " + vname + ": no change of the parameters removes more than"));
+  CHECK(f.out.find("Parameter uncertainty") < f.out.find("Simulation band"));
+  CHECK(f.out.find("Simulation band") < f.out.find("saved "));
   REQUIRE(fs::exists(model));
   const nlid::Json j = nlid::Json::parse(slurp(model));
   CHECK(j["format"].as_string() == "nlid-model");
@@ -87,7 +94,9 @@ TEST_CASE("nlid-sim notes where the input leaves the range the model was fitted 
   // simulated (nlid-sim reproduces the model, extrapolation included) with a note on stderr.
   const fs::path est = tool_test::write_record("range_est", 800, 91u, 1);
   const fs::path model = tool_test::work_dir() / "range.json";
-  REQUIRE(fit("--model nlarx:na=1,nb=1,nk=1:sigmoidnet:units=2 --est " + q(est) + " --iterations 3 --save " + q(model)).code == 0);
+  const Run f = fit("--model nlarx:na=1,nb=1,nk=1:sigmoidnet:units=2 --est " + q(est) + " --iterations 3 --save " + q(model));
+  REQUIRE(f.code == 0);
+  CHECK(f.out.find("Simulation band") == std::string::npos);  // no --val, no band
   Run s = sim("--model " + q(model) + " --input " + q(est) + " --out " + q(tool_test::work_dir() / "range_y.csv"));
   CHECK(s.code == 0);
   CHECK(s.err.find("note") == std::string::npos);

@@ -388,9 +388,13 @@ inline SimulationBand start_band(const Dataset& data, int ny, std::vector<std::s
   for (std::size_t e = 0; e < data.size(); ++e) {
     b.experiment_names.push_back(data[e].name().empty() ? "experiment " + std::to_string(e) : data[e].name());
   }
+  // The model's output names, else the first record's, else y1, y2, …
   outputs.resize(static_cast<std::size_t>(ny));
+  const std::vector<std::string>& recorded = data[0].output_names();
   for (int j = 0; j < ny; ++j) {
-    if (outputs[static_cast<std::size_t>(j)].empty()) outputs[static_cast<std::size_t>(j)] = "y" + std::to_string(j + 1);
+    auto& name = outputs[static_cast<std::size_t>(j)];
+    if (name.empty() && static_cast<std::size_t>(j) < recorded.size()) name = recorded[static_cast<std::size_t>(j)];
+    if (name.empty()) name = "y" + std::to_string(j + 1);
   }
   b.output_names = std::move(outputs);
   b.y.resize(data.size());

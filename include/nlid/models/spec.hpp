@@ -64,6 +64,7 @@
 #include "nlid/models/greybox_estimate.hpp"
 #include "nlid/models/series.hpp"
 #include "nlid/models/series_estimate.hpp"
+#include "nlid/models/simulation_band.hpp"
 #include "nlid/models/uncertainty.hpp"
 #include "nlid/nonlinearities/any_nonlinearity.hpp"
 #include "nlid/regressors/expression.hpp"
@@ -123,6 +124,12 @@ struct SpecFitOptions {
   /// called for the linear and series families (ARX and OE keep their own deviations), nor when
   /// the uncertainty cannot be computed: `progress` then says why, and the fit still returns.
   std::function<void(const ParameterUncertainty&)> uncertainty;
+  /// With `uncertainty` (nlarx, hw, greybox): records — typically the validation data — on which
+  /// to compute the simulation band of that uncertainty (`simulation_band`, from the initial
+  /// condition the saved model simulates with), handed to `band`. Not called where the
+  /// uncertainty or the band cannot be computed: `progress` then says why.
+  Dataset band_data;
+  std::function<void(const SimulationBand&)> band;
 };
 
 namespace detail {
@@ -391,11 +398,25 @@ AnyModel fit_series_spec(M model, const ModelSpec& s, const Dataset& data, const
   return AnyModel(std::move(m), info);
 }
 
+// Hands `o.band` the simulation band of `u` on `o.band_data` (if both are given).
+template <class M>
+void spec_band(const M& m, const ParameterUncertainty& u, const SpecFitOptions& o, InitialCondition simulated_from) {
+  if (!o.band || o.band_data.size() == 0) return;
+  SimulationBandOptions bo;
+  bo.initial_condition = simulated_from;
+  try {
+    o.band(simulation_band(m, o.band_data, u, bo));
+  } catch (const Error& err) {
+    if (o.progress) o.progress(std::string("no simulation band: ") + err.what());
+  }
+}
+
 // Hands `o.uncertainty` the model's uncertainty on its estimation data. The estimate stands even
 // where the uncertainty cannot be computed (estimation accepts as many residuals as unknowns,
 // which leaves no degrees of freedom for the noise level): the progress callback says why.
 template <class M>
-void spec_uncertainty(const M& m, const Dataset& data, const LmOptions& solver, const SpecFitOptions& o) {
+void spec_uncertainty(const M& m, const Dataset& data, const LmOptions& solver, const SpecFitOptions& o,
+                      InitialCondition simulated_from) {
   if (!o.uncertainty) return;
   ModelUncertaintyOptions uo;
   uo.uncertainty.caveat = uncertainty_caveat(solver);
@@ -407,7 +428,9 @@ void spec_uncertainty(const M& m, const Dataset& data, const LmOptions& solver, 
     return;
   }
   o.uncertainty(u);
+  spec_band(m, u, o, simulated_from);
 }
+
 
 }  // namespace detail
 
@@ -492,14 +515,18 @@ AnyModel fit_model_spec_kind(const ModelSpec& s, const Dataset& data, const Spec
                                               std::vector<int>(static_cast<std::size_t>(nu), od.nk));
       const int nr = static_cast<int>(r.size());
       DynamicNlarx m = estimate(DynamicNlarx(std::move(r), detail::make_spec_nonlinearity(s.nonlinearities[0], nr)), data, eo);
-      detail::spec_uncertainty(m, data, eo.solver, o);
+      detail::spec_uncertainty(m, data, eo.solver, o,
+                               s.initial_condition.value_or(detail::initial_condition_from_report(
+                                   m.report().initial_condition, InitialCondition::zero)));
       return AnyModel(std::move(m), info);
     }
     DynamicHammersteinWiener m = estimate(
         DynamicHammersteinWiener(detail::make_spec_nonlinearity(s.nonlinearities[0], 1), detail::make_spec_block(s.orders[0]),
                                  detail::make_spec_nonlinearity(s.nonlinearities[1], 1)),
         data, eo);
-    detail::spec_uncertainty(m, data, eo.solver, o);
+    detail::spec_uncertainty(m, data, eo.solver, o,
+                             s.initial_condition.value_or(detail::initial_condition_from_report(
+                                 m.report().initial_condition, InitialCondition::zero)));
     return AnyModel(std::move(m), info);
   }
   if (s.family == "wh")
@@ -519,7 +546,10 @@ AnyModel fit_model_spec_kind(const ModelSpec& s, const Dataset& data, const Spec
   GreyBoxEstimateOptions go;
   if (s.initial_condition) go.initial_condition = *s.initial_condition;
   const GreyBoxEstimate ge = estimate(g, data, go);
-  if (o.uncertainty && ge.uncertainty.theta.size() > 0) o.uncertainty(ge.uncertainty);
+  if (o.uncertainty && ge.uncertainty.theta.size() > 0) {
+    o.uncertainty(ge.uncertainty);
+    detail::spec_band(g, ge.uncertainty, o, s.initial_condition.value_or(InitialCondition::estimate));
+  }
   if (o.uncertainty && ge.uncertainty.theta.size() == 0 && o.progress) o.progress(ge.uncertainty.caveat);
   return AnyModel(std::move(g), info);
 }
