@@ -1,6 +1,6 @@
 // nlid-sim: free-run simulation of a saved model on an input recording.
 //
-//   nlid-sim --model model.json --input u.csv [--x0 zero|equilibrium] [--column u]
+//   nlid-sim --model model.json --input u.csv [--x0 zero|equilibrium] [--column u] [--band]
 //            [--decimate N] [--time t] [--ts T] [--delimiter C] [--decimal C] --out y.csv
 //
 // The input CSV has a time column t (or --ts) and the model's input column (its name from the
@@ -8,7 +8,9 @@
 // written with other separators (record_options.hpp). --decimate N filters and keeps every N-th
 // input sample as nlid-fit does, so a model fitted with `nlid-fit --decimate N` runs on the same
 // raw recordings. The output CSV has columns t,y (the
-// model's output name is not used so that scripts can rely on "y"). A model whose output is not
+// model's output name is not used so that scripts can rely on "y"); with --band a third, y_std:
+// the standard deviation of y from the parameter covariance a grey-box model file carries
+// (simulation_band; other model kinds keep no covariance, and --band refuses them). A model whose output is not
 // finite on the input (unstable, diverging) is an error naming the first such sample; nothing is
 // written. Exit status (cli_common.hpp) 0 on success, 1 on a bad file, data or model (missing
 // column, sample-time mismatch, divergence — the message says which), 2 on a bad command line.
@@ -23,15 +25,18 @@
 #include "nlid/data/resample.hpp"
 #include "nlid/io/augmented_serial.hpp"  // repaired models from nlid-diagnose --save
 #include "nlid/models/any_model.hpp"
+#include "nlid/models/greybox_dynamic.hpp"
+#include "nlid/models/simulation_band.hpp"
 #include "nlid/models/spec.hpp"
 #include "cli_common.hpp"
 #include "record_options.hpp"
 
 namespace {
 constexpr const char* kUsageHead =
-    "usage: nlid-sim --model model.json --input u.csv [--x0 zero|equilibrium] [--column NAME]\n"
+    "usage: nlid-sim --model model.json --input u.csv [--x0 zero|equilibrium] [--column NAME] [--band]\n"
     "                [--decimate N] [--time t] [--ts T] [--delimiter C] [--decimal C] --out y.csv\n"
     "  --decimate N     anti-alias filter the input and keep every N-th sample (as nlid-fit --decimate)\n"
+    "  --band           add a column y_std: 1 sigma of y from the grey-box model's parameter covariance\n"
     "Reading the input CSV file:\n";
 std::string usage_text() { return std::string(kUsageHead) + nlid_tools::record_usage; }
 }
@@ -47,6 +52,7 @@ int main(int argc, char** argv) {
                                          {"--out"},
                                          {"--x0", nlid_tools::OptionSpec::once, {"zero", "equilibrium"}},
                                          {"--column"},
+                                         {"--band", nlid_tools::OptionSpec::flag},
                                          {"--decimate"}}));
     if (a.help) {
       std::cout << usage_text();
@@ -63,6 +69,13 @@ int main(int argc, char** argv) {
     stage = "reading " + model;
     nlid::register_series_model_kind();
     const nlid::AnyModel m = nlid::load_model(model);
+    const bool band = a.has("--band");
+    const nlid::DynamicGreyBox* grey = m.target<nlid::DynamicGreyBox>();
+    if (band && (grey == nullptr || grey->parameter_covariance().size() == 0)) {
+      throw nlid::Error("--band needs the parameters' covariance, which " + model +
+                        (grey == nullptr ? " does not keep (a " + m.kind() + " model; grey-box model files carry it)"
+                                         : " lacks (a grey-box model not estimated, or changed after its estimation)"));
+    }
     if (m.num_inputs() != 1 && column.empty())
       throw nlid::Error("the model in " + model + " reads " + std::to_string(m.num_inputs()) +
                         " inputs; nlid-sim simulates single-input models");
@@ -148,12 +161,23 @@ int main(int argc, char** argv) {
         throw diverged(static_cast<long>(i), value);
       }
     }
+    Eigen::VectorXd y_std;
+    if (band) {
+      stage = "computing the simulation band of " + model;
+      nlid::SimulationBandOptions bo;
+      bo.initial_condition = x0 == "zero" ? nlid::InitialCondition::zero : nlid::InitialCondition::equilibrium;
+      y_std = nlid::simulation_band(*grey, nlid::Dataset(named), bo).stddev[0].col(0);
+    }
     stage = "writing " + out;
-    std::string text = "t,y\n";
-    text.reserve(static_cast<std::size_t>(e.size()) * 40);
-    char buf[96];
+    std::string text = band ? "t,y,y_std\n" : "t,y\n";
+    text.reserve(static_cast<std::size_t>(e.size()) * 60);
+    char buf[128];
     for (Eigen::Index i = 0; i < y.rows(); ++i) {
-      std::snprintf(buf, sizeof buf, "%.17g,%.17g\n", t(i), y(i, 0));
+      if (band) {
+        std::snprintf(buf, sizeof buf, "%.17g,%.17g,%.17g\n", t(i), y(i, 0), y_std(i));
+      } else {
+        std::snprintf(buf, sizeof buf, "%.17g,%.17g\n", t(i), y(i, 0));
+      }
       text += buf;
     }
     nlid::write_file_atomically(out, text);

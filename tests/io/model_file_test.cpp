@@ -334,6 +334,60 @@ TEST_CASE("model file: a grey box keeps its parameters' standard deviations, inf
   CHECK_THROWS_WITH(g.set_parameter_stddev(nan_sd), Catch::Contains("standard deviation of k must be >= 0"));
 }
 
+TEST_CASE("model file: a grey box keeps its parameter covariance bit for bit; bad ones are located") {
+  GreyBox<physics::Throttle> g;
+  CHECK(g.parameter_covariance().size() == 0);
+  const Eigen::Index n = g.num_parameters();
+  Eigen::MatrixXd a = Eigen::MatrixXd::Random(n, n);
+  Eigen::MatrixXd c = a * a.transpose() / 3.0;
+  c.row(n - 1).setZero();  // rest: fixed
+  c.col(n - 1).setZero();
+  g.set_parameter_covariance(c);
+  const std::string path = temp_path("greybox_covariance.json");
+  save_model(path, g);
+  const auto typed = load_model<GreyBox<physics::Throttle>>(path);
+  REQUIRE(typed.parameter_covariance().rows() == n);
+  CHECK((typed.parameter_covariance() - c).cwiseAbs().maxCoeff() == 0.0);
+  const AnyModel any = load_model(path);
+  REQUIRE(any.target<DynamicGreyBox>() != nullptr);
+  CHECK((any.target<DynamicGreyBox>()->parameter_covariance() - c).cwiseAbs().maxCoeff() == 0.0);
+
+  // A changed value makes it stale: dropped with the deviations.
+  GreyBox<physics::Throttle> changed = typed;
+  changed.set_parameter("k", 900.0);
+  CHECK(changed.parameter_covariance().size() == 0);
+  save_model(temp_path("greybox_no_covariance.json"), changed);
+  CHECK(read_text(temp_path("greybox_no_covariance.json")).find("covariance") == std::string::npos);
+
+  // In the API, what is wrong is said.
+  CHECK_THROWS_WITH(g.set_parameter_covariance(Eigen::MatrixXd::Identity(2, 2)),
+                    Catch::Contains("a 2x2 parameter covariance for 7 parameters"));
+  Eigen::MatrixXd skew = c;
+  skew(2, 0) += 1.0;
+  CHECK_THROWS_WITH(g.set_parameter_covariance(skew), Catch::Contains("not symmetric (K with c)"));
+  Eigen::MatrixXd negative = c;
+  negative(1, 1) = -1.0;
+  CHECK_THROWS_WITH(g.set_parameter_covariance(negative), Catch::Contains("variance of k must be >= 0"));
+  Eigen::MatrixXd nan = c;
+  nan(0, 3) = std::nan("");
+  CHECK_THROWS_WITH(g.set_parameter_covariance(nan), Catch::Contains("non-finite"));
+
+  // In a file, also where.
+  Json j = read_json(path);
+  j["parameters"]["covariance"][3][1] = 5.0;
+  CHECK_THAT(error_of([&] { (void)model_from_json<GreyBox<physics::Throttle>>(j); }),
+             Catch::Contains("not symmetric (b with k)") && Catch::Contains("parameters.covariance"));
+  j = read_json(path);
+  j["parameters"]["covariance"][4] = Json::array({1.0, 2.0});
+  CHECK_THAT(error_of([&] { (void)model_from_json<GreyBox<physics::Throttle>>(j); }),
+             Catch::Contains("row 4 of the parameter covariance at parameters.covariance[4] has 2 entries") &&
+                 Catch::Contains("7 parameters"));
+  j = read_json(path);
+  j["parameters"]["covariance"] = Json::array({1.0});
+  CHECK_THAT(error_of([&] { (void)model_from_json<GreyBox<physics::Throttle>>(j); }),
+             Catch::Contains("must be an array of 7 rows"));
+}
+
 TEST_CASE("model file: a grey box's integrator options round-trip field by field") {
   // Every field differs from its default and from the others, so a field written or read under
   // another's key cannot go unnoticed.

@@ -191,6 +191,29 @@ TEST_CASE("Band of estimated grey boxes matches the spread of their simulations 
   }
 }
 
+TEST_CASE("A grey box's stored covariance gives the band of its estimate's uncertainty", "[models][band]") {
+  Lag m;
+  m.set_parameters(Eigen::Vector3d(12.0, 35.0, 21.0));
+  const Eigen::MatrixXd u = nlid_test::steps({0.0, 1.0, 0.4, 0.8}, 25, 200);
+  const nlid::Dataset d(nlid_test::simulated(m, u, 1.0, Eigen::VectorXd::Constant(1, 21.0), 0.5, 11u, "oven"));
+  nlid::GreyBoxEstimateOptions eo;
+  eo.multi_start.num_candidates = 1;
+  eo.multi_start.num_starts = 1;
+  const nlid::GreyBoxEstimate r = nlid::estimate(m, d, eo);
+  REQUIRE(m.parameter_covariance().rows() == 3);
+  const nlid::Dataset val(nlid::Experiment(nlid_test::steps({0.2, 0.9}, 30, 120), Eigen::VectorXd::Zero(120), 1.0, "v"));
+  nlid::SimulationBandOptions o;
+  o.initial_condition = nlid::InitialCondition::zero;
+  const nlid::SimulationBand from_estimate = nlid::simulation_band(m, val, r.uncertainty, o);
+  const nlid::SimulationBand from_model = nlid::simulation_band(m, val, o);
+  CHECK((from_model.stddev[0] - from_estimate.stddev[0]).cwiseAbs().maxCoeff() <=
+        1e-12 * from_estimate.stddev[0].maxCoeff());
+  CHECK(from_model.stddev[0].maxCoeff() > 0.0);
+  // Stale after a change of value: refused, not silently wrong.
+  m.set_parameter("tau", 13.0);
+  CHECK_THROWS_WITH(nlid::simulation_band(m, val, o), Contains("carries no parameter covariance"));
+}
+
 TEST_CASE("Reachable share and shift read a known parameter change back", "[models][band]") {
   Lag model;
   model.set_parameters(Eigen::Vector3d(12.0, 35.0, 21.0));

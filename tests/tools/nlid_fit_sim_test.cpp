@@ -323,3 +323,39 @@ TEST_CASE("nlid-fit + nlid-sim read semicolon-separated decimal-comma files and 
   CHECK(r.code == 2);
   CHECK_THAT(r.err, Catch::Contains("--ts needs a positive sample time"));
 }
+
+TEST_CASE("nlid-sim --band: a grey-box model file's covariance gives y_std; other models are refused",
+          "[tools][sim]") {
+  const fs::path est = write_record("band_est", 1200, 41u, 0), val = write_record("band_val", 600, 42u, 0);
+  const fs::path model = work_dir() / "band_lag.json";
+  const Run f = fit("--model greybox:first_order --est " + q(est) + " --save " + q(model));
+  INFO(f.err);
+  REQUIRE(f.code == 0);
+  CHECK_THAT(slurp(model), Catch::Contains("\"covariance\""));
+  const fs::path plain = work_dir() / "band_plain.csv", banded = work_dir() / "band_y.csv";
+  REQUIRE(sim("--model " + q(model) + " --input " + q(val) + " --out " + q(plain)).code == 0);
+  const Run s = sim("--model " + q(model) + " --input " + q(val) + " --band --out " + q(banded));
+  INFO(s.err);
+  REQUIRE(s.code == 0);
+  CHECK(slurp(banded).rfind("t,y,y_std\n", 0) == 0);
+  // The same simulation, now with its standard deviation: 0 at the held initial state, then
+  // positive and small against the output's range of about 4 (noise 0.01 on 1200 samples).
+  const std::vector<double> y0 = column(plain, 1), y = column(banded, 1), sd = column(banded, 2);
+  REQUIRE(y.size() == y0.size());
+  for (std::size_t k = 0; k < y.size(); ++k) CHECK(y[k] == y0[k]);
+  CHECK(sd[0] == 0.0);
+  double top = 0.0;
+  for (std::size_t k = 1; k < sd.size(); ++k) {
+    CHECK(sd[k] > 0.0);
+    top = std::max(top, sd[k]);
+  }
+  CHECK(top < 0.05);
+
+  // A nonlinear ARX model file keeps no covariance: refused, saying so, nothing written.
+  const fs::path arx = work_dir() / "band_arx.json", none = work_dir() / "band_none.csv";
+  REQUIRE(fit("--model nlarx:na=1,nb=1,nk=1:linear --est " + q(est) + " --save " + q(arx)).code == 0);
+  const Run r = sim("--model " + q(arx) + " --input " + q(val) + " --band --out " + q(none));
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("--band needs the parameters' covariance") && Catch::Contains("does not keep"));
+  CHECK_FALSE(fs::exists(none));
+}

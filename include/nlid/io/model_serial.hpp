@@ -192,7 +192,7 @@ inline Json parameters_json(const std::vector<std::string>& names, const Eigen::
 inline Eigen::VectorXd read_parameters(const JsonView& file, int n, bool with_stddev = false) {
   const JsonView p = file.at("parameters");
   if (with_stddev) {
-    p.check_keys({"names", "values", "stddev"});
+    p.check_keys({"names", "values", "stddev", "covariance"});
   } else {
     p.check_keys({"names", "values"});
   }
@@ -553,6 +553,13 @@ struct ModelSerial<GreyBox<P>> {
     j["structure"] = std::move(s);
     j["parameters"] = detail::parameters_json(m.parameter_names(), Eigen::VectorXd(m.parameters()));
     if (m.parameter_stddev().size() > 0) j["parameters"]["stddev"] = extended_vector(m.parameter_stddev());
+    if (m.parameter_covariance().size() > 0) {
+      Json::Array rows;
+      for (Eigen::Index i = 0; i < m.parameter_covariance().rows(); ++i) {
+        rows.push_back(extended_vector(Eigen::VectorXd(m.parameter_covariance().row(i).transpose())));
+      }
+      j["parameters"]["covariance"] = Json(std::move(rows));
+    }
     Json::Array x0;
     for (const auto& x : m.estimated_initial_states()) x0.push_back(extended_vector(x));
     j["estimated_initial_states"] = Json(std::move(x0));
@@ -634,6 +641,29 @@ struct ModelSerial<GreyBox<P>> {
         m.set_parameter_stddev(v);
       } catch (const Error& e) {
         sd.fail(e.message() + " (at " + sd.path_text() + ")");
+      }
+    }
+    if (file.at("parameters").contains("covariance")) {
+      const JsonView cv = file.at("parameters").at("covariance");
+      const Eigen::Index n = m.num_parameters();
+      if (cv.type() != Json::Type::array || static_cast<Eigen::Index>(cv.size()) != n) {
+        cv.fail("the parameter covariance at " + cv.path_text() + " must be an array of " + std::to_string(n) +
+                " rows (one per parameter)");
+      }
+      Eigen::MatrixXd c(n, n);
+      for (Eigen::Index i = 0; i < n; ++i) {
+        const JsonView row = cv.at(static_cast<std::size_t>(i));
+        const Eigen::VectorXd v = read_extended_vector(row);
+        if (v.size() != n) {
+          row.fail("row " + std::to_string(i) + " of the parameter covariance at " + row.path_text() + " has " +
+                   std::to_string(v.size()) + " entries, the model has " + std::to_string(n) + " parameters");
+        }
+        c.row(i) = v.transpose();
+      }
+      try {
+        m.set_parameter_covariance(c);
+      } catch (const Error& e) {
+        cv.fail(e.message() + " (at " + cv.path_text() + ")");
       }
     }
     m.set_units(info.output_units.empty() ? std::string() : info.output_units[0],

@@ -185,7 +185,7 @@ class GreyBox {
       params_[static_cast<std::size_t>(i)].value = p[i];
       user_set_[static_cast<std::size_t>(i)] = true;
     }
-    stddev_.resize(0);  // deviations belong to the values they were computed for
+    clear_uncertainty();  // deviations belong to the values they were computed for
   }
   /// Index of a parameter by name; throws `nlid::Error` listing the known names.
   [[nodiscard]] int parameter_index(std::string_view name) const {
@@ -208,7 +208,7 @@ class GreyBox {
     check_value(params_[i], value);
     params_[i].value = value;
     user_set_[i] = true;
-    stddev_.resize(0);
+    clear_uncertainty();
   }
   /// Sets hard bounds of a named parameter (lower ≤ value ≤ upper must hold afterwards).
   void set_bounds(std::string_view name, double lower, double upper) {
@@ -258,7 +258,7 @@ class GreyBox {
     require(p.size() == num_parameters(), "parameter count mismatch");
     for (int i = 0; i < num_parameters(); ++i) check_value(params_[static_cast<std::size_t>(i)], p[i]);
     for (int i = 0; i < num_parameters(); ++i) params_[static_cast<std::size_t>(i)].value = p[i];
-    stddev_.resize(0);
+    clear_uncertainty();
   }
 
   /// Standard deviations of the parameter values (1σ; 0 for a fixed parameter, +∞ for one the
@@ -279,6 +279,39 @@ class GreyBox {
               at_parameter(q));
     }
     stddev_ = std::move(sd);
+  }
+
+  /// Covariance of the parameter values (n_p × n_p; zero rows for fixed parameters), as the
+  /// last estimation left it (`GreyBoxEstimate::uncertainty.covariance`); empty when unknown.
+  /// What `simulation_band(model, data)` propagates: the deviations alone would miss the strong
+  /// correlations of simulation-error estimates. Kept in model files; cleared when a value changes.
+  [[nodiscard]] const Eigen::MatrixXd& parameter_covariance() const { return covariance_; }
+  /// Sets the covariance (n_p × n_p, finite, symmetric, non-negative diagonal; empty clears it).
+  /// Throws `nlid::Error` saying which condition fails, naming the parameter where one does.
+  void set_parameter_covariance(Eigen::MatrixXd c) {
+    const Eigen::Index n = num_parameters();
+    require(c.size() == 0 || (c.rows() == n && c.cols() == n),
+            "grey-box model '" + name() + "': a " + std::to_string(c.rows()) + "x" + std::to_string(c.cols()) +
+                " parameter covariance for " + std::to_string(n) + " parameters",
+            at_parameter("covariance"));
+    if (c.size() > 0) {
+      require(c.allFinite(), "grey-box model '" + name() + "': the parameter covariance has non-finite entries",
+              at_parameter("covariance"));
+      const double scale = c.cwiseAbs().maxCoeff();
+      for (Eigen::Index i = 0; i < n; ++i) {
+        const std::string& q = params_[static_cast<std::size_t>(i)].name;
+        require(c(i, i) >= 0.0, "grey-box model '" + name() + "': the variance of " + q + " must be >= 0, got " +
+                                    detail::format_number(c(i, i)),
+                at_parameter(q));
+        for (Eigen::Index j = 0; j < i; ++j) {
+          require(std::abs(c(i, j) - c(j, i)) <= 1e-9 * scale,
+                  "grey-box model '" + name() + "': the parameter covariance is not symmetric (" + q + " with " +
+                      params_[static_cast<std::size_t>(j)].name + ")",
+                  at_parameter(q));
+        }
+      }
+    }
+    covariance_ = std::move(c);
   }
 
   // ---- integrator ------------------------------------------------------------------------------
@@ -603,6 +636,12 @@ class GreyBox {
   std::vector<std::string> input_names_, output_names_;
   std::vector<Eigen::VectorXd> initial_states_;
   Eigen::VectorXd stddev_;
+  Eigen::MatrixXd covariance_;
+
+  void clear_uncertainty() {
+    stddev_.resize(0);
+    covariance_.resize(0, 0);
+  }
   Eigen::Index initial_state_window_ = 2000;
 };
 

@@ -384,6 +384,8 @@ GreyBoxEstimate estimate(GreyBox<P>& model, const Dataset& data,
   try {
     out.uncertainty = detail::greybox_uncertainty(model, problem, data, theta, uo);
     model.set_parameter_stddev(out.uncertainty.stddev.head(np));
+    const Eigen::MatrixXd c = out.uncertainty.covariance.topLeftCorner(np, np);
+    model.set_parameter_covariance(0.5 * (c + c.transpose()));
   } catch (const Error& err) {
     out.uncertainty.caveat = std::string("no uncertainty: ") + err.what();
   }

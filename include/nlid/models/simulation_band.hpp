@@ -500,6 +500,37 @@ SimulationBand simulation_band(const GreyBox<P>& model, const Dataset& data, con
   return b;
 }
 
+/// Band of a grey-box model's simulation from the covariance it carries
+/// (`GreyBox::parameter_covariance`: set by `estimate`, kept in model files) — for a model loaded
+/// from a file. Unidentifiable combinations are not stored, so `unidentifiable_change` is empty;
+/// a parameter the estimation left undetermined (σ = ∞) is named in the caveat. Throws
+/// `nlid::Error` if the model carries no covariance, and as the overload above.
+template <Physics P>
+SimulationBand simulation_band(const GreyBox<P>& model, const Dataset& data, const SimulationBandOptions& options = {}) {
+  const Eigen::Index np = model.num_parameters();
+  require(model.parameter_covariance().rows() == np && np > 0,
+          "simulation_band: grey-box model '" + model.name() +
+              "' carries no parameter covariance (estimate it, or load a model file written after an estimation)",
+          at_parameter("covariance"));
+  ParameterUncertainty u;
+  for (const auto& q : model.parameter_info()) u.names.push_back(q.name);
+  u.theta = model.parameters();
+  u.covariance = model.parameter_covariance();
+  u.stddev = model.parameter_stddev().size() == np ? model.parameter_stddev()
+                                                    : Eigen::VectorXd(u.covariance.diagonal().cwiseSqrt());
+  u.free.resize(static_cast<std::size_t>(np));
+  u.at_bound.assign(static_cast<std::size_t>(np), false);
+  std::string undetermined;
+  for (Eigen::Index i = 0; i < np; ++i) {
+    u.free[static_cast<std::size_t>(i)] = u.covariance(i, i) > 0.0;
+    if (std::isinf(u.stddev[i])) undetermined += (undetermined.empty() ? "" : ", ") + u.names[static_cast<std::size_t>(i)];
+  }
+  if (!undetermined.empty()) {
+    u.caveat = "not determined by the estimation data, so not in the band: " + undetermined;
+  }
+  return simulation_band(model, data, u, options);
+}
+
 /// Band of a nonlinear ARX model's free-run simulation on `data` (initial condition default:
 /// `measured`; its first n₀ samples are the record's own, σ = 0). Throws as the grey-box overload.
 template <Regressor R, Nonlinearity F>
