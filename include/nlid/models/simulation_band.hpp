@@ -76,8 +76,10 @@ struct SimulationBand {
   /// covariance's metric √(δᵀΣ⁻¹δ), "sigmas"; directions without variance are not moved, as in
   /// the band): `reachable_share`, the share (0…1) of the error's square sum that the best change
   /// of any size removes on this record — what the parameters can do at all; the rest is the
-  /// model's structure or noise; `shift_sigmas`, the size of the least such change;
-  /// `plausible_share`, the share removed by the best change within `plausible_radius()` sigmas.
+  /// model's structure or noise; `shift_sigmas`, the size of the smallest change that removes
+  /// 90 % of that reachable part; `plausible_share`, the share removed by the best change within
+  /// `plausible_radius()` sigmas (at least 90 % of the reachable part exactly when the shift is
+  /// within the radius).
   /// NaN where fewer samples than parameters were measured.
   Eigen::MatrixXd reachable_share, shift_sigmas, plausible_share;
   /// The best change within the radius per experiment: n_p × n_y (column j for output j; 0 for
@@ -130,12 +132,22 @@ struct SimulationBand {
     }
     s += "(in band: measured samples within +-" + num(band_sigmas) +
          " sigma; reachable: share of the error's square sum the best parameter change removes, first order; "
-         "shift: the size of that change in sigmas; near: the share a change of at most " +
+         "shift: the smallest change removing 90 % of that, in sigmas; near: the share a change of at most " +
          num(plausible_radius()) + " sigma removes)\n";
     s += verdicts;
-    for (std::size_t d = 0; d < unidentifiable_change.size(); ++d) {
-      s += "  unidentifiable combination " + std::to_string(d + 1) + " (1 % move): changes the output by up to " +
-           num(unidentifiable_change[d]) + " on these data; not in the band\n";
+    // The three combinations that matter most on these data, then the largest of the rest.
+    std::vector<std::size_t> order(unidentifiable_change.size());
+    for (std::size_t d = 0; d < order.size(); ++d) order[d] = d;
+    std::stable_sort(order.begin(), order.end(),
+                     [&](std::size_t a, std::size_t b) { return unidentifiable_change[a] > unidentifiable_change[b]; });
+    for (std::size_t q = 0; q < std::min<std::size_t>(3, order.size()); ++q) {
+      s += "  unidentifiable combination " + std::to_string(order[q] + 1) +
+           " (1 % move): changes the output by up to " + num(unidentifiable_change[order[q]]) +
+           " on these data; not in the band\n";
+    }
+    if (order.size() > 3) {
+      s += "  ... and " + std::to_string(order.size() - 3) + " more unidentifiable combinations, each changing it by at most " +
+           num(unidentifiable_change[order[3]]) + "\n";
     }
     if (!caveat.empty()) s += "  note: " + caveat + "\n";
     return s;
@@ -233,7 +245,7 @@ struct ErrorReach {
 
 // In whitened coordinates δ = L z (Σ_f = L Lᵀ over the directions the covariance gives variance;
 // the others are not moved, as the band does not move them): the share of ‖err‖² that the best z
-// removes (reachable), the size ‖z*‖ of the least-norm such z (shift, in sigmas), and the share
+// removes (reachable), the size ‖z‖ of the smallest z removing 90 % of that (shift, in sigmas), and the share
 // removed by the best z with ‖z‖ ≤ radius (plausible; a trust-region solve by bisection on the
 // Levenberg parameter).
 inline ErrorReach error_reach(const Eigen::MatrixXd& A, const Eigen::VectorXd& err, const Eigen::MatrixXd& sf,
@@ -261,13 +273,28 @@ inline ErrorReach error_reach(const Eigen::MatrixXd& A, const Eigen::VectorXd& e
   if (m == 0) return out;
   const Eigen::VectorXd sm = sv.head(m), cm = c.head(m);
   out.reachable = std::clamp(cm.squaredNorm() / total, 0.0, 1.0);
-  out.shift = cm.cwiseQuotient(sm).norm();
-  // z(μ) = V diag(sᵢ/(sᵢ² + μ)) Uᵀe; ‖z(μ)‖ falls with μ, and ‖z(μ)‖ ≤ s₀‖c‖/μ.
+  // z(μ) = V diag(sᵢ/(sᵢ² + μ)) Uᵀe; ‖z(μ)‖ and the share it removes, Σcᵢ² − Σ(cᵢμ/(sᵢ² + μ))²,
+  // both fall with μ, and ‖z(μ)‖ ≤ s₀‖c‖/μ.
   auto coefficients = [&](double mu) {
     return Eigen::VectorXd(sm.cwiseProduct(cm).cwiseQuotient((sm.array().square() + mu).matrix()));
   };
+  auto removed = [&](double mu) {
+    return cm.squaredNorm() - (cm.array() * mu / (sm.array().square() + mu)).matrix().squaredNorm();
+  };
+  // Shift: the smallest change removing 90 % of what is reachable. (The least-norm change removing
+  // all of it is dominated by directions the record barely senses, whose tiny singular values
+  // make it arbitrarily large.)
+  {
+    double lo = 0.0, hi = 1e8 * sm[0] * sm[0];
+    const double target = 0.9 * cm.squaredNorm();
+    for (int it = 0; it < 200; ++it) {
+      const double mid = 0.5 * (lo + hi);
+      (removed(mid) >= target ? lo : hi) = mid;
+    }
+    out.shift = coefficients(lo).norm();
+  }
   double mu = 0.0;
-  if (out.shift > radius) {
+  if (cm.cwiseQuotient(sm).norm() > radius) {
     double lo = 0.0, hi = sm[0] * cm.norm() / radius;
     for (int it = 0; it < 200; ++it) {
       const double mid = 0.5 * (lo + hi);
