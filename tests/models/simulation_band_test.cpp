@@ -353,3 +353,30 @@ TEST_CASE("Band: unidentifiable directions, missing outputs and bad input", "[mo
     CHECK_THROWS(nlid::simulation_band(model, two_inputs, unc));
   }
 }
+
+TEST_CASE("Nlarx band: a missing input or measured past is named, not called a divergence", "[models][band]") {
+  Arx model;
+  model.set_parameters(Eigen::Vector4d(0.5, -0.1, 0.2, 0.7));
+  const Eigen::MatrixXd u = nlid_test::random_steps(100, -1.0, 1.0, 6u);
+  const Eigen::VectorXd y =
+      model.simulate(nlid::Experiment(u, Eigen::VectorXd::Zero(100), 1.0), nlid::InitialCondition::zero).col(0);
+  const nlid::ParameterUncertainty unc = made_uncertainty(model.parameters(), model.parameter_names(), 0.01, 8u);
+  Eigen::MatrixXd ub = u;
+  ub(40, 0) = std::numeric_limits<double>::quiet_NaN();
+  const nlid::Dataset gap(nlid::Experiment(ub, y, 1.0, "gap", nlid::NonFinitePolicy::keep));
+  CHECK_THROWS_WITH(nlid::simulation_band(model, gap, unc),
+                    Contains("gap") && Contains("sample 40") && Contains("input") && !Contains("diverges"));
+  // The measured initial past (the first n0 = 2 samples) has a missing output.
+  Eigen::VectorXd yb = y;
+  yb[1] = std::numeric_limits<double>::quiet_NaN();
+  const nlid::Dataset past(nlid::Experiment(u, yb, 1.0, "past", nlid::NonFinitePolicy::keep));
+  CHECK_THROWS_WITH(nlid::simulation_band(model, past, unc),
+                    Contains("past") && Contains("sample 1") && Contains("output") && !Contains("diverges"));
+  // A missing output later on only leaves that sample out of the error statistics.
+  yb[1] = y[1];
+  yb[60] = std::numeric_limits<double>::quiet_NaN();
+  const nlid::SimulationBand b =
+      nlid::simulation_band(model, nlid::Dataset(nlid::Experiment(u, yb, 1.0, "late", nlid::NonFinitePolicy::keep)), unc);
+  CHECK(b.stddev[0].allFinite());
+  CHECK(b.rms_error(0, 0) < 1e-9);
+}

@@ -420,6 +420,36 @@ SimulationBand regression_band(const M& model, const Dataset& data, const Parame
     check_experiment(ex, static_cast<long>(e), model.num_inputs(), history, model.ts(), kind);
     const Eigen::VectorXd x0 = model.initial_state(ex, ic, static_cast<long>(e));
     const Eigen::Index first = ic == InitialCondition::measured ? history : 0;
+    // A missing sample the run reads would end it as a "divergence" without saying where: name
+    // it (inputs of the simulated samples, and inputs or outputs of a measured initial past).
+    auto missing = [&](bool output, Eigen::Index k, Eigen::Index c, const std::string& why) {
+      const auto& names = output ? ex.output_names() : ex.input_names();
+      const std::string name = static_cast<std::size_t>(c) < names.size() ? names[static_cast<std::size_t>(c)]
+                                                                          : (output ? "y" : "u") + std::to_string(c + 1);
+      Location where = at_experiment(static_cast<long>(e));
+      where.row = static_cast<long>(k) + 1;
+      where.column_name = name;
+      throw Error("simulation_band: " + b.experiment_names[e] + ": " + (output ? "output" : "input") + " '" + name +
+                      "' is not finite at sample " + std::to_string(k) + "; " + why,
+                  where);
+    };
+    for (Eigen::Index k = first; k < ex.size(); ++k) {
+      for (Eigen::Index c = 0; c < ex.u().cols(); ++c) {
+        if (!std::isfinite(ex.u()(k, c))) {
+          missing(false, k, c, "a simulation cannot run through missing inputs (interpolate or cut the record)");
+        }
+      }
+    }
+    if (!x0.allFinite() && ic == InitialCondition::measured) {
+      for (Eigen::Index k = 0; k < first; ++k) {
+        const std::string why = "the simulation starts from the measured first " + std::to_string(first) +
+                                " samples (InitialCondition::measured; use estimate, or cut the record)";
+        if (!std::isfinite(ex.y()(k, 0))) missing(true, k, 0, why);
+        for (Eigen::Index c = 0; c < ex.u().cols(); ++c) {
+          if (!std::isfinite(ex.u()(k, c))) missing(false, k, c, why);
+        }
+      }
+    }
     std::vector<EstimationSegment> segs(1);
     segs[0].u = &ex.u();
     segs[0].y = Eigen::VectorXd::Zero(ex.size());
