@@ -380,3 +380,20 @@ TEST_CASE("Nlarx band: a missing input or measured past is named, not called a d
   CHECK(b.stddev[0].allFinite());
   CHECK(b.rms_error(0, 0) < 1e-9);
 }
+
+TEST_CASE("Band: a record the model reproduces exactly has no error to explain, not one out of reach",
+          "[models][band]") {
+  Lag model;
+  model.set_parameters(Eigen::Vector3d(12.0, 35.0, 21.0));
+  const Eigen::MatrixXd u = nlid_test::steps({0.0, 1.0, 0.4, 0.8}, 25, 120);
+  const nlid::ParameterUncertainty unc = made_uncertainty(model.parameters(), lag_names(), 0.01, 9u);
+  nlid::SimulationBandOptions o;
+  o.initial_condition = nlid::InitialCondition::zero;
+  const Eigen::MatrixXd y = model.simulate(u, 1.0, Eigen::VectorXd::Zero(1));
+  const nlid::SimulationBand b = nlid::simulation_band(model, nlid::Dataset(nlid::Experiment(u, y, 1.0, "own")), unc, o);
+  REQUIRE(b.rms_error(0, 0) == 0.0);
+  CHECK(std::isnan(b.reachable_share(0, 0)));
+  CHECK(std::isnan(b.plausible_share(0, 0)));
+  CHECK(b.shift_sigmas(0, 0) == 0.0);
+  CHECK_THAT(b.report(), !Contains("outside what they can reach"));
+}

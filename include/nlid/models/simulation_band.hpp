@@ -78,7 +78,8 @@ struct SimulationBand {
   /// of any size removes on this record — what the parameters can do at all; the rest is the
   /// model's structure or noise; `shift_sigmas`, the size of the least such change;
   /// `plausible_share`, the share removed by the best change within `plausible_radius()` sigmas.
-  /// NaN where fewer samples than parameters were measured.
+  /// NaN where fewer samples than parameters were measured, and the shares where the error is
+  /// zero (nothing to explain; the shift is 0).
   Eigen::MatrixXd reachable_share, shift_sigmas, plausible_share;
   /// The best change within the radius per experiment: n_p × n_y (column j for output j; 0 for
   /// fixed parameters and where the shares are NaN), in the parameters' units.
@@ -142,7 +143,7 @@ struct SimulationBand {
   }
 
   /// One line on experiment e, output j: whether the parameters' uncertainty accounts for the
-  /// error (empty without measurements).
+  /// error (empty without measurements or without an error).
   [[nodiscard]] std::string verdict(Eigen::Index e, Eigen::Index j) const {
     const double reach = reachable_share(e, j), near = plausible_share(e, j);
     if (std::isnan(rms_error(e, j)) || std::isnan(reach)) return {};
@@ -241,7 +242,12 @@ inline ErrorReach error_reach(const Eigen::MatrixXd& A, const Eigen::VectorXd& e
   ErrorReach out;
   out.delta = Eigen::VectorXd::Zero(A.cols());
   const double total = err.squaredNorm();
-  if (total == 0.0 || A.cols() == 0) return out;
+  if (total == 0.0) {
+    // No error: a share of it is 0/0, and "out of reach" (share 0) would be a false verdict.
+    out.reachable = out.plausible = std::numeric_limits<double>::quiet_NaN();
+    return out;
+  }
+  if (A.cols() == 0) return out;
   const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(sf);
   const double top = es.eigenvalues().cwiseAbs().maxCoeff();
   std::vector<Eigen::Index> keep;
