@@ -209,6 +209,13 @@ TEST_CASE("A grey box's stored covariance gives the band of its estimate's uncer
   CHECK((from_model.stddev[0] - from_estimate.stddev[0]).cwiseAbs().maxCoeff() <=
         1e-12 * from_estimate.stddev[0].maxCoeff());
   CHECK(from_model.stddev[0].maxCoeff() > 0.0);
+  // A parameter fixed since the estimation keeps its variance in the band but is not moved to
+  // explain an error.
+  Lag held = m;
+  held.fix("offset");
+  const nlid::SimulationBand fixed_band = nlid::simulation_band(held, val, o);
+  CHECK(fixed_band.free_parameters == 2);
+  CHECK(fixed_band.stddev[0] == from_model.stddev[0]);
   // Stale after a change of value: refused, not silently wrong.
   m.set_parameter("tau", 13.0);
   CHECK_THROWS_WITH(nlid::simulation_band(m, val, o), Contains("carries no parameter covariance"));
@@ -347,6 +354,18 @@ TEST_CASE("Band: unidentifiable directions, missing outputs and bad input", "[mo
     CHECK(b.free_parameters == 2);
     CHECK(b.reachable_share(0, 0) < 0.999);
   }
+  SECTION("no free parameters: the whole error is the model's") {
+    nlid::ParameterUncertainty unc = made_uncertainty(model.parameters(), lag_names(), 0.01, 4u);
+    unc.covariance.setZero();
+    unc.free.assign(3, false);
+    Eigen::MatrixXd y2 = y;
+    y2.array() += 0.5;
+    const nlid::SimulationBand b =
+        nlid::simulation_band(model, nlid::Dataset(nlid::Experiment(u, y2, 1.0, "rec")), unc, o);
+    CHECK(b.free_parameters == 0);
+    CHECK(b.rms_stddev(0, 0) == 0.0);
+    CHECK_THAT(b.verdict(0, 0), Contains("no free parameters"));
+  }
   SECTION("missing measured outputs: the band is computed, the error statistics skip them") {
     Eigen::MatrixXd ym = y;
     ym.setConstant(std::numeric_limits<double>::quiet_NaN());
@@ -385,4 +404,48 @@ TEST_CASE("Band: unidentifiable directions, missing outputs and bad input", "[mo
     const nlid::Dataset two_inputs(nlid::Experiment(Eigen::MatrixXd::Zero(40, 2), Eigen::VectorXd::Zero(40), 1.0, "wide"));
     CHECK_THROWS(nlid::simulation_band(model, two_inputs, unc));
   }
+}
+
+TEST_CASE("Nlarx band: a missing input or measured past is named, not called a divergence", "[models][band]") {
+  Arx model;
+  model.set_parameters(Eigen::Vector4d(0.5, -0.1, 0.2, 0.7));
+  const Eigen::MatrixXd u = nlid_test::random_steps(100, -1.0, 1.0, 6u);
+  const Eigen::VectorXd y =
+      model.simulate(nlid::Experiment(u, Eigen::VectorXd::Zero(100), 1.0), nlid::InitialCondition::zero).col(0);
+  const nlid::ParameterUncertainty unc = made_uncertainty(model.parameters(), model.parameter_names(), 0.01, 8u);
+  Eigen::MatrixXd ub = u;
+  ub(40, 0) = std::numeric_limits<double>::quiet_NaN();
+  const nlid::Dataset gap(nlid::Experiment(ub, y, 1.0, "gap", nlid::NonFinitePolicy::keep));
+  CHECK_THROWS_WITH(nlid::simulation_band(model, gap, unc),
+                    Contains("gap") && Contains("sample 40") && Contains("input") && !Contains("diverges"));
+  // The measured initial past (the first n0 = 2 samples) has a missing output.
+  Eigen::VectorXd yb = y;
+  yb[1] = std::numeric_limits<double>::quiet_NaN();
+  const nlid::Dataset past(nlid::Experiment(u, yb, 1.0, "past", nlid::NonFinitePolicy::keep));
+  CHECK_THROWS_WITH(nlid::simulation_band(model, past, unc),
+                    Contains("past") && Contains("sample 1") && Contains("output") && !Contains("diverges"));
+  // A missing output later on only leaves that sample out of the error statistics.
+  yb[1] = y[1];
+  yb[60] = std::numeric_limits<double>::quiet_NaN();
+  const nlid::SimulationBand b =
+      nlid::simulation_band(model, nlid::Dataset(nlid::Experiment(u, yb, 1.0, "late", nlid::NonFinitePolicy::keep)), unc);
+  CHECK(b.stddev[0].allFinite());
+  CHECK(b.rms_error(0, 0) < 1e-9);
+}
+
+TEST_CASE("Band: a record the model reproduces exactly has no error to explain, not one out of reach",
+          "[models][band]") {
+  Lag model;
+  model.set_parameters(Eigen::Vector3d(12.0, 35.0, 21.0));
+  const Eigen::MatrixXd u = nlid_test::steps({0.0, 1.0, 0.4, 0.8}, 25, 120);
+  const nlid::ParameterUncertainty unc = made_uncertainty(model.parameters(), lag_names(), 0.01, 9u);
+  nlid::SimulationBandOptions o;
+  o.initial_condition = nlid::InitialCondition::zero;
+  const Eigen::MatrixXd y = model.simulate(u, 1.0, Eigen::VectorXd::Zero(1));
+  const nlid::SimulationBand b = nlid::simulation_band(model, nlid::Dataset(nlid::Experiment(u, y, 1.0, "own")), unc, o);
+  REQUIRE(b.rms_error(0, 0) == 0.0);
+  CHECK(std::isnan(b.reachable_share(0, 0)));
+  CHECK(std::isnan(b.plausible_share(0, 0)));
+  CHECK(b.shift_sigmas(0, 0) == 0.0);
+  CHECK_THAT(b.report(), !Contains("outside what they can reach"));
 }

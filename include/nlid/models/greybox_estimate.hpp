@@ -384,8 +384,11 @@ GreyBoxEstimate estimate(GreyBox<P>& model, const Dataset& data,
   try {
     out.uncertainty = detail::greybox_uncertainty(model, problem, data, theta, uo);
     model.set_parameter_stddev(out.uncertainty.stddev.head(np));
+    // Symmetric, and no rounding-negative variance, so storing it cannot fail.
     const Eigen::MatrixXd c = out.uncertainty.covariance.topLeftCorner(np, np);
-    model.set_parameter_covariance(0.5 * (c + c.transpose()));
+    Eigen::MatrixXd sym = 0.5 * (c + c.transpose());
+    sym.diagonal() = sym.diagonal().cwiseMax(0.0);
+    model.set_parameter_covariance(std::move(sym));
   } catch (const Error& err) {
     out.uncertainty.caveat = std::string("no uncertainty: ") + err.what();
   }

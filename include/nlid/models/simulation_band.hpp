@@ -79,8 +79,8 @@ struct SimulationBand {
   /// model's structure or noise; `shift_sigmas`, the size of the smallest change that removes
   /// 90 % of that reachable part; `plausible_share`, the share removed by the best change within
   /// `plausible_radius()` sigmas (at least 90 % of the reachable part exactly when the shift is
-  /// within the radius).
-  /// NaN where fewer samples than parameters were measured.
+  /// within the radius). NaN where fewer samples than parameters were measured, and the shares
+  /// where the error is zero (nothing to explain; the shift is 0).
   Eigen::MatrixXd reachable_share, shift_sigmas, plausible_share;
   /// The best change within the radius per experiment: n_p × n_y (column j for output j; 0 for
   /// fixed parameters and where the shares are NaN), in the parameters' units.
@@ -124,7 +124,7 @@ struct SimulationBand {
                       output_names[static_cast<std::size_t>(j)].c_str(), num(rms_stddev(e, j)).c_str(),
                       num(max_stddev(e, j)).c_str(), num(rms_error(e, j)).c_str(), num(error_ratio(e, j)).c_str(),
                       pct(within_band(e, j)).c_str(), pct(reachable_share(e, j)).c_str(),
-                      (std::isnan(shift_sigmas(e, j)) ? std::string("-") : num(shift_sigmas(e, j)) + " s").c_str(),
+                      num(shift_sigmas(e, j)).c_str(),
                       pct(plausible_share(e, j)).c_str());
         s += line;
         verdicts += verdict(e, j);
@@ -154,7 +154,7 @@ struct SimulationBand {
   }
 
   /// One line on experiment e, output j: whether the parameters' uncertainty accounts for the
-  /// error (empty without measurements).
+  /// error (empty without measurements or without an error).
   [[nodiscard]] std::string verdict(Eigen::Index e, Eigen::Index j) const {
     const double reach = reachable_share(e, j), near = plausible_share(e, j);
     if (std::isnan(rms_error(e, j)) || std::isnan(reach)) return {};
@@ -167,6 +167,7 @@ struct SimulationBand {
                             (rms_stddev.cols() > 1 ? " " + output_names[static_cast<std::size_t>(j)] : "") + ": ";
     const std::string radius = num(plausible_radius()) + " sigma";
     if (reach < 0.5) {
+      if (free_parameters == 0) return who + "no free parameters: the whole error is the model's (structure, or noise)\n";
       return who + "no change of the parameters removes more than " + num(100.0 * reach) +
              " % of the error: it lies outside what they can reach (the model's structure, or noise)\n";
     }
@@ -253,7 +254,12 @@ inline ErrorReach error_reach(const Eigen::MatrixXd& A, const Eigen::VectorXd& e
   ErrorReach out;
   out.delta = Eigen::VectorXd::Zero(A.cols());
   const double total = err.squaredNorm();
-  if (total == 0.0 || A.cols() == 0) return out;
+  if (total == 0.0) {
+    // No error: a share of it is 0/0, and "out of reach" (share 0) would be a false verdict.
+    out.reachable = out.plausible = std::numeric_limits<double>::quiet_NaN();
+    return out;
+  }
+  if (A.cols() == 0) return out;
   const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(sf);
   const double top = es.eigenvalues().cwiseAbs().maxCoeff();
   std::vector<Eigen::Index> keep;
@@ -447,6 +453,36 @@ SimulationBand regression_band(const M& model, const Dataset& data, const Parame
     check_experiment(ex, static_cast<long>(e), model.num_inputs(), history, model.ts(), kind);
     const Eigen::VectorXd x0 = model.initial_state(ex, ic, static_cast<long>(e));
     const Eigen::Index first = ic == InitialCondition::measured ? history : 0;
+    // A missing sample the run reads would end it as a "divergence" without saying where: name
+    // it (inputs of the simulated samples, and inputs or outputs of a measured initial past).
+    auto missing = [&](bool output, Eigen::Index k, Eigen::Index c, const std::string& why) {
+      const auto& names = output ? ex.output_names() : ex.input_names();
+      const std::string name = static_cast<std::size_t>(c) < names.size() ? names[static_cast<std::size_t>(c)]
+                                                                          : (output ? "y" : "u") + std::to_string(c + 1);
+      Location where = at_experiment(static_cast<long>(e));
+      where.row = static_cast<long>(k) + 1;
+      where.column_name = name;
+      throw Error("simulation_band: " + b.experiment_names[e] + ": " + (output ? "output" : "input") + " '" + name +
+                      "' is not finite at sample " + std::to_string(k) + "; " + why,
+                  where);
+    };
+    for (Eigen::Index k = first; k < ex.size(); ++k) {
+      for (Eigen::Index c = 0; c < ex.u().cols(); ++c) {
+        if (!std::isfinite(ex.u()(k, c))) {
+          missing(false, k, c, "a simulation cannot run through missing inputs (interpolate or cut the record)");
+        }
+      }
+    }
+    if (!x0.allFinite() && ic == InitialCondition::measured) {
+      for (Eigen::Index k = 0; k < first; ++k) {
+        const std::string why = "the simulation starts from the measured first " + std::to_string(first) +
+                                " samples (InitialCondition::measured; use estimate, or cut the record)";
+        if (!std::isfinite(ex.y()(k, 0))) missing(true, k, 0, why);
+        for (Eigen::Index c = 0; c < ex.u().cols(); ++c) {
+          if (!std::isfinite(ex.u()(k, c))) missing(false, k, c, why);
+        }
+      }
+    }
     std::vector<EstimationSegment> segs(1);
     segs[0].u = &ex.u();
     segs[0].y = Eigen::VectorXd::Zero(ex.size());
@@ -549,11 +585,13 @@ SimulationBand simulation_band(const GreyBox<P>& model, const Dataset& data, con
   u.at_bound.assign(static_cast<std::size_t>(np), false);
   std::string undetermined;
   for (Eigen::Index i = 0; i < np; ++i) {
-    u.free[static_cast<std::size_t>(i)] = u.covariance(i, i) > 0.0;
+    // A parameter fixed since the estimation keeps its variance in the band but is not moved.
+    u.free[static_cast<std::size_t>(i)] = u.covariance(i, i) > 0.0 && !model.fixed_flags()[static_cast<std::size_t>(i)];
     if (std::isinf(u.stddev[i])) undetermined += (undetermined.empty() ? "" : ", ") + u.names[static_cast<std::size_t>(i)];
   }
   if (!undetermined.empty()) {
-    u.caveat = "not determined by the estimation data, so not in the band: " + undetermined;
+    u.caveat = "not determined by the estimation data (the band holds their pseudo-inverse variance, not the "
+               "combinations the data left open): " + undetermined;
   }
   return simulation_band(model, data, u, options);
 }
