@@ -334,7 +334,7 @@ TEST_CASE("model file: a grey box keeps its parameters' standard deviations, inf
   CHECK_THROWS_WITH(g.set_parameter_stddev(nan_sd), Catch::Contains("standard deviation of k must be >= 0"));
 }
 
-TEST_CASE("model file: a grey box keeps its parameter covariance bit for bit; bad ones are located") {
+TEST_CASE("model file: a grey box keeps its parameter covariance bit for bit, and bad ones are located") {
   GreyBox<physics::Throttle> g;
   CHECK(g.parameter_covariance().size() == 0);
   const Eigen::Index n = g.num_parameters();

@@ -324,7 +324,7 @@ TEST_CASE("nlid-fit + nlid-sim read semicolon-separated decimal-comma files and 
   CHECK_THAT(r.err, Catch::Contains("--ts needs a positive sample time"));
 }
 
-TEST_CASE("nlid-sim --band: a grey-box model file's covariance gives y_std; other models are refused",
+TEST_CASE("nlid-sim --band: a grey-box model file's covariance gives y_std, other models are refused",
           "[tools][sim]") {
   const fs::path est = write_record("band_est", 1200, 41u, 0), val = write_record("band_val", 600, 42u, 0);
   const fs::path model = work_dir() / "band_lag.json";
