@@ -332,6 +332,16 @@ inline void fill_band_experiment(SimulationBand& b, std::size_t e, const Eigen::
     }
   }
   const auto ee = static_cast<Eigen::Index>(e);
+  // The free parameters a change may move, and their covariance block (the same for every output).
+  std::vector<Eigen::Index> cols;
+  for (Eigen::Index i = 0; i < np; ++i) {
+    if (u.free[static_cast<std::size_t>(i)]) cols.push_back(i);
+  }
+  const auto nc = static_cast<Eigen::Index>(cols.size());
+  Eigen::MatrixXd sf(nc, nc);
+  for (Eigen::Index a = 0; a < nc; ++a) {
+    for (Eigen::Index c = 0; c < nc; ++c) sf(a, c) = sigma(cols[static_cast<std::size_t>(a)], cols[static_cast<std::size_t>(c)]);
+  }
   for (Eigen::Index j = 0; j < ny; ++j) {
     double s2 = 0.0, smax = 0.0, e2 = 0.0;
     Eigen::Index count = 0, measured = 0, inside = 0;
@@ -353,20 +363,13 @@ inline void fill_band_experiment(SimulationBand& b, std::size_t e, const Eigen::
       for (Eigen::Index k = first; k < n; ++k) {
         if (std::isfinite(ymeas(k, j))) rows.push_back((k - first) * ny + j);
       }
-      std::vector<Eigen::Index> cols;
-      for (Eigen::Index i = 0; i < np; ++i) {
-        if (u.free[static_cast<std::size_t>(i)]) cols.push_back(i);
-      }
-      const auto nr = static_cast<Eigen::Index>(rows.size()), nc = static_cast<Eigen::Index>(cols.size());
-      Eigen::MatrixXd A(nr, nc), sf(nc, nc);
+      const auto nr = static_cast<Eigen::Index>(rows.size());
+      Eigen::MatrixXd A(nr, nc);
       Eigen::VectorXd err(nr);
       for (Eigen::Index q = 0; q < nr; ++q) {
         const Eigen::Index row = rows[static_cast<std::size_t>(q)];
         err[q] = ymeas(first + row / ny, j) - yhat(first + row / ny, j);
         for (Eigen::Index c = 0; c < nc; ++c) A(q, c) = Jp(row, cols[static_cast<std::size_t>(c)]);
-      }
-      for (Eigen::Index a = 0; a < nc; ++a) {
-        for (Eigen::Index c = 0; c < nc; ++c) sf(a, c) = sigma(cols[static_cast<std::size_t>(a)], cols[static_cast<std::size_t>(c)]);
       }
       const ErrorReach r = error_reach(A, err, sf, b.plausible_radius());
       b.reachable_share(ee, j) = r.reachable;
@@ -389,7 +392,6 @@ inline void fill_band_experiment(SimulationBand& b, std::size_t e, const Eigen::
   }
   b.y[e] = yhat;
   b.stddev[e] = std::move(sd);
-  b.parameter_stddev = sigma.diagonal().cwiseMax(0.0).cwiseSqrt();
 }
 
 inline SimulationBand start_band(const Dataset& data, int ny, std::vector<std::string> outputs,
@@ -416,6 +418,7 @@ inline SimulationBand start_band(const Dataset& data, int ny, std::vector<std::s
               std::to_string(u.theta.size()) + " unknowns",
           at_parameter("uncertainty"));
   b.parameter_names = std::move(names);
+  b.parameter_stddev = u.covariance.topLeftCorner(np, np).diagonal().cwiseMax(0.0).cwiseSqrt();
   b.free_parameters = static_cast<int>(std::count(u.free.begin(), u.free.begin() + np, true));
   const auto ne = static_cast<Eigen::Index>(data.size());
   for (std::size_t e = 0; e < data.size(); ++e) {
@@ -456,12 +459,7 @@ SimulationBand regression_band(const M& model, const Dataset& data, const Parame
     // A missing sample the run reads would end it as a "divergence" without saying where: name
     // it (inputs of the simulated samples, and inputs or outputs of a measured initial past).
     auto missing = [&](bool output, Eigen::Index k, Eigen::Index c, const std::string& why) {
-      const auto& names = output ? ex.output_names() : ex.input_names();
-      const std::string name = static_cast<std::size_t>(c) < names.size() ? names[static_cast<std::size_t>(c)]
-                                                                          : (output ? "y" : "u") + std::to_string(c + 1);
-      Location where = at_experiment(static_cast<long>(e));
-      where.row = static_cast<long>(k) + 1;
-      where.column_name = name;
+      const auto [name, where] = sample_location(ex, static_cast<long>(e), output, c, k);
       throw Error("simulation_band: " + b.experiment_names[e] + ": " + (output ? "output" : "input") + " '" + name +
                       "' is not finite at sample " + std::to_string(k) + "; " + why,
                   where);
@@ -488,8 +486,7 @@ SimulationBand regression_band(const M& model, const Dataset& data, const Parame
     segs[0].y = Eigen::VectorXd::Zero(ex.size());
     segs[0].start = first;
     segs[0].x0 = x0;
-    const Eigen::VectorXd ym = ex.y().col(0);
-    Eigen::VectorXd finite = ym;
+    Eigen::VectorXd finite = ex.y().col(0);
     for (Eigen::Index k = 0; k < finite.size(); ++k) {
       if (!std::isfinite(finite[k])) finite[k] = 0.0;
     }

@@ -9,6 +9,7 @@
 #include <limits>
 #include <span>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -112,16 +113,24 @@ inline void require_finite_parameters(const Eigen::VectorXd& theta, const std::v
 /// channel and the sample. Estimation needs complete records: one missing sample poisons every
 /// later residual of a simulation, and the data-driven initialisation would otherwise report it
 /// at a row of its regression matrix, which the user cannot map back to the data.
+/// Name of input or output channel c of e ("input2"-style when the record names none) and the
+/// location of its sample k: experiment `index`, data row k + 1, that column.
+inline std::pair<std::string, Location> sample_location(const Experiment& e, long index, bool output, Eigen::Index c,
+                                                        Eigen::Index k) {
+  const auto& names = output ? e.output_names() : e.input_names();
+  const auto ch = static_cast<std::size_t>(c);
+  std::string name = ch < names.size() ? names[ch] : std::string(output ? "output" : "input") + std::to_string(ch + 1);
+  Location where = experiment_location(index);
+  where.row = static_cast<long>(k) + 1;
+  where.column_name = name;
+  return {std::move(name), std::move(where)};
+}
+
 inline void require_complete(const Experiment& e, long index) {
   const auto m = e.first_missing();
   if (!m) return;
   const char* kind = m->output ? "output" : "input";
-  const auto& names = m->output ? e.output_names() : e.input_names();
-  const auto c = static_cast<std::size_t>(m->channel);
-  const std::string name = c < names.size() ? names[c] : std::string(kind) + std::to_string(c + 1);
-  Location where = experiment_location(index);
-  where.row = static_cast<long>(m->sample) + 1;
-  where.column_name = name;
+  const auto [name, where] = sample_location(e, index, m->output, m->channel, m->sample);
   throw Error(experiment_label(e, index) + " has a missing " + kind + " sample: '" + name + "' is " +
                   (std::isnan(m->value) ? "NaN" : m->value > 0 ? "Inf" : "-Inf") + " at sample " +
                   std::to_string(m->sample) +
