@@ -9,8 +9,9 @@
 // input sample as nlid-fit does, so a model fitted with `nlid-fit --decimate N` runs on the same
 // raw recordings. The output CSV has columns t,y (the
 // model's output name is not used so that scripts can rely on "y"); with --band a third, y_std:
-// the standard deviation of y from the parameter covariance a grey-box model file carries
-// (simulation_band; other model kinds keep no covariance, and --band refuses them). A model whose output is not
+// the standard deviation of y from the parameter covariance the model file carries (grey-box,
+// nonlinear ARX and Hammerstein-Wiener files written by nlid-fit; simulation_band; other kinds
+// keep no covariance, and --band refuses them). A model whose output is not
 // finite on the input (unstable, diverging) is an error naming the first such sample; nothing is
 // written. Exit status (cli_common.hpp) 0 on success, 1 on a bad file, data or model (missing
 // column, sample-time mismatch, divergence — the message says which), 2 on a bad command line.
@@ -25,8 +26,8 @@
 #include "nlid/data/resample.hpp"
 #include "nlid/io/augmented_serial.hpp"  // repaired models from nlid-diagnose --save
 #include "nlid/models/any_model.hpp"
+#include "nlid/models/any_model_band.hpp"
 #include "nlid/models/greybox_dynamic.hpp"
-#include "nlid/models/simulation_band.hpp"
 #include "nlid/models/spec.hpp"
 #include "cli_common.hpp"
 #include "record_options.hpp"
@@ -36,7 +37,7 @@ constexpr const char* kUsageHead =
     "usage: nlid-sim --model model.json --input u.csv [--x0 zero|equilibrium] [--column NAME] [--band]\n"
     "                [--decimate N] [--time t] [--ts T] [--delimiter C] [--decimal C] --out y.csv\n"
     "  --decimate N     anti-alias filter the input and keep every N-th sample (as nlid-fit --decimate)\n"
-    "  --band           add a column y_std: 1 sigma of y from the grey-box model's parameter covariance\n"
+    "  --band           add a column y_std: 1 sigma of y from the parameter covariance the model file carries\n"
     "Reading the input CSV file:\n";
 std::string usage_text() { return std::string(kUsageHead) + nlid_tools::record_usage; }
 }
@@ -70,11 +71,22 @@ int main(int argc, char** argv) {
     nlid::register_series_model_kind();
     const nlid::AnyModel m = nlid::load_model(model);
     const bool band = a.has("--band");
-    const nlid::DynamicGreyBox* grey = m.target<nlid::DynamicGreyBox>();
-    if (band && (grey == nullptr || grey->parameter_covariance().size() == 0)) {
-      throw nlid::Error("--band needs the parameters' covariance, which " + model +
-                        (grey == nullptr ? " does not keep (a " + m.kind() + " model; grey-box model files carry it)"
-                                         : " lacks (a grey-box model not estimated, or changed after its estimation)"));
+    if (band) {
+      // Refuse before the simulation: a file without a covariance cannot give the column asked for.
+      const nlid::DynamicGreyBox* grey = m.target<nlid::DynamicGreyBox>();
+      const bool carries = grey != nullptr ? grey->parameter_covariance().size() > 0
+                                           : (m.target<nlid::DynamicNlarx>() != nullptr ||
+                                              m.target<nlid::DynamicHammersteinWiener>() != nullptr) &&
+                                                 m.info().uncertainty.has_value();
+      if (!carries) {
+        const bool kind_has = grey != nullptr || m.kind() == "nlarx" || m.kind() == "hammerstein_wiener";
+        throw nlid::Error("--band needs the parameters' covariance, which " + model +
+                          (kind_has ? " lacks (a " + m.kind() +
+                                          " model not estimated by nlid-fit, or changed after its estimation)"
+                                    : " does not keep (a " + m.kind() +
+                                          " model; grey-box, nlarx and hammerstein_wiener files written by nlid-fit "
+                                          "carry it)"));
+      }
     }
     if (m.num_inputs() != 1 && column.empty())
       throw nlid::Error("the model in " + model + " reads " + std::to_string(m.num_inputs()) +
@@ -166,7 +178,7 @@ int main(int argc, char** argv) {
       stage = "computing the simulation band of " + model;
       nlid::SimulationBandOptions bo;
       bo.initial_condition = x0 == "zero" ? nlid::InitialCondition::zero : nlid::InitialCondition::equilibrium;
-      y_std = nlid::simulation_band(*grey, nlid::Dataset(named), bo).stddev[0].col(0);
+      y_std = nlid::simulation_band(m, nlid::Dataset(named), bo).stddev[0].col(0);
     }
     stage = "writing " + out;
     std::string text = band ? "t,y,y_std\n" : "t,y\n";

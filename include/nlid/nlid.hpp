@@ -27,6 +27,7 @@
 #include "nlid/estimation/multi_start.hpp"
 #include "nlid/io/model_file.hpp"
 #include "nlid/models/any_model.hpp"
+#include "nlid/models/any_model_band.hpp"
 #include "nlid/models/equilibrium.hpp"
 #include "nlid/models/greybox_dynamic.hpp"
 #include "nlid/models/physics/catalogue.hpp"

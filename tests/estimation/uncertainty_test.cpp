@@ -472,3 +472,64 @@ TEST_CASE("edge cases: nothing free, a lag longer than the record, one short rec
   CHECK(b.max_lag >= a.max_lag - 1);
   CHECK(b.max_lag > 1);
 }
+
+TEST_CASE("uncertainty_from_covariance: a stored covariance back in the form the band takes, bad ones named",
+          "[estimation][uncertainty]") {
+  Eigen::MatrixXd c(3, 3);
+  c << 4.0, 1.2, 0.0,  //
+      1.2, 1.0, 0.0,   //
+      0.0, 0.0, 0.0;
+  const Eigen::Vector3d theta(2.0, -1.0, 0.5);
+  const ParameterUncertainty u = nlid::uncertainty_from_covariance({"a", "b", "c"}, theta, c);
+  CHECK(u.stddev == Eigen::Vector3d(2.0, 1.0, 0.0));
+  CHECK(u.correlation(0, 1) == Approx(0.6).epsilon(1e-15));
+  CHECK(std::isnan(u.correlation(0, 2)));  // c has no spread: no correlation
+  CHECK(u.free == std::vector<bool>{true, true, false});
+  CHECK(u.rank == 2);
+  CHECK(u.observations == 0);
+  CHECK(std::isnan(u.stddev_white[0]));
+  CHECK(u.caveat.empty());
+  const std::string r = u.report();
+  CHECK_THAT(r, Contains("from a stored covariance; 3 unknowns, 2 free") && Contains("a = 2 +- 2 (100 %)") &&
+                    Contains("c = 0.5  (fixed)"));
+  CHECK_THAT(r, !Contains("white formula"));
+
+  // Given deviations win over the diagonal: +inf marks a parameter the data left open.
+  const ParameterUncertainty open = nlid::uncertainty_from_covariance(
+      {"a", "b", "c"}, theta, c, Eigen::Vector3d(2.0, std::numeric_limits<double>::infinity(), 0.0), {false, false, true});
+  CHECK(std::isinf(open.stddev[1]));
+  CHECK(open.rank == 1);
+  CHECK(open.free == std::vector<bool>{true, true, false});
+  CHECK_THAT(open.caveat, Contains("not determined by the estimation data") && Contains(": b"));
+  // A flagged parameter is held even with a variance.
+  const ParameterUncertainty held = nlid::uncertainty_from_covariance({"a", "b", "c"}, theta, c, {}, {true, false, false});
+  CHECK(held.free == std::vector<bool>{false, true, false});
+  // No names: numbered.
+  CHECK(nlid::uncertainty_from_covariance({}, theta, c).names[2] == "theta[2]");
+
+  CHECK_THROWS_WITH(nlid::uncertainty_from_covariance({"a", "b", "c"}, theta, Eigen::MatrixXd::Identity(2, 2)),
+                    Contains("a 2x2 covariance for 3 parameters"));
+  CHECK_THROWS_WITH(nlid::uncertainty_from_covariance({"a", "b"}, theta, c), Contains("2 names for 3 parameters"));
+  CHECK_THROWS_WITH(nlid::uncertainty_from_covariance({"a", "b", "c"}, theta, c, Eigen::Vector2d(1.0, 1.0)),
+                    Contains("2 standard deviations for 3 parameters"));
+  Eigen::MatrixXd skew = c;
+  skew(1, 0) = 1.5;
+  CHECK_THROWS_WITH(nlid::uncertainty_from_covariance({"a", "b", "c"}, theta, skew),
+                    Contains("not symmetric (b with a: 1.5 and 1.2)"));
+  Eigen::MatrixXd negative = c;
+  negative(2, 2) = -0.1;
+  CHECK_THROWS_WITH(nlid::uncertainty_from_covariance({"a", "b", "c"}, theta, negative),
+                    Contains("variance of c must be >= 0, got -0.1"));
+  Eigen::MatrixXd nan = c;
+  nan(0, 2) = std::numeric_limits<double>::quiet_NaN();
+  CHECK_THROWS_WITH(nlid::uncertainty_from_covariance({"a", "b", "c"}, theta, nan),
+                    Contains("covariance of a with c is not finite"));
+  CHECK_THROWS_WITH(nlid::uncertainty_from_covariance({"a", "b", "c"}, theta, c, Eigen::Vector3d(1.0, -1.0, 0.0)),
+                    Contains("standard deviation of b must be >= 0"));
+  try {
+    (void)nlid::uncertainty_from_covariance({"a", "b", "c"}, theta, negative);
+    FAIL("a negative variance was accepted");
+  } catch (const nlid::Error& e) {
+    CHECK(e.where().parameter == "c");
+  }
+}

@@ -230,7 +230,7 @@ TEST_CASE("model file: every nonlinearity and compile-time types round-trip exac
     th.tail(2) << 0.02, 0.09;
     hw.set_parameters(th);
     const std::string p = temp_path("hw.json");
-    save_model(p, hw, ModelFileInfo{{}, {}, InitialCondition::zero, "nlhw2", {}, {}, {}, {}});
+    save_model(p, hw, ModelFileInfo{{}, {}, InitialCondition::zero, "nlhw2", {}, {}, {}, {}, {}});
     const AnyModel any = load_model(p);
     CHECK(any.kind() == "hammerstein_wiener");
     CHECK(bit_equal(any.simulate(e), hw.simulate(e, InitialCondition::zero)));
@@ -386,6 +386,116 @@ TEST_CASE("model file: a grey box keeps its parameter covariance bit for bit, an
   j["parameters"]["covariance"] = Json::array({1.0});
   CHECK_THAT(error_of([&] { (void)model_from_json<GreyBox<physics::Throttle>>(j); }),
              Catch::Contains("must be an array of 7 rows"));
+}
+
+TEST_CASE("model file: nonlinear ARX and Hammerstein-Wiener files keep ModelFileInfo's uncertainty, checked") {
+  using M = Nlarx<LaggedRegressors<2, 1, 0>, LinearMap<3>>;
+  M m(LaggedRegressors<2, 1, 0>{}, LinearMap<3>{}, 0.01);
+  m.set_parameters(Eigen::Vector4d(1.3, -0.45, 0.2, 0.7));
+  const Eigen::Index n = m.num_parameters();
+  // As parameter_uncertainty leaves it with an estimated initial state: one more unknown at the
+  // end, whose block the file does not keep.
+  std::vector<std::string> names = m.parameter_names();
+  names.push_back("x0[0]");
+  Eigen::VectorXd theta(n + 1);
+  theta << m.parameters(), 3.0;
+  Eigen::MatrixXd a = Eigen::MatrixXd::Random(n + 1, n + 1);
+  Eigen::MatrixXd c = a * a.transpose() / 7.0;
+  Eigen::VectorXd sd = c.diagonal().cwiseSqrt();
+  sd[1] = std::numeric_limits<double>::infinity();  // left open by the data
+  ModelFileInfo info;
+  info.uncertainty = uncertainty_from_covariance(names, theta, c, sd);
+  const std::string path = temp_path("nlarx_covariance.json");
+  save_model(path, m, info);
+  const std::string text = read_text(path);
+  CHECK(text.find("\"covariance\"") != std::string::npos);
+  CHECK(text.find("x0[0]") == std::string::npos);
+
+  ModelFileInfo back;
+  const M typed = load_model<M>(path, &back);
+  REQUIRE(back.uncertainty.has_value());
+  CHECK(bit_equal(back.uncertainty->covariance, c.topLeftCorner(n, n)));
+  CHECK(bit_equal(back.uncertainty->stddev, sd.head(n)));
+  CHECK(bit_equal(back.uncertainty->theta, m.parameters()));
+  CHECK(back.uncertainty->names == m.parameter_names());
+  CHECK_THAT(back.uncertainty->caveat, Catch::Contains("not determined") && Catch::Contains(m.parameter_names()[1]));
+  // A prototype filled from the file gets it too.
+  M proto(LaggedRegressors<2, 1, 0>{}, LinearMap<3>{}, 0.01);
+  ModelFileInfo restored;
+  load_model(path, proto, &restored);
+  REQUIRE(restored.uncertainty.has_value());
+  CHECK(bit_equal(restored.uncertainty->covariance, c.topLeftCorner(n, n)));
+
+  // The run-time model keeps it in its info, writes it again, and drops it when θ changes.
+  AnyModel any = load_model(path);
+  REQUIRE(any.info().uncertainty.has_value());
+  const std::string again = temp_path("nlarx_covariance_again.json");
+  any.save(again);
+  CHECK(bit_equal(load_model(again).info().uncertainty->covariance, c.topLeftCorner(n, n)));
+  any.set_parameters(any.parameters());  // the same values: still the estimate's
+  CHECK(any.info().uncertainty.has_value());
+  Eigen::VectorXd moved = any.parameters();
+  moved[3] += 0.1;
+  any.set_parameters(moved);
+  CHECK_FALSE(any.info().uncertainty.has_value());
+  any.save(again);
+  CHECK(read_text(again).find("covariance") == std::string::npos);
+  CHECK_FALSE(load_model(again).info().uncertainty.has_value());
+
+  // Saving an uncertainty of other values or another model is refused, naming the parameter.
+  M other = typed;
+  other.set_parameters(moved);
+  CHECK_THAT(error_of([&] { save_model(temp_path("stale.json"), other, back); }),
+             Catch::Contains("was computed at") && Catch::Contains("reset ModelFileInfo::uncertainty"));
+  ModelFileInfo foreign;
+  foreign.uncertainty = uncertainty_from_covariance({"p", "q", "r", "s"}, m.parameters(), c.topLeftCorner(n, n));
+  CHECK_THAT(error_of([&] { save_model(temp_path("foreign.json"), m, foreign); }),
+             Catch::Contains("parameter 0 is '" + m.parameter_names()[0] + "' in the model but 'p'"));
+  ModelFileInfo small;
+  small.uncertainty = uncertainty_from_covariance({"p"}, Eigen::VectorXd::Ones(1), Eigen::MatrixXd::Identity(1, 1));
+  CHECK_THAT(error_of([&] { save_model(temp_path("small.json"), m, small); }),
+             Catch::Contains("covers 1 unknowns") && Catch::Contains("the model has 4 parameters"));
+
+  // A damaged covariance in a file: what and where.
+  Json j = read_json(path);
+  j["parameters"]["covariance"][2][0] = 5.0;
+  CHECK_THAT(error_of([&] { (void)model_from_json<M>(j); }),
+             Catch::Contains("not symmetric") && Catch::Contains("parameters.covariance[2]"));
+  j = read_json(path);
+  j["parameters"]["covariance"] = Json::array({1.0});
+  CHECK_THAT(error_of([&] { (void)model_from_json<M>(j); }), Catch::Contains("must be an array of 4 rows"));
+  j = read_json(path);
+  j["parameters"]["stddev"] = Json::array({1.0});
+  CHECK_THAT(error_of([&] { (void)model_from_json<M>(j); }),
+             Catch::Contains("1 standard deviations at parameters.stddev") && Catch::Contains("4 parameters"));
+  j = read_json(path);
+  j["parameters"]["covariance"][3][3] = -1.0;
+  CHECK_THAT(error_of([&] { (void)model_from_json<M>(j); }),
+             Catch::Contains("must be >= 0") && Catch::Contains("parameters.covariance[3]"));
+
+  // Hammerstein-Wiener, through the run-time model: the same round trip.
+  HammersteinWiener hw(UnitGain{}, TransferFunctionBlock<Dynamic, Dynamic, Dynamic>(2, 2, 1), DeadZone(-0.1, 0.2));
+  Eigen::VectorXd t2(hw.num_parameters());
+  t2 << 0.3, 0.2, -1.1, 0.3, -0.05, 0.07;
+  hw.set_parameters(t2);
+  Eigen::MatrixXd b = Eigen::MatrixXd::Random(6, 6);
+  ModelFileInfo hinfo;
+  hinfo.uncertainty = uncertainty_from_covariance(hw.parameter_names(), t2, b * b.transpose());
+  const std::string hpath = temp_path("hw_covariance.json");
+  AnyModel(hw, hinfo).save(hpath);
+  const AnyModel hback = load_model(hpath);
+  REQUIRE(hback.info().uncertainty.has_value());
+  CHECK(bit_equal(hback.info().uncertainty->covariance, b * b.transpose()));
+  // A grey box's file fills it from the model's own covariance.
+  GreyBox<physics::Throttle> g;
+  const Eigen::Index ng = g.num_parameters();
+  Eigen::MatrixXd ag = Eigen::MatrixXd::Random(ng, ng);
+  g.set_parameter_covariance(ag * ag.transpose());
+  save_model(temp_path("greybox_info.json"), g);
+  ModelFileInfo ginfo;
+  (void)load_model<GreyBox<physics::Throttle>>(temp_path("greybox_info.json"), &ginfo);
+  REQUIRE(ginfo.uncertainty.has_value());
+  CHECK(bit_equal(ginfo.uncertainty->covariance, ag * ag.transpose()));
 }
 
 TEST_CASE("model file: a grey box's integrator options round-trip field by field") {

@@ -9,6 +9,9 @@
 #include <random>
 
 #include "../greybox/test_data.hpp"
+#include "../support/scratch_dir.hpp"
+#include "nlid/io/model_file.hpp"
+#include "nlid/models/any_model_band.hpp"
 #include "nlid/models/greybox_estimate.hpp"
 #include "nlid/models/physics/first_order.hpp"
 #include "nlid/models/simulation_band.hpp"
@@ -448,4 +451,69 @@ TEST_CASE("Band: a record the model reproduces exactly has no error to explain, 
   CHECK(std::isnan(b.plausible_share(0, 0)));
   CHECK(b.shift_sigmas(0, 0) == 0.0);
   CHECK_THAT(b.report(), !Contains("outside what they can reach"));
+}
+
+TEST_CASE("AnyModel band: the uncertainty a model file keeps gives the typed model's band", "[models][band]") {
+  const auto path = [](const std::string& name) { return (nlid_test::scratch_dir() / name).string(); };
+  auto same = [](const nlid::SimulationBand& a, const nlid::SimulationBand& b) {
+    REQUIRE(a.stddev[0].rows() == b.stddev[0].rows());
+    CHECK((a.stddev[0] - b.stddev[0]).cwiseAbs().maxCoeff() <= 1e-12 * b.stddev[0].maxCoeff());
+    CHECK((a.y[0] - b.y[0]).cwiseAbs().maxCoeff() <= 1e-12 * (1.0 + b.y[0].cwiseAbs().maxCoeff()));
+    CHECK(b.stddev[0].maxCoeff() > 0.0);
+  };
+  nlid::SimulationBandOptions o;
+  o.initial_condition = nlid::InitialCondition::zero;
+  const Eigen::MatrixXd u = nlid_test::random_steps(200, -1.0, 1.0, 12u);
+  const nlid::Dataset data(nlid::Experiment(u, Eigen::VectorXd::Zero(200), 0.01, "run"));
+
+  SECTION("nonlinear ARX") {
+    Arx model(nlid::LaggedRegressors<2, 1, 0>{}, nlid::LinearMap<3>{}, 0.01);
+    model.set_parameters(Eigen::Vector4d(1.3, -0.45, 0.2, 0.7));
+    nlid::ModelFileInfo info;
+    info.uncertainty = made_uncertainty(model.parameters(), model.parameter_names(), 0.01, 13u);
+    nlid::save_model(path("band_any_arx.json"), model, info);
+    const nlid::AnyModel any = nlid::load_model(path("band_any_arx.json"));
+    same(nlid::simulation_band(any, data, o), nlid::simulation_band(model, data, *info.uncertainty, o));
+    // Default: the initial condition the AnyModel simulates from.
+    nlid::SimulationBandOptions by_default;
+    by_default.initial_condition = any.initial_condition();
+    same(nlid::simulation_band(any, data), nlid::simulation_band(model, data, *info.uncertainty, by_default));
+    // Changed values: no covariance any more, and the band says so.
+    nlid::AnyModel moved = any;
+    Eigen::VectorXd th = moved.parameters();
+    th[3] += 0.1;
+    moved.set_parameters(th);
+    CHECK_THROWS_WITH(nlid::simulation_band(moved, data, o), Contains("carries no parameter covariance"));
+  }
+  SECTION("Hammerstein-Wiener") {
+    Wiener model;
+    Eigen::VectorXd th(6);
+    th << 0.1, 0.06, -1.5, 0.7, -0.8, 1.0;
+    model.set_parameters(th);
+    model.set_ts(0.01);
+    nlid::ModelFileInfo info;
+    info.uncertainty = made_uncertainty(th, model.parameter_names(), 0.01, 14u);
+    nlid::save_model(path("band_any_hw.json"), model, info);
+    same(nlid::simulation_band(nlid::load_model(path("band_any_hw.json")), data, o),
+         nlid::simulation_band(model, data, *info.uncertainty, o));
+  }
+  SECTION("grey box: its own covariance") {
+    Lag model;
+    model.set_parameters(Eigen::Vector3d(12.0, 35.0, 21.0));
+    const nlid::ParameterUncertainty unc = made_uncertainty(model.parameters(), lag_names(), 0.02, 15u);
+    model.set_parameter_covariance(unc.covariance);
+    nlid::save_model(path("band_any_lag.json"), model);
+    const nlid::Dataset oven(nlid::Experiment(nlid_test::steps({0.0, 1.0, 0.4}, 25, 150), Eigen::VectorXd::Zero(150), 1.0, "oven"));
+    same(nlid::simulation_band(nlid::load_model(path("band_any_lag.json")), oven, o), nlid::simulation_band(model, oven, unc, o));
+  }
+  SECTION("kinds without a band, and models without a covariance, are refused") {
+    Arx model(nlid::LaggedRegressors<2, 1, 0>{}, nlid::LinearMap<3>{}, 0.01);
+    model.set_parameters(Eigen::Vector4d(1.3, -0.45, 0.2, 0.7));
+    nlid::save_model(path("band_any_none.json"), model);
+    CHECK_THROWS_WITH(nlid::simulation_band(nlid::load_model(path("band_any_none.json")), data, o),
+                      Contains("this nlarx model carries no parameter covariance"));
+    // A compile-time type held directly: no stored uncertainty to find; the typed call is the way.
+    CHECK_THROWS_WITH(nlid::simulation_band(nlid::AnyModel(model), data, o),
+                      Contains("has no simulation band") && Contains("compile-time model"));
+  }
 }

@@ -324,7 +324,7 @@ TEST_CASE("nlid-fit + nlid-sim read semicolon-separated decimal-comma files and 
   CHECK_THAT(r.err, Catch::Contains("--ts needs a positive sample time"));
 }
 
-TEST_CASE("nlid-sim --band: a grey-box model file's covariance gives y_std, other models are refused",
+TEST_CASE("nlid-sim --band: the covariance nlid-fit saves gives y_std, models without one are refused",
           "[tools][sim]") {
   const fs::path est = write_record("band_est", 1200, 41u, 0), val = write_record("band_val", 600, 42u, 0);
   const fs::path model = work_dir() / "band_lag.json";
@@ -351,9 +351,37 @@ TEST_CASE("nlid-sim --band: a grey-box model file's covariance gives y_std, othe
   }
   CHECK(top < 0.05);
 
-  // A nonlinear ARX model file keeps no covariance: refused, saying so, nothing written.
+  // Nonlinear ARX and Hammerstein-Wiener files from nlid-fit carry their covariance too: the
+  // same columns, y unchanged by --band, y_std finite, positive once the run has left its zero
+  // start, and small (the band of a well-determined 1200-sample fit).
+  for (const std::string spec : {"nlarx:na=1,nb=1,nk=1:sigmoidnet:2", "hw:nb=1,nf=1,nk=1:in=pwlinear:3:out=unitgain"}) {
+    INFO(spec);
+    const fs::path m = work_dir() / "band_reg.json", yp = work_dir() / "band_reg_plain.csv",
+                   yb = work_dir() / "band_reg_y.csv";
+    const Run fr = fit("--model " + spec + " --est " + q(est) + " --save " + q(m));
+    INFO(fr.err);
+    REQUIRE(fr.code == 0);
+    CHECK_THAT(slurp(m), Catch::Contains("\"covariance\"") && Catch::Contains("\"stddev\""));
+    REQUIRE(sim("--model " + q(m) + " --input " + q(val) + " --out " + q(yp)).code == 0);
+    const Run sr = sim("--model " + q(m) + " --input " + q(val) + " --band --out " + q(yb));
+    INFO(sr.err);
+    REQUIRE(sr.code == 0);
+    const std::vector<double> a = column(yp, 1), b = column(yb, 1), d = column(yb, 2);
+    REQUIRE(b.size() == a.size());
+    for (std::size_t k = 0; k < b.size(); ++k) CHECK(b[k] == a[k]);
+    double most = 0.0;
+    for (std::size_t k = 0; k < d.size(); ++k) {
+      CHECK(std::isfinite(d[k]));
+      CHECK(d[k] >= 0.0);
+      most = std::max(most, d[k]);
+    }
+    CHECK(d.back() > 0.0);
+    CHECK(most < 0.05);
+  }
+
+  // A linear ARX model file keeps no covariance: refused, saying so, nothing written.
   const fs::path arx = work_dir() / "band_arx.json", none = work_dir() / "band_none.csv";
-  REQUIRE(fit("--model nlarx:na=1,nb=1,nk=1:linear --est " + q(est) + " --save " + q(arx)).code == 0);
+  REQUIRE(fit("--model linear:arx:na=1,nb=1,nk=1 --est " + q(est) + " --save " + q(arx)).code == 0);
   const Run r = sim("--model " + q(arx) + " --input " + q(val) + " --band --out " + q(none));
   CHECK(r.code == 1);
   CHECK_THAT(r.err, Catch::Contains("--band needs the parameters' covariance") && Catch::Contains("does not keep"));

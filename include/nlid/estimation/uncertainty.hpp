@@ -126,12 +126,17 @@ struct ParameterUncertainty {
     };
     const Eigen::Index n = count < 0 ? theta.size() : std::min<Eigen::Index>(count, theta.size());
     std::string s = "Parameter uncertainty (1 sigma; ";
-    s += residuals == ResidualModel::white
-             ? std::string("white residuals")
-             : "correlated residuals: prewhitened Newey-West, " + std::to_string(max_lag) + (max_lag == 1 ? " lag" : " lags");
-    s += "; N = " + std::to_string(observations) + ", " + std::to_string(theta.size()) +
-         " unknowns, rank " + std::to_string(rank) + "; residual lag-1 correlation " +
-         num(lag1_correlation) + ")\n";
+    if (observations == 0) {
+      // uncertainty_from_covariance: the data and residuals it came from are not known here
+      s += "from a stored covariance; " + std::to_string(theta.size()) + " unknowns, " + std::to_string(rank) + " free)\n";
+    } else {
+      s += residuals == ResidualModel::white
+               ? std::string("white residuals")
+               : "correlated residuals: prewhitened Newey-West, " + std::to_string(max_lag) + (max_lag == 1 ? " lag" : " lags");
+      s += "; N = " + std::to_string(observations) + ", " + std::to_string(theta.size()) +
+           " unknowns, rank " + std::to_string(rank) + "; residual lag-1 correlation " +
+           num(lag1_correlation) + ")\n";
+    }
     std::size_t width = 0;
     for (Eigen::Index i = 0; i < n; ++i) width = std::max(width, names[static_cast<std::size_t>(i)].size());
     for (Eigen::Index i = 0; i < n; ++i) {
@@ -145,7 +150,8 @@ struct ParameterUncertainty {
         line += " +- inf  (not identifiable, see below)";
       } else {
         line += " +- " + num(stddev[i]) + " (" + num(relative_percent(i)) + " %)";
-        if (residuals == ResidualModel::correlated) line += "   white formula: +- " + num(stddev_white[i]);
+        if (residuals == ResidualModel::correlated && i < stddev_white.size() && std::isfinite(stddev_white[i]))
+          line += "   white formula: +- " + num(stddev_white[i]);
       }
       s += line + "\n";
     }
@@ -493,7 +499,10 @@ ParameterUncertainty parameter_uncertainty(const Pb& problem, const Eigen::Vecto
 
   for (Eigen::Index a = 0; a < k; ++a) {
     const int i = idx[static_cast<std::size_t>(a)];
-    for (Eigen::Index b = 0; b < k; ++b) out.covariance(i, idx[static_cast<std::size_t>(b)]) = P(a, b);
+    // The mean of P and Pᵀ, variances not below 0: the products above leave rounding asymmetries
+    // (about 1e-9 relative) that a reader checking a stored covariance must not have to forgive.
+    for (Eigen::Index b = 0; b < k; ++b) out.covariance(i, idx[static_cast<std::size_t>(b)]) = 0.5 * (P(a, b) + P(b, a));
+    out.covariance(i, i) = std::max(out.covariance(i, i), 0.0);
     const bool none = undetermined[static_cast<std::size_t>(a)];
     out.stddev[i] = none ? std::numeric_limits<double>::infinity() : std::sqrt(std::max(P(a, a), 0.0));
     out.stddev_white[i] = none ? std::numeric_limits<double>::infinity() : std::sqrt(std::max(Pw(a, a), 0.0));
@@ -509,6 +518,92 @@ ParameterUncertainty parameter_uncertainty(const Pb& problem, const Eigen::Vecto
     }
   }
   return out;
+}
+
+/// The uncertainty a stored covariance describes: what a model file keeps of an estimate
+/// (`parameters.covariance`, `parameters.stddev`) turned back into the form `simulation_band`
+/// takes. `stddev` (size 0 or n) keeps the deviations as estimated, +∞ for a parameter the data
+/// left undetermined (its covariance row holds the pseudo-inverse's finite values); empty: the
+/// diagonal's square roots. A parameter with zero variance or flagged in `fixed` (size 0 or n) is
+/// not free. What the residuals and the data were is not stored: `observations` is 0, the
+/// white-formula deviations are NaN, and `unidentifiable` is empty (an undetermined parameter is
+/// named in `caveat` instead). Throws `nlid::Error` naming the parameter for sizes that do not
+/// match, a non-finite, asymmetric or negative-variance covariance, or a negative deviation.
+[[nodiscard]] inline ParameterUncertainty uncertainty_from_covariance(std::vector<std::string> names, Eigen::VectorXd theta,
+                                                                      Eigen::MatrixXd covariance, Eigen::VectorXd stddev = {},
+                                                                      const std::vector<bool>& fixed = {}) {
+  const Eigen::Index n = theta.size();
+  require(n > 0, "stored uncertainty: no parameters", at_parameter("theta"));
+  require(names.empty() || names.size() == static_cast<std::size_t>(n),
+          "stored uncertainty: " + std::to_string(names.size()) + " names for " + std::to_string(n) + " parameters",
+          at_parameter("names"));
+  if (names.empty())
+    for (Eigen::Index i = 0; i < n; ++i) names.push_back("theta[" + std::to_string(i) + "]");
+  require(covariance.rows() == n && covariance.cols() == n,
+          "stored uncertainty: a " + std::to_string(covariance.rows()) + "x" + std::to_string(covariance.cols()) +
+              " covariance for " + std::to_string(n) + " parameters",
+          at_parameter("covariance"));
+  require(stddev.size() == 0 || stddev.size() == n,
+          "stored uncertainty: " + std::to_string(stddev.size()) + " standard deviations for " + std::to_string(n) +
+              " parameters",
+          at_parameter("stddev"));
+  require(fixed.empty() || fixed.size() == static_cast<std::size_t>(n),
+          "stored uncertainty: " + std::to_string(fixed.size()) + " fixed flags for " + std::to_string(n) + " parameters",
+          at_parameter("fixed"));
+  auto number = [](double v) {
+    char b[32];
+    std::snprintf(b, sizeof b, "%.6g", v);
+    return std::string(b);
+  };
+  const double scale = covariance.cwiseAbs().maxCoeff();
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const std::string& q = names[static_cast<std::size_t>(i)];
+    require(std::isfinite(theta[i]), "stored uncertainty: the value of " + q + " is not finite", at_parameter(q));
+    for (Eigen::Index j = 0; j < n; ++j) {
+      require(std::isfinite(covariance(i, j)),
+              "stored uncertainty: the covariance of " + q + " with " + names[static_cast<std::size_t>(j)] +
+                  " is not finite",
+              at_parameter(q));
+    }
+    require(covariance(i, i) >= 0.0, "stored uncertainty: the variance of " + q + " must be >= 0, got " + number(covariance(i, i)),
+            at_parameter(q));
+    for (Eigen::Index j = 0; j < i; ++j) {
+      require(std::abs(covariance(i, j) - covariance(j, i)) <= 1e-9 * scale,
+              "stored uncertainty: the covariance is not symmetric (" + q + " with " + names[static_cast<std::size_t>(j)] +
+                  ": " + number(covariance(i, j)) + " and " + number(covariance(j, i)) + ")",
+              at_parameter(q));
+    }
+    if (stddev.size() > 0) {
+      require(stddev[i] >= 0.0, "stored uncertainty: the standard deviation of " + q + " must be >= 0 (or inf), got " + number(stddev[i]),
+              at_parameter(q));
+    }
+  }
+  ParameterUncertainty u;
+  u.names = std::move(names);
+  u.theta = std::move(theta);
+  u.covariance = std::move(covariance);
+  u.stddev = stddev.size() > 0 ? std::move(stddev) : Eigen::VectorXd(u.covariance.diagonal().cwiseSqrt());
+  u.stddev_white = Eigen::VectorXd::Constant(n, std::numeric_limits<double>::quiet_NaN());
+  u.correlation = Eigen::MatrixXd::Constant(n, n, std::numeric_limits<double>::quiet_NaN());
+  u.free.resize(static_cast<std::size_t>(n));
+  u.at_bound.assign(static_cast<std::size_t>(n), false);
+  std::string undetermined;
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const auto iu = static_cast<std::size_t>(i);
+    // A parameter fixed since the estimation keeps its variance in Σ but is not moved.
+    u.free[iu] = u.covariance(i, i) > 0.0 && !(iu < fixed.size() && fixed[iu]);
+    if (u.free[iu] && std::isfinite(u.stddev[i])) ++u.rank;
+    if (std::isinf(u.stddev[i])) undetermined += (undetermined.empty() ? "" : ", ") + u.names[iu];
+    for (Eigen::Index j = 0; j < n; ++j) {
+      const double si = u.stddev[i], sj = u.stddev[j];
+      if (si > 0.0 && sj > 0.0 && std::isfinite(si) && std::isfinite(sj)) u.correlation(i, j) = u.covariance(i, j) / (si * sj);
+    }
+  }
+  if (!undetermined.empty()) {
+    u.caveat = "not determined by the estimation data (the covariance holds their pseudo-inverse variance, not the "
+               "combinations the data left open): " + undetermined;
+  }
+  return u;
 }
 
 }  // namespace nlid

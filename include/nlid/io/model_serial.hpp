@@ -33,6 +33,7 @@
 #include "nlid/core/error.hpp"
 #include "nlid/core/initial_condition.hpp"
 #include "nlid/data/dataset.hpp"
+#include "nlid/estimation/uncertainty.hpp"
 #include "nlid/io/json.hpp"
 #include "nlid/io/json_eigen.hpp"
 #include "nlid/io/nonlinearity_serial.hpp"
@@ -74,6 +75,15 @@ struct ModelFileInfo {
   /// linear term, a piecewise-linear map its end segments); nlid-codegen refuses an equilibrium
   /// start there. Filled by `record_data_range` (nlid-fit and nlid-diagnose --save do).
   std::vector<ChannelRange> input_range, output_range;
+  /// Uncertainty of the parameters from the estimation, for the models that keep none
+  /// themselves (nonlinear ARX, Hammerstein–Wiener; a grey box keeps its own,
+  /// `GreyBox::parameter_covariance`, and saving ignores this member for it). Saved as
+  /// "parameters": {"stddev", "covariance"} of the model's parameters (an uncertainty with
+  /// estimated initial states appended keeps only the parameters' block); saving throws if it
+  /// belongs to other parameter names or values. Loading fills it for every kind whose file has a
+  /// covariance (`uncertainty_from_covariance`), ready for `simulation_band(model, data,
+  /// *info.uncertainty)`. `fit_model_spec` (nlid-fit) sets it when it computes the uncertainty.
+  std::optional<ParameterUncertainty> uncertainty;
 };
 
 /// Records the range of every input and output of `data` (all experiments) in `info`, over the
@@ -205,6 +215,89 @@ inline Eigen::VectorXd read_parameters(const JsonView& file, int n, bool with_st
   return th;
 }
 
+/// Writes "parameters": "stddev" and "covariance" (n × n rows); nothing if `covariance` is empty.
+inline void write_parameter_covariance(Json& j, const Eigen::VectorXd& stddev, const Eigen::MatrixXd& covariance) {
+  if (stddev.size() > 0) j["parameters"]["stddev"] = extended_vector(stddev);
+  if (covariance.size() == 0) return;
+  Json::Array rows;
+  for (Eigen::Index i = 0; i < covariance.rows(); ++i) rows.push_back(extended_vector(Eigen::VectorXd(covariance.row(i).transpose())));
+  j["parameters"]["covariance"] = Json(std::move(rows));
+}
+
+/// Writes `info.uncertainty` for a model whose parameters are `names` = `values`: the model's
+/// block of it. Throws naming the parameter if the uncertainty belongs to another model or to
+/// other values (a covariance from before `set_parameters` describes a different estimate).
+inline void write_info_uncertainty(Json& j, const ModelFileInfo& info, const std::vector<std::string>& names,
+                                   const Eigen::VectorXd& values) {
+  if (!info.uncertainty) return;
+  const ParameterUncertainty& u = *info.uncertainty;
+  const Eigen::Index n = values.size();
+  require(u.theta.size() >= n && u.covariance.rows() == u.theta.size() && u.covariance.cols() == u.theta.size() &&
+              u.stddev.size() == u.theta.size(),
+          "model file: the uncertainty to save covers " + std::to_string(u.theta.size()) + " unknowns (covariance " +
+              std::to_string(u.covariance.rows()) + "x" + std::to_string(u.covariance.cols()) + "), the model has " +
+              std::to_string(n) + " parameters",
+          at_parameter("uncertainty"));
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const std::string& name = names[static_cast<std::size_t>(i)];
+    require(static_cast<std::size_t>(i) >= u.names.size() || u.names[static_cast<std::size_t>(i)] == name,
+            "model file: parameter " + std::to_string(i) + " is '" + name + "' in the model but '" +
+                u.names[static_cast<std::size_t>(i)] + "' in the uncertainty to save (another model's?)",
+            at_parameter(name));
+    const double a = values[i], b = u.theta[i];
+    require(std::abs(a - b) <= 1e-12 * std::max({1.0, std::abs(a), std::abs(b)}),
+            "model file: the uncertainty to save was computed at " + name + " = " + std::to_string(b) +
+                ", the model has " + std::to_string(a) +
+                " (recompute it for the changed model, or reset ModelFileInfo::uncertainty)",
+            at_parameter(name));
+  }
+  write_parameter_covariance(j, u.stddev.head(n), u.covariance.topLeftCorner(n, n));
+}
+
+/// The uncertainty a file's "parameters" keep (nullopt without "covariance"), for a model whose
+/// parameters are `names` = `values`; `fixed` as in `uncertainty_from_covariance`. Errors name
+/// the key path of the offending row or entry.
+inline std::optional<ParameterUncertainty> read_parameter_covariance(const JsonView& file, const std::vector<std::string>& names,
+                                                                     const Eigen::VectorXd& values,
+                                                                     const std::vector<bool>& fixed = {}) {
+  const JsonView p = file.at("parameters");
+  const Eigen::Index n = values.size();
+  Eigen::VectorXd sd;
+  if (p.contains("stddev")) {
+    const JsonView v = p.at("stddev");
+    sd = read_extended_vector(v);
+    if (sd.size() != n) {
+      v.fail("the file has " + std::to_string(sd.size()) + " standard deviations at " + v.path_text() + ", the model has " +
+             std::to_string(n) + " parameters");
+    }
+  }
+  if (!p.contains("covariance")) return std::nullopt;
+  const JsonView cv = p.at("covariance");
+  if (cv.type() != Json::Type::array || static_cast<Eigen::Index>(cv.size()) != n) {
+    cv.fail("the parameter covariance at " + cv.path_text() + " must be an array of " + std::to_string(n) +
+            " rows (one per parameter)");
+  }
+  Eigen::MatrixXd c(n, n);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const JsonView row = cv.at(static_cast<std::size_t>(i));
+    const Eigen::VectorXd v = read_extended_vector(row);
+    if (v.size() != n) {
+      row.fail("row " + std::to_string(i) + " of the parameter covariance at " + row.path_text() + " has " +
+               std::to_string(v.size()) + " entries, the model has " + std::to_string(n) + " parameters");
+    }
+    c.row(i) = v.transpose();
+  }
+  try {
+    return uncertainty_from_covariance(names, values, std::move(c), std::move(sd), fixed);
+  } catch (const Error& e) {
+    // Point at the row of the parameter the check names.
+    for (std::size_t i = 0; i < names.size(); ++i) {
+      if (e.where().parameter == names[i]) cv.at(i).fail(e.message() + " (at " + cv.at(i).path_text() + ")");
+    }
+    cv.fail(e.message() + " (at " + cv.path_text() + ")");
+  }
+}
+
 inline void write_common(Json& j, double ts, const std::vector<std::string>& in, const std::vector<std::string>& out,
                          const ModelFileInfo& info, const EstimationReport* report) {
   j["ts"] = ts;
@@ -294,6 +387,7 @@ struct ModelSerial<Nlarx<R, F>> {
     s["nonlinearity"] = NonlinearitySerial<F>::save(m.nonlinearity());
     j["structure"] = std::move(s);
     j["parameters"] = detail::parameters_json(m.parameter_names(), m.parameters());
+    detail::write_info_uncertainty(j, info, m.parameter_names(), m.parameters());
     j["report"] = report_to_json(m.report());
   }
   /// Builds the model from the file.
@@ -347,7 +441,8 @@ struct ModelSerial<Nlarx<R, F>> {
       detail::expect_channel_count(file.at("inputs"), in.size(), m.num_inputs(), "inputs");
     }
     m.set_channel_names(in, out[0]);
-    m.set_parameters(detail::read_parameters(file, m.num_parameters()));
+    m.set_parameters(detail::read_parameters(file, m.num_parameters(), true));
+    info.uncertainty = detail::read_parameter_covariance(file, m.parameter_names(), m.parameters());
     m.set_report(report_from_json(file.at("report")));
     info.report.reset();
   }
@@ -398,6 +493,7 @@ struct ModelSerial<HammersteinWiener<In, TransferFunctionBlock<Nb, Nf, Nk>, Out>
     s["output_nonlinearity"] = NonlinearitySerial<Out>::save(m.output_nonlinearity());
     j["structure"] = std::move(s);
     j["parameters"] = detail::parameters_json(m.parameter_names(), m.parameters());
+    detail::write_info_uncertainty(j, info, m.parameter_names(), m.parameters());
     j["report"] = report_to_json(m.report());
   }
   /// Builds the model from the file.
@@ -445,7 +541,8 @@ struct ModelSerial<HammersteinWiener<In, TransferFunctionBlock<Nb, Nf, Nk>, Out>
     detail::expect_channel_count(file.at("inputs"), in.size(), 1, "inputs");
     detail::expect_channel_count(file.at("outputs"), out.size(), 1, "outputs");
     m.set_channel_names(in[0], out[0]);
-    m.set_parameters(detail::read_parameters(file, m.num_parameters()));
+    m.set_parameters(detail::read_parameters(file, m.num_parameters(), true));
+    info.uncertainty = detail::read_parameter_covariance(file, m.parameter_names(), m.parameters());
     m.set_report(report_from_json(file.at("report")));
     info.report.reset();
   }
@@ -552,14 +649,7 @@ struct ModelSerial<GreyBox<P>> {
     s["states"] = Json(std::move(states));
     j["structure"] = std::move(s);
     j["parameters"] = detail::parameters_json(m.parameter_names(), Eigen::VectorXd(m.parameters()));
-    if (m.parameter_stddev().size() > 0) j["parameters"]["stddev"] = extended_vector(m.parameter_stddev());
-    if (m.parameter_covariance().size() > 0) {
-      Json::Array rows;
-      for (Eigen::Index i = 0; i < m.parameter_covariance().rows(); ++i) {
-        rows.push_back(extended_vector(Eigen::VectorXd(m.parameter_covariance().row(i).transpose())));
-      }
-      j["parameters"]["covariance"] = Json(std::move(rows));
-    }
+    detail::write_parameter_covariance(j, m.parameter_stddev(), m.parameter_covariance());
     Json::Array x0;
     for (const auto& x : m.estimated_initial_states()) x0.push_back(extended_vector(x));
     j["estimated_initial_states"] = Json(std::move(x0));
@@ -665,6 +755,13 @@ struct ModelSerial<GreyBox<P>> {
       } catch (const Error& e) {
         cv.fail(e.message() + " (at " + cv.path_text() + ")");
       }
+    }
+    info.uncertainty.reset();
+    if (m.parameter_covariance().size() > 0) {
+      const Eigen::VectorXd sd =
+          m.parameter_stddev().size() == m.num_parameters() ? m.parameter_stddev() : Eigen::VectorXd();
+      info.uncertainty = uncertainty_from_covariance(m.parameter_names(), m.parameters(), m.parameter_covariance(), sd,
+                                                     m.fixed_flags());
     }
     m.set_units(info.output_units.empty() ? std::string() : info.output_units[0],
                 info.input_units.empty() ? std::string() : info.input_units[0]);

@@ -123,8 +123,13 @@ class AnyModel {
 
   /// Parameters θ of the held model.
   [[nodiscard]] Eigen::VectorXd parameters() const { return get().parameters(); }
-  /// Sets θ (throws `nlid::Error` on a size mismatch or a value outside a bound).
-  void set_parameters(const Eigen::VectorXd& theta) { get().set_parameters(theta); }
+  /// Sets θ (throws `nlid::Error` on a size mismatch or a value outside a bound). Drops
+  /// `info().uncertainty`: it described the estimate, not the new values.
+  void set_parameters(const Eigen::VectorXd& theta) {
+    const Eigen::VectorXd before = info_.uncertainty ? parameters() : Eigen::VectorXd();
+    get().set_parameters(theta);
+    if (info_.uncertainty && !(before.size() == theta.size() && before == theta)) info_.uncertainty.reset();
+  }
   /// Names of θ's entries.
   [[nodiscard]] std::vector<std::string> parameter_names() const { return get().parameter_names(); }
 

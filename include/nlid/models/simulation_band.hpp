@@ -572,24 +572,11 @@ SimulationBand simulation_band(const GreyBox<P>& model, const Dataset& data, con
           "simulation_band: grey-box model '" + model.name() +
               "' carries no parameter covariance (estimate it, or load a model file written after an estimation)",
           at_parameter("covariance"));
-  ParameterUncertainty u;
-  for (const auto& q : model.parameter_info()) u.names.push_back(q.name);
-  u.theta = model.parameters();
-  u.covariance = model.parameter_covariance();
-  u.stddev = model.parameter_stddev().size() == np ? model.parameter_stddev()
-                                                    : Eigen::VectorXd(u.covariance.diagonal().cwiseSqrt());
-  u.free.resize(static_cast<std::size_t>(np));
-  u.at_bound.assign(static_cast<std::size_t>(np), false);
-  std::string undetermined;
-  for (Eigen::Index i = 0; i < np; ++i) {
-    // A parameter fixed since the estimation keeps its variance in the band but is not moved.
-    u.free[static_cast<std::size_t>(i)] = u.covariance(i, i) > 0.0 && !model.fixed_flags()[static_cast<std::size_t>(i)];
-    if (std::isinf(u.stddev[i])) undetermined += (undetermined.empty() ? "" : ", ") + u.names[static_cast<std::size_t>(i)];
-  }
-  if (!undetermined.empty()) {
-    u.caveat = "not determined by the estimation data (the band holds their pseudo-inverse variance, not the "
-               "combinations the data left open): " + undetermined;
-  }
+  std::vector<std::string> names;
+  for (const auto& q : model.parameter_info()) names.push_back(q.name);
+  const Eigen::VectorXd sd = model.parameter_stddev().size() == np ? model.parameter_stddev() : Eigen::VectorXd();
+  const ParameterUncertainty u =
+      uncertainty_from_covariance(std::move(names), model.parameters(), model.parameter_covariance(), sd, model.fixed_flags());
   return simulation_band(model, data, u, options);
 }
 

@@ -123,6 +123,9 @@ struct SpecFitOptions {
   /// hw: `parameter_uncertainty(model, data)`; greybox: `GreyBoxEstimate::uncertainty`). Not
   /// called for the linear and series families (ARX and OE keep their own deviations), nor when
   /// the uncertainty cannot be computed: `progress` then says why, and the fit still returns.
+  /// When it is computed, the returned model keeps it for its file (nlarx, hw:
+  /// `ModelFileInfo::uncertainty`; greybox: its own covariance), so `simulation_band` and
+  /// `nlid-sim --band` work on the saved model.
   std::function<void(const ParameterUncertainty&)> uncertainty;
   /// With `uncertainty` (nlarx, hw, greybox): records — typically the validation data — on which
   /// to compute the simulation band of that uncertainty (`simulation_band`, from the initial
@@ -414,10 +417,11 @@ void spec_band(const M& m, const ParameterUncertainty& u, const SpecFitOptions& 
 // Hands `o.uncertainty` the model's uncertainty on its estimation data. The estimate stands even
 // where the uncertainty cannot be computed (estimation accepts as many residuals as unknowns,
 // which leaves no degrees of freedom for the noise level): the progress callback says why.
+// Returns it too, for the model file (ModelFileInfo::uncertainty).
 template <class M>
-void spec_uncertainty(const M& m, const Dataset& data, const LmOptions& solver, const SpecFitOptions& o,
-                      InitialCondition simulated_from) {
-  if (!o.uncertainty) return;
+std::optional<ParameterUncertainty> spec_uncertainty(const M& m, const Dataset& data, const LmOptions& solver,
+                                                     const SpecFitOptions& o, InitialCondition simulated_from) {
+  if (!o.uncertainty) return std::nullopt;
   ModelUncertaintyOptions uo;
   uo.uncertainty.caveat = uncertainty_caveat(solver);
   ParameterUncertainty u;
@@ -425,10 +429,11 @@ void spec_uncertainty(const M& m, const Dataset& data, const LmOptions& solver, 
     u = parameter_uncertainty(m, data, uo);
   } catch (const Error& err) {
     if (o.progress) o.progress(std::string("no parameter uncertainty: ") + err.what());
-    return;
+    return std::nullopt;
   }
   o.uncertainty(u);
   spec_band(m, u, o, simulated_from);
+  return u;
 }
 
 
@@ -515,18 +520,18 @@ AnyModel fit_model_spec_kind(const ModelSpec& s, const Dataset& data, const Spec
                                               std::vector<int>(static_cast<std::size_t>(nu), od.nk));
       const int nr = static_cast<int>(r.size());
       DynamicNlarx m = estimate(DynamicNlarx(std::move(r), detail::make_spec_nonlinearity(s.nonlinearities[0], nr)), data, eo);
-      detail::spec_uncertainty(m, data, eo.solver, o,
-                               s.initial_condition.value_or(detail::initial_condition_from_report(
-                                   m.report().initial_condition, InitialCondition::zero)));
+      info.uncertainty = detail::spec_uncertainty(m, data, eo.solver, o,
+                                                  s.initial_condition.value_or(detail::initial_condition_from_report(
+                                                      m.report().initial_condition, InitialCondition::zero)));
       return AnyModel(std::move(m), info);
     }
     DynamicHammersteinWiener m = estimate(
         DynamicHammersteinWiener(detail::make_spec_nonlinearity(s.nonlinearities[0], 1), detail::make_spec_block(s.orders[0]),
                                  detail::make_spec_nonlinearity(s.nonlinearities[1], 1)),
         data, eo);
-    detail::spec_uncertainty(m, data, eo.solver, o,
-                             s.initial_condition.value_or(detail::initial_condition_from_report(
-                                 m.report().initial_condition, InitialCondition::zero)));
+    info.uncertainty = detail::spec_uncertainty(m, data, eo.solver, o,
+                                                s.initial_condition.value_or(detail::initial_condition_from_report(
+                                                    m.report().initial_condition, InitialCondition::zero)));
     return AnyModel(std::move(m), info);
   }
   if (s.family == "wh")
