@@ -102,6 +102,14 @@ TEST_CASE("Grey-box band: sigma = sqrt(J Sigma J') with J by finite differences,
   CHECK(b.max_stddev(0, 0) >= b.rms_stddev(0, 0));
   CHECK(b.experiment_names == std::vector<std::string>{"oven"});
 
+  // A record shorter than the unknowns of an estimation (3 samples; 3 parameters and a state):
+  // the band estimates nothing, so it still has one.
+  const nlid::Experiment short_run(u.topRows(3), data[0].y().topRows(3), 1.0, "short");
+  const nlid::SimulationBand bs = nlid::simulation_band(model, nlid::Dataset(short_run), unc);
+  REQUIRE(bs.stddev[0].rows() == 3);
+  CHECK(bs.stddev[0].allFinite());
+  CHECK(bs.stddev[0](2, 0) > 0.0);
+
   // A zero start instead: the band follows the other trajectory.
   nlid::SimulationBandOptions o;
   o.initial_condition = nlid::InitialCondition::zero;

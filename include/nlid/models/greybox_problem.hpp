@@ -69,6 +69,19 @@ class GreyBoxProblem {
   GreyBoxProblem(P physics, IntegratorOptions options, const Dataset& data, InitialCondition ic,
                  std::vector<bool> fixed = {}, bool states_only = false,
                  Eigen::VectorXd p_values = {})
+      : GreyBoxProblem(std::move(physics), options, data, ic, std::move(fixed), states_only, std::move(p_values), true) {}
+
+  /// The problem with every parameter and (for `estimate`) every initial state free, to evaluate
+  /// residuals and Jacobian at given values — not to estimate them: records shorter than the
+  /// unknowns are accepted (a simulation band of a 3-sample record). The other checks apply.
+  [[nodiscard]] static GreyBoxProblem for_evaluation(P physics, IntegratorOptions options, const Dataset& data,
+                                                     InitialCondition ic) {
+    return GreyBoxProblem(std::move(physics), options, data, ic, {}, false, {}, false);
+  }
+
+ private:
+  GreyBoxProblem(P physics, IntegratorOptions options, const Dataset& data, InitialCondition ic, std::vector<bool> fixed,
+                 bool states_only, Eigen::VectorXd p_values, bool check_count)
       : phys_(std::move(physics)),
         options_(options),
         data_(&data),
@@ -149,9 +162,11 @@ class GreyBoxProblem {
     }
     int free = states_only_ ? 0 : static_cast<int>(std::count(fixed_.begin(), fixed_.end(), false));
     if (ic_ == InitialCondition::estimate) free += nx_ * static_cast<int>(data.size());
-    require(rows_ >= free, "data too short: " + std::to_string(rows_) + " residual(s) for " +
-                               std::to_string(free) + " free unknown(s)");
+    require(!check_count || rows_ >= free, "data too short: " + std::to_string(rows_) + " residual(s) for " +
+                                               std::to_string(free) + " free unknown(s)");
   }
+
+ public:
 
   /// Number of unknowns: n_p (unless states-only) + n_x per experiment (estimate only).
   [[nodiscard]] int num_parameters() const {

@@ -535,8 +535,9 @@ SimulationBand simulation_band(const GreyBox<P>& model, const Dataset& data, con
     zero.add(std::move(z));
   }
   // Constructed first: it checks every record (channels, length, finite inputs) by name.
-  const GreyBoxProblem<P> problem(model.physics(), model.integrator(), zero, InitialCondition::estimate,
-                                  std::vector<bool>(static_cast<std::size_t>(np), false));
+  // For evaluation: a record may be shorter than the unknowns, which are held here, not estimated.
+  const GreyBoxProblem<P> problem =
+      GreyBoxProblem<P>::for_evaluation(model.physics(), model.integrator(), zero, InitialCondition::estimate);
   Eigen::VectorXd theta(problem.num_parameters());
   theta.head(np) = model.parameters();
   for (std::size_t e = 0; e < data.size(); ++e) {
