@@ -487,6 +487,7 @@ TEST_CASE("uncertainty_from_covariance: a stored covariance back in the form the
   CHECK(u.free == std::vector<bool>{true, true, false});
   CHECK(u.rank == 2);
   CHECK(u.observations == 0);
+  CHECK(u.stored);
   CHECK(std::isnan(u.stddev_white[0]));
   CHECK(u.caveat.empty());
   const std::string r = u.report();
@@ -501,6 +502,7 @@ TEST_CASE("uncertainty_from_covariance: a stored covariance back in the form the
   CHECK(open.rank == 1);
   CHECK(open.free == std::vector<bool>{true, true, false});
   CHECK_THAT(open.caveat, Contains("not determined by the estimation data") && Contains(": b"));
+  CHECK_THAT(open.report(), Contains("3 unknowns, 2 free, 1 of them undetermined") && Contains("b = -1 +- inf"));
   // A flagged parameter is held even with a variance.
   const ParameterUncertainty held = nlid::uncertainty_from_covariance({"a", "b", "c"}, theta, c, {}, {true, false, false});
   CHECK(held.free == std::vector<bool>{false, true, false});
@@ -524,6 +526,11 @@ TEST_CASE("uncertainty_from_covariance: a stored covariance back in the form the
   nan(0, 2) = std::numeric_limits<double>::quiet_NaN();
   CHECK_THROWS_WITH(nlid::uncertainty_from_covariance({"a", "b", "c"}, theta, nan),
                     Contains("covariance of a with c is not finite"));
+  // A NaN further down is named as such, not as an asymmetry of the rows before it.
+  Eigen::MatrixXd later = c;
+  later(2, 1) = later(1, 2) = std::numeric_limits<double>::quiet_NaN();
+  CHECK_THROWS_WITH(nlid::uncertainty_from_covariance({"a", "b", "c"}, theta, later),
+                    Contains("covariance of b with c is not finite"));
   CHECK_THROWS_WITH(nlid::uncertainty_from_covariance({"a", "b", "c"}, theta, c, Eigen::Vector3d(1.0, -1.0, 0.0)),
                     Contains("standard deviation of b must be >= 0"));
   try {

@@ -408,8 +408,14 @@ TEST_CASE("model file: nonlinear ARX and Hammerstein-Wiener files keep ModelFile
   const std::string path = temp_path("nlarx_covariance.json");
   save_model(path, m, info);
   const std::string text = read_text(path);
-  CHECK(text.find("\"covariance\"") != std::string::npos);
   CHECK(text.find("x0[0]") == std::string::npos);
+  {
+    // A top-level member, which readers that predate it ignore; "parameters" stays as it was.
+    const Json saved = read_json(path);
+    CHECK(saved.view().at("uncertainty").contains("covariance"));
+    CHECK(saved.view().at("uncertainty").contains("stddev"));
+    CHECK_FALSE(saved.view().at("parameters").contains("covariance"));
+  }
 
   ModelFileInfo back;
   const M typed = load_model<M>(path, &back);
@@ -456,22 +462,46 @@ TEST_CASE("model file: nonlinear ARX and Hammerstein-Wiener files keep ModelFile
   CHECK_THAT(error_of([&] { save_model(temp_path("small.json"), m, small); }),
              Catch::Contains("covers 1 unknowns") && Catch::Contains("the model has 4 parameters"));
 
-  // A damaged covariance in a file: what and where.
+  // A damaged uncertainty in a file: what and where.
   Json j = read_json(path);
-  j["parameters"]["covariance"][2][0] = 5.0;
+  j["uncertainty"]["covariance"][2][0] = 5.0;
   CHECK_THAT(error_of([&] { (void)model_from_json<M>(j); }),
-             Catch::Contains("not symmetric") && Catch::Contains("parameters.covariance[2]"));
+             Catch::Contains("not symmetric") && Catch::Contains("uncertainty.covariance[2]"));
   j = read_json(path);
-  j["parameters"]["covariance"] = Json::array({1.0});
+  j["uncertainty"]["covariance"] = Json::array({1.0});
   CHECK_THAT(error_of([&] { (void)model_from_json<M>(j); }), Catch::Contains("must be an array of 4 rows"));
   j = read_json(path);
-  j["parameters"]["stddev"] = Json::array({1.0});
+  j["uncertainty"]["stddev"] = Json::array({1.0});
   CHECK_THAT(error_of([&] { (void)model_from_json<M>(j); }),
-             Catch::Contains("1 standard deviations at parameters.stddev") && Catch::Contains("4 parameters"));
+             Catch::Contains("1 standard deviations at uncertainty.stddev") && Catch::Contains("4 parameters"));
   j = read_json(path);
-  j["parameters"]["covariance"][3][3] = -1.0;
+  j["uncertainty"]["stddev"][2] = -1.0;
   CHECK_THAT(error_of([&] { (void)model_from_json<M>(j); }),
-             Catch::Contains("must be >= 0") && Catch::Contains("parameters.covariance[3]"));
+             Catch::Contains("standard deviation of " + m.parameter_names()[2]) &&
+                 Catch::Contains("uncertainty.stddev[2]") && Catch::Contains(">= 0"));
+  j = read_json(path);
+  j["uncertainty"]["covariance"][3][3] = -1.0;
+  CHECK_THAT(error_of([&] { (void)model_from_json<M>(j); }),
+             Catch::Contains("must be >= 0") && Catch::Contains("uncertainty.covariance[3]"));
+  j = read_json(path);
+  j["uncertainty"]["covariance"][3][1] = "nan";
+  j["uncertainty"]["covariance"][1][3] = "nan";
+  CHECK_THAT(error_of([&] { (void)model_from_json<M>(j); }),
+             Catch::Contains("is not finite") && Catch::Contains("uncertainty.covariance[1]"));
+  j = read_json(path);
+  j["uncertainty"].erase("covariance");
+  CHECK_THAT(error_of([&] { (void)model_from_json<M>(j); }), Catch::Contains("covariance"));
+  j = read_json(path);
+  j["uncertainty"]["variance"] = 1.0;
+  CHECK_THAT(error_of([&] { (void)model_from_json<M>(j); }), Catch::Contains("variance"));
+  // An uncertainty a reader would refuse is not written.
+  ModelFileInfo bad = info;
+  bad.uncertainty->covariance(0, 1) += 1.0;
+  CHECK_THAT(error_of([&] { save_model(temp_path("bad_uncertainty.json"), m, bad); }),
+             Catch::Contains("the uncertainty to save") && Catch::Contains("not symmetric"));
+  ModelFileInfo unnamed = info;
+  unnamed.uncertainty->names.clear();  // names are optional in a hand-built uncertainty
+  CHECK_NOTHROW(save_model(temp_path("unnamed_uncertainty.json"), m, unnamed));
 
   // Hammerstein-Wiener, through the run-time model: the same round trip.
   HammersteinWiener hw(UnitGain{}, TransferFunctionBlock<Dynamic, Dynamic, Dynamic>(2, 2, 1), DeadZone(-0.1, 0.2));
@@ -486,16 +516,16 @@ TEST_CASE("model file: nonlinear ARX and Hammerstein-Wiener files keep ModelFile
   const AnyModel hback = load_model(hpath);
   REQUIRE(hback.info().uncertainty.has_value());
   CHECK(bit_equal(hback.info().uncertainty->covariance, b * b.transpose()));
-  // A grey box's file fills it from the model's own covariance.
+  // A grey box keeps its own (parameters.covariance); the info member is not used for it.
   GreyBox<physics::Throttle> g;
   const Eigen::Index ng = g.num_parameters();
   Eigen::MatrixXd ag = Eigen::MatrixXd::Random(ng, ng);
   g.set_parameter_covariance(ag * ag.transpose());
   save_model(temp_path("greybox_info.json"), g);
   ModelFileInfo ginfo;
-  (void)load_model<GreyBox<physics::Throttle>>(temp_path("greybox_info.json"), &ginfo);
-  REQUIRE(ginfo.uncertainty.has_value());
-  CHECK(bit_equal(ginfo.uncertainty->covariance, ag * ag.transpose()));
+  const auto gback = load_model<GreyBox<physics::Throttle>>(temp_path("greybox_info.json"), &ginfo);
+  CHECK_FALSE(ginfo.uncertainty.has_value());
+  CHECK(bit_equal(gback.parameter_covariance(), ag * ag.transpose()));
 }
 
 TEST_CASE("model file: a grey box's integrator options round-trip field by field") {

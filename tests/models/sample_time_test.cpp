@@ -155,4 +155,13 @@ TEST_CASE("with_sample_time: ARX deterministic part, state space, Hammerstein-Wi
   const AnyModel any = with_sample_time(AnyModel(arx), 0.005, &rany);
   CHECK(any.ts() == 0.005);
   CHECK(any.kind() == "arx");
+  // The parameters' uncertainty belongs to the old rate: not carried over (the Nlarx keeps θ and
+  // its names, so nothing else would catch it).
+  AnyModel held(nl);
+  held.info().uncertainty = uncertainty_from_covariance(nl.parameter_names(), nl.parameters(),
+                                                        Eigen::MatrixXd::Identity(nl.num_parameters(), nl.num_parameters()));
+  held.info().description = "kept";
+  const AnyModel moved = with_sample_time(held, 0.005);
+  CHECK_FALSE(moved.info().uncertainty.has_value());
+  CHECK(moved.info().description == "kept");
 }

@@ -461,6 +461,15 @@ TEST_CASE("Band: a record the model reproduces exactly has no error to explain, 
   CHECK_THAT(b.report(), !Contains("outside what they can reach"));
 }
 
+// Without an uncertainty argument: grey boxes (their own covariance) and AnyModel (its file's);
+// a typed Nlarx does not turn into an AnyModel to fail at run time.
+template <class M>
+constexpr bool band_without_uncertainty = requires(const M& m, const nlid::Dataset& d) { nlid::simulation_band(m, d); };
+static_assert(band_without_uncertainty<Lag>);
+static_assert(band_without_uncertainty<nlid::AnyModel>);
+static_assert(!band_without_uncertainty<Arx>);
+static_assert(!band_without_uncertainty<Wiener>);
+
 TEST_CASE("AnyModel band: the uncertainty a model file keeps gives the typed model's band", "[models][band]") {
   const auto path = [](const std::string& name) { return (nlid_test::scratch_dir() / name).string(); };
   auto same = [](const nlid::SimulationBand& a, const nlid::SimulationBand& b) {
@@ -520,7 +529,7 @@ TEST_CASE("AnyModel band: the uncertainty a model file keeps gives the typed mod
     nlid::save_model(path("band_any_none.json"), model);
     CHECK_THROWS_WITH(nlid::simulation_band(nlid::load_model(path("band_any_none.json")), data, o),
                       Contains("this nlarx model carries no parameter covariance"));
-    // A compile-time type held directly: no stored uncertainty to find; the typed call is the way.
+    // A compile-time type held by an AnyModel: no stored uncertainty to find; the typed call is the way.
     CHECK_THROWS_WITH(nlid::simulation_band(nlid::AnyModel(model), data, o),
                       Contains("has no simulation band") && Contains("compile-time model"));
   }

@@ -109,6 +109,9 @@ struct ParameterUncertainty {
   /// unchanged to first order, scaled so the largest relative change |Δθᵢ/θᵢ| is 1 %.
   std::vector<Eigen::VectorXd> unidentifiable;
   std::string caveat;              ///< from the options
+  /// Rebuilt from a stored covariance (`uncertainty_from_covariance`): no residuals or data
+  /// behind it here, so `observations` is 0 and the white-formula deviations are NaN.
+  bool stored = false;
 
   /// Relative standard deviation of parameter i in % (∞ if θᵢ = 0 and σᵢ > 0).
   [[nodiscard]] double relative_percent(Eigen::Index i) const {
@@ -126,9 +129,11 @@ struct ParameterUncertainty {
     };
     const Eigen::Index n = count < 0 ? theta.size() : std::min<Eigen::Index>(count, theta.size());
     std::string s = "Parameter uncertainty (1 sigma; ";
-    if (observations == 0) {
-      // uncertainty_from_covariance: the data and residuals it came from are not known here
-      s += "from a stored covariance; " + std::to_string(theta.size()) + " unknowns, " + std::to_string(rank) + " free)\n";
+    if (stored) {
+      const auto nfree = std::count(free.begin(), free.end(), true);
+      s += "from a stored covariance; " + std::to_string(theta.size()) + " unknowns, " + std::to_string(nfree) + " free";
+      if (rank < nfree) s += ", " + std::to_string(nfree - rank) + " of them undetermined";
+      s += ")\n";
     } else {
       s += residuals == ResidualModel::white
                ? std::string("white residuals")
@@ -521,7 +526,7 @@ ParameterUncertainty parameter_uncertainty(const Pb& problem, const Eigen::Vecto
 }
 
 /// The uncertainty a stored covariance describes: what a model file keeps of an estimate
-/// (`parameters.covariance`, `parameters.stddev`) turned back into the form `simulation_band`
+/// (`"uncertainty": {"covariance", "stddev"}`; a grey box's `parameters.covariance`) turned back into the form `simulation_band`
 /// takes. `stddev` (size 0 or n) keeps the deviations as estimated, +∞ for a parameter the data
 /// left undetermined (its covariance row holds the pseudo-inverse's finite values); empty: the
 /// diagonal's square roots. A parameter with zero variance or flagged in `fixed` (size 0 or n) is
@@ -555,7 +560,7 @@ ParameterUncertainty parameter_uncertainty(const Pb& problem, const Eigen::Vecto
     std::snprintf(b, sizeof b, "%.6g", v);
     return std::string(b);
   };
-  const double scale = covariance.cwiseAbs().maxCoeff();
+  // Every entry finite before the symmetry test, whose scale one NaN would spoil.
   for (Eigen::Index i = 0; i < n; ++i) {
     const std::string& q = names[static_cast<std::size_t>(i)];
     require(std::isfinite(theta[i]), "stored uncertainty: the value of " + q + " is not finite", at_parameter(q));
@@ -565,6 +570,10 @@ ParameterUncertainty parameter_uncertainty(const Pb& problem, const Eigen::Vecto
                   " is not finite",
               at_parameter(q));
     }
+  }
+  const double scale = covariance.cwiseAbs().maxCoeff();
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const std::string& q = names[static_cast<std::size_t>(i)];
     require(covariance(i, i) >= 0.0, "stored uncertainty: the variance of " + q + " must be >= 0, got " + number(covariance(i, i)),
             at_parameter(q));
     for (Eigen::Index j = 0; j < i; ++j) {
@@ -579,6 +588,7 @@ ParameterUncertainty parameter_uncertainty(const Pb& problem, const Eigen::Vecto
     }
   }
   ParameterUncertainty u;
+  u.stored = true;
   u.names = std::move(names);
   u.theta = std::move(theta);
   u.covariance = std::move(covariance);

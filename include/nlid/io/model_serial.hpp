@@ -21,6 +21,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <optional>
 #include <string>
@@ -77,12 +78,12 @@ struct ModelFileInfo {
   std::vector<ChannelRange> input_range, output_range;
   /// Uncertainty of the parameters from the estimation, for the models that keep none
   /// themselves (nonlinear ARX, Hammerstein–Wiener; a grey box keeps its own,
-  /// `GreyBox::parameter_covariance`, and saving ignores this member for it). Saved as
-  /// "parameters": {"stddev", "covariance"} of the model's parameters (an uncertainty with
-  /// estimated initial states appended keeps only the parameters' block); saving throws if it
-  /// belongs to other parameter names or values. Loading fills it for every kind whose file has a
-  /// covariance (`uncertainty_from_covariance`), ready for `simulation_band(model, data,
-  /// *info.uncertainty)`. `fit_model_spec` (nlid-fit) sets it when it computes the uncertainty.
+  /// `GreyBox::parameter_covariance`, and this member is neither saved nor loaded for it). Saved
+  /// as the top-level "uncertainty": {"stddev", "covariance"} of the model's parameters (an
+  /// uncertainty with estimated initial states appended keeps only the parameters' block); saving
+  /// throws if it belongs to other parameter names or values. Loading fills it from that member
+  /// (`uncertainty_from_covariance`), ready for `simulation_band(model, data, *info.uncertainty)`.
+  /// `fit_model_spec` (nlid-fit) sets it when it computes the uncertainty.
   std::optional<ParameterUncertainty> uncertainty;
 };
 
@@ -224,55 +225,85 @@ inline void write_parameter_covariance(Json& j, const Eigen::VectorXd& stddev, c
   j["parameters"]["covariance"] = Json(std::move(rows));
 }
 
-/// Writes `info.uncertainty` for a model whose parameters are `names` = `values`: the model's
-/// block of it. Throws naming the parameter if the uncertainty belongs to another model or to
-/// other values (a covariance from before `set_parameters` describes a different estimate).
+/// Writes `info.uncertainty` for a model whose parameters are `names` = `values` as the top-level
+/// member "uncertainty": {"stddev", "covariance"} of the model's block (a top-level member, so
+/// readers that predate it ignore it). Throws naming the parameter if the uncertainty belongs to
+/// another model or to other values (a covariance from before `set_parameters` describes a
+/// different estimate), and as `uncertainty_from_covariance` for a block a reader would refuse.
 inline void write_info_uncertainty(Json& j, const ModelFileInfo& info, const std::vector<std::string>& names,
                                    const Eigen::VectorXd& values) {
   if (!info.uncertainty) return;
   const ParameterUncertainty& u = *info.uncertainty;
   const Eigen::Index n = values.size();
-  require(u.theta.size() >= n && u.covariance.rows() == u.theta.size() && u.covariance.cols() == u.theta.size() &&
-              u.stddev.size() == u.theta.size(),
-          "model file: the uncertainty to save covers " + std::to_string(u.theta.size()) + " unknowns (covariance " +
-              std::to_string(u.covariance.rows()) + "x" + std::to_string(u.covariance.cols()) + "), the model has " +
-              std::to_string(n) + " parameters",
+  require(u.theta.size() >= n && u.covariance.rows() == u.theta.size() && u.covariance.cols() == u.theta.size(),
+          "model file: the uncertainty to save covers " + std::to_string(u.theta.size()) + " unknowns with a " +
+              std::to_string(u.covariance.rows()) + "x" + std::to_string(u.covariance.cols()) +
+              " covariance; the model has " + std::to_string(n) + " parameters",
           at_parameter("uncertainty"));
+  require(u.stddev.size() == 0 || u.stddev.size() == u.theta.size(),
+          "model file: the uncertainty to save has " + std::to_string(u.stddev.size()) + " standard deviations for " +
+              std::to_string(u.theta.size()) + " unknowns",
+          at_parameter("uncertainty"));
+  auto number = [](double v) {
+    char b[40];
+    std::snprintf(b, sizeof b, "%.17g", v);
+    return std::string(b);
+  };
   for (Eigen::Index i = 0; i < n; ++i) {
-    const std::string& name = names[static_cast<std::size_t>(i)];
-    require(static_cast<std::size_t>(i) >= u.names.size() || u.names[static_cast<std::size_t>(i)] == name,
-            "model file: parameter " + std::to_string(i) + " is '" + name + "' in the model but '" +
-                u.names[static_cast<std::size_t>(i)] + "' in the uncertainty to save (another model's?)",
-            at_parameter(name));
+    const auto iu = static_cast<std::size_t>(i);
+    const std::string& name = names[iu];
+    if (iu < u.names.size() && u.names[iu] != name) {
+      throw Error("model file: parameter " + std::to_string(i) + " is '" + name + "' in the model but '" + u.names[iu] +
+                      "' in the uncertainty to save (another model's?)",
+                  at_parameter(name));
+    }
     const double a = values[i], b = u.theta[i];
     require(std::abs(a - b) <= 1e-12 * std::max({1.0, std::abs(a), std::abs(b)}),
-            "model file: the uncertainty to save was computed at " + name + " = " + std::to_string(b) +
-                ", the model has " + std::to_string(a) +
-                " (recompute it for the changed model, or reset ModelFileInfo::uncertainty)",
+            "model file: the uncertainty to save was computed at " + name + " = " + number(b) + ", the model has " +
+                number(a) + " (recompute it for the changed model, or reset ModelFileInfo::uncertainty)",
             at_parameter(name));
   }
-  write_parameter_covariance(j, u.stddev.head(n), u.covariance.topLeftCorner(n, n));
+  // What a reader would refuse is refused here, before a file is written.
+  const Eigen::VectorXd sd = u.stddev.size() > 0 ? Eigen::VectorXd(u.stddev.head(n)) : Eigen::VectorXd();
+  const Eigen::MatrixXd c = u.covariance.topLeftCorner(n, n);
+  try {
+    (void)uncertainty_from_covariance(names, values, c, sd);
+  } catch (const Error& e) {
+    throw Error("model file: the uncertainty to save: " + e.message(), e.where());
+  }
+  Json block = Json::object();
+  if (sd.size() > 0) block["stddev"] = extended_vector(sd);
+  Json::Array rows;
+  for (Eigen::Index i = 0; i < n; ++i) rows.push_back(extended_vector(Eigen::VectorXd(c.row(i).transpose())));
+  block["covariance"] = Json(std::move(rows));
+  j["uncertainty"] = std::move(block);
 }
 
-/// The uncertainty a file's "parameters" keep (nullopt without "covariance"), for a model whose
-/// parameters are `names` = `values`; `fixed` as in `uncertainty_from_covariance`. Errors name
-/// the key path of the offending row or entry.
-inline std::optional<ParameterUncertainty> read_parameter_covariance(const JsonView& file, const std::vector<std::string>& names,
-                                                                     const Eigen::VectorXd& values,
-                                                                     const std::vector<bool>& fixed = {}) {
-  const JsonView p = file.at("parameters");
+/// The top-level "uncertainty" a file keeps for a model whose parameters are `names` = `values`
+/// (nullopt without it). Errors name the key path of the offending entry or row.
+inline std::optional<ParameterUncertainty> read_info_uncertainty(const JsonView& file, const std::vector<std::string>& names,
+                                                                 const Eigen::VectorXd& values) {
+  if (!file.contains("uncertainty")) return std::nullopt;
+  const JsonView block = file.at("uncertainty");
+  block.check_keys({"stddev", "covariance"});
   const Eigen::Index n = values.size();
   Eigen::VectorXd sd;
-  if (p.contains("stddev")) {
-    const JsonView v = p.at("stddev");
+  if (block.contains("stddev")) {
+    const JsonView v = block.at("stddev");
     sd = read_extended_vector(v);
     if (sd.size() != n) {
       v.fail("the file has " + std::to_string(sd.size()) + " standard deviations at " + v.path_text() + ", the model has " +
              std::to_string(n) + " parameters");
     }
+    for (Eigen::Index i = 0; i < n; ++i) {
+      if (!(sd[i] >= 0.0)) {
+        v.at(static_cast<std::size_t>(i)).fail("the standard deviation of " + names[static_cast<std::size_t>(i)] +
+                                               " at " + v.at(static_cast<std::size_t>(i)).path_text() +
+                                               " must be >= 0 (or inf)");
+      }
+    }
   }
-  if (!p.contains("covariance")) return std::nullopt;
-  const JsonView cv = p.at("covariance");
+  const JsonView cv = block.at("covariance");
   if (cv.type() != Json::Type::array || static_cast<Eigen::Index>(cv.size()) != n) {
     cv.fail("the parameter covariance at " + cv.path_text() + " must be an array of " + std::to_string(n) +
             " rows (one per parameter)");
@@ -288,9 +319,9 @@ inline std::optional<ParameterUncertainty> read_parameter_covariance(const JsonV
     c.row(i) = v.transpose();
   }
   try {
-    return uncertainty_from_covariance(names, values, std::move(c), std::move(sd), fixed);
+    return uncertainty_from_covariance(names, values, std::move(c), std::move(sd));
   } catch (const Error& e) {
-    // Point at the row of the parameter the check names.
+    // The deviations are checked above: what is left is about a row of the covariance.
     for (std::size_t i = 0; i < names.size(); ++i) {
       if (e.where().parameter == names[i]) cv.at(i).fail(e.message() + " (at " + cv.at(i).path_text() + ")");
     }
@@ -441,8 +472,8 @@ struct ModelSerial<Nlarx<R, F>> {
       detail::expect_channel_count(file.at("inputs"), in.size(), m.num_inputs(), "inputs");
     }
     m.set_channel_names(in, out[0]);
-    m.set_parameters(detail::read_parameters(file, m.num_parameters(), true));
-    info.uncertainty = detail::read_parameter_covariance(file, m.parameter_names(), m.parameters());
+    m.set_parameters(detail::read_parameters(file, m.num_parameters()));
+    info.uncertainty = detail::read_info_uncertainty(file, m.parameter_names(), m.parameters());
     m.set_report(report_from_json(file.at("report")));
     info.report.reset();
   }
@@ -541,8 +572,8 @@ struct ModelSerial<HammersteinWiener<In, TransferFunctionBlock<Nb, Nf, Nk>, Out>
     detail::expect_channel_count(file.at("inputs"), in.size(), 1, "inputs");
     detail::expect_channel_count(file.at("outputs"), out.size(), 1, "outputs");
     m.set_channel_names(in[0], out[0]);
-    m.set_parameters(detail::read_parameters(file, m.num_parameters(), true));
-    info.uncertainty = detail::read_parameter_covariance(file, m.parameter_names(), m.parameters());
+    m.set_parameters(detail::read_parameters(file, m.num_parameters()));
+    info.uncertainty = detail::read_info_uncertainty(file, m.parameter_names(), m.parameters());
     m.set_report(report_from_json(file.at("report")));
     info.report.reset();
   }
@@ -755,13 +786,6 @@ struct ModelSerial<GreyBox<P>> {
       } catch (const Error& e) {
         cv.fail(e.message() + " (at " + cv.path_text() + ")");
       }
-    }
-    info.uncertainty.reset();
-    if (m.parameter_covariance().size() > 0) {
-      const Eigen::VectorXd sd =
-          m.parameter_stddev().size() == m.num_parameters() ? m.parameter_stddev() : Eigen::VectorXd();
-      info.uncertainty = uncertainty_from_covariance(m.parameter_names(), m.parameters(), m.parameter_covariance(), sd,
-                                                     m.fixed_flags());
     }
     m.set_units(info.output_units.empty() ? std::string() : info.output_units[0],
                 info.input_units.empty() ? std::string() : info.input_units[0]);

@@ -3,10 +3,11 @@
 /// `simulation_band(any_model, data)`: the simulation band of a model held by `AnyModel` — one
 /// loaded from a file with `load_model(path)`, or what `fit_model_spec` (nlid-fit) returned —
 /// from the uncertainty it carries: a grey box its own covariance (`GreyBox::parameter_covariance`),
-/// a nonlinear ARX or Hammerstein–Wiener model `info().uncertainty` (the file's
-/// "parameters.covariance"). A header of its own so that `AnyModel` users who never ask for a band
+/// a nonlinear ARX or Hammerstein–Wiener model `info().uncertainty` (the file's top-level
+/// "uncertainty"). A header of its own so that `AnyModel` users who never ask for a band
 /// do not compile the forward-AD simulation it needs.
 
+#include <concepts>
 #include <string>
 
 #include "nlid/core/error.hpp"
@@ -20,8 +21,12 @@ namespace nlid {
 /// defaults to the one `model.simulate(e)` starts from (`AnyModel::initial_condition()`), so the
 /// band belongs to that simulation. Throws `nlid::Error` for a kind without a band (linear and
 /// series models: their files keep no covariance), for a model that carries no uncertainty
-/// (estimated without it, or changed since), and as the typed overloads.
-inline SimulationBand simulation_band(const AnyModel& model, const Dataset& data, SimulationBandOptions options = {}) {
+/// (estimated without it, or changed since), and as the typed overloads. A template on exactly
+/// `AnyModel` so that a typed model does not convert to one silently (and then lack the
+/// uncertainty the typed overloads take as an argument).
+template <std::same_as<AnyModel> A>
+SimulationBand simulation_band(const A& held, const Dataset& data, SimulationBandOptions options = {}) {
+  const AnyModel& model = held;  // not dependent from here on
   if (!options.initial_condition) options.initial_condition = model.initial_condition();
   if (const auto* g = model.target<DynamicGreyBox>()) return simulation_band(*g, data, options);
   const auto* arx = model.target<DynamicNlarx>();

@@ -366,6 +366,8 @@ template <class F>
                 at_parameter("model"));
   }
   ModelFileInfo info = m.info();
+  // The parameters' uncertainty belonged to the model at the old rate (and to its estimate).
+  info.uncertainty.reset();
   out.info() = std::move(info);
   return out;
 }

@@ -562,7 +562,9 @@ AnyModel fit_model_spec_kind(const ModelSpec& s, const Dataset& data, const Spec
 
 /// Estimates the model a spec describes on `data` (one or more experiments) and returns it
 /// estimated, with the spec as the file description and the range of every channel in `data`
-/// (`ModelFileInfo::input_range`, `output_range`). Estimators: arx/oe of the linear layer,
+/// (`ModelFileInfo::input_range`, `output_range`), and — when `o.uncertainty` is set and the
+/// uncertainty could be computed — the parameters' uncertainty (nlarx, hw:
+/// `ModelFileInfo::uncertainty`; greybox: its own covariance). Estimators: arx/oe of the linear layer,
 /// `estimate` (models/estimate.hpp) for nlarx and hw, the series estimator for wh, hammerstein
 /// and wiener, the grey-box estimator for greybox. Throws `nlid::Error` on data that do not fit.
 template <int = 0>  // compiled where called, as make_model
