@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "nlid/core/atomic_file.hpp"
 #include "nlid/io/json.hpp"
 #include "tool_runner.hpp"
 
@@ -377,6 +378,16 @@ TEST_CASE("nlid-sim --band: the covariance nlid-fit saves gives y_std, models wi
     }
     CHECK(d.back() > 0.0);
     CHECK(most < 0.05);
+    // The same file without its uncertainty (as an older nlid or a hand edit leaves it): refused,
+    // saying what is missing, nothing written.
+    nlid::Json edited = nlid::read_json(m.string());
+    REQUIRE(edited.erase("uncertainty"));
+    const fs::path bare = work_dir() / "band_reg_bare.json", none = work_dir() / "band_reg_none.csv";
+    nlid::write_file_atomically(bare.string(), edited.dump(2));
+    const Run lacks = sim("--model " + q(bare) + " --input " + q(val) + " --band --out " + q(none));
+    CHECK(lacks.code == 1);
+    CHECK_THAT(lacks.err, Catch::Contains("--band needs the parameters' covariance") && Catch::Contains("lacks"));
+    CHECK_FALSE(fs::exists(none));
   }
 
   // A linear ARX model file keeps no covariance: refused, saying so, nothing written.
