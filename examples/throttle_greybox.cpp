@@ -11,7 +11,8 @@
 // 4. Linearisation at the equilibrium holding the valve at 45 degrees (discrete and continuous).
 // 5. Residual analysis on the validation data (whiteness, independence of u).
 // 6. C code: OUT/throttle_model.h/.c (RK4, same sub-steps, starts at rest for u = 0), and
-//    OUT/greybox.json with every number printed here; residual charts OUT/greybox_resid_*.svg.
+//    OUT/greybox.json with every number printed here; residual charts OUT/greybox_resid_*.svg;
+//    OUT/greybox_band_data4.svg: data4's simulation error against the parameters' ±2σ band.
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
@@ -26,6 +27,7 @@
 #include "nlid/data.hpp"
 #include "nlid/io/json.hpp"
 #include "nlid/io/json_eigen.hpp"
+#include "nlid/io/svg_chart.hpp"
 #include "nlid/models/equilibrium.hpp"
 #include "nlid/models/greybox.hpp"
 #include "nlid/models/simulation_band.hpp"
@@ -76,6 +78,19 @@ int main(int argc, char** argv) {
     // estimation computed (correlated residuals), so the band includes c/k/b's strong correlation.
     const nlid::SimulationBand band = nlid::simulation_band(model, all, est.uncertainty);
     std::cout << band.report();
+    {
+      // The picture of the verdict: the error against what the parameters' uncertainty allows.
+      const std::size_t k = 3;  // data4
+      const Eigen::VectorXd t = all[k].time();
+      const Eigen::VectorXd err = all[k].y().col(0) - band.y[k].col(0);
+      const Eigen::VectorXd two_sigma = 2.0 * band.stddev[k].col(0);
+      nlid::LineChart c("data4: simulation error and the parameters' +-2 sigma band");
+      c.x_label("time (s)").y_label("measured - simulated (deg)");
+      c.envelope("+-2 sigma from the parameters' covariance", t, Eigen::VectorXd(-two_sigma), two_sigma, "#1f77b4");
+      c.line("simulation error", t, err, "#d62728");
+      c.write(out_dir + "/greybox_band_data4.svg");
+      std::cout << "wrote " << out_dir << "/greybox_band_data4.svg\n";
+    }
 
     rule("Linearisation at the equilibrium holding the valve at 45 degrees");
     const nlid::OperatingPoint op45 = nlid::equilibrium_for_output(model, 45.0, 0.3);

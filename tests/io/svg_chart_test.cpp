@@ -363,3 +363,111 @@ TEST_CASE("Charts write standalone SVG files atomically") {
   CHECK(nlid::read_file(path) == c.svg() + "\n");
   std::filesystem::remove(path);
 }
+
+namespace {
+// The closed polygons of the first envelope path: "M x,y L x,y ... Z M ..." -> point lists.
+std::vector<std::vector<Point>> envelope_polygons(const std::string& svg) {
+  std::vector<std::vector<Point>> out;
+  const std::size_t at = svg.find("<path class=\"nlid-envelope\"");
+  if (at == std::string::npos) return out;
+  const std::size_t b = svg.find(" d=\"", at) + 4;
+  const std::string d = svg.substr(b, svg.find('"', b) - b);
+  std::size_t i = 0;
+  while (i < d.size()) {
+    if (d[i] == 'M') out.emplace_back();
+    if (d[i] == 'M' || d[i] == 'L' || d[i] == 'Z' || d[i] == ' ') {
+      ++i;
+      continue;
+    }
+    double x = 0, y = 0;
+    const char* end = d.data() + d.size();
+    auto r = std::from_chars(d.data() + i, end, x);
+    if (r.ec != std::errc() || r.ptr == end || *r.ptr != ',') FAIL("bad envelope data at " << i);
+    r = std::from_chars(r.ptr + 1, end, y);
+    if (r.ec != std::errc()) FAIL("bad envelope data at " << i);
+    out.back().push_back({x, y});
+    i = static_cast<std::size_t>(r.ptr - d.data());
+  }
+  return out;
+}
+}  // namespace
+
+TEST_CASE("Envelope: a filled region between two curves under the lines, in the axes and the legend") {
+  const std::vector<double> x{0, 1, 2, 3, 4}, y{0.0, 0.5, 1.0, 0.5, 0.0};
+  const std::vector<double> lo{-1, -0.5, 0, -0.5, -1}, hi{3, 3.5, 4, 3.5, 3};
+  nlid::LineChart plain, banded;
+  plain.line("simulated", x, y);
+  banded.envelope("+-2 sigma", x, lo, hi, "#2ca02c").line("simulated", x, y);
+  const std::string s = banded.svg();
+  // Under the line: the area is drawn first.
+  REQUIRE(s.find("nlid-envelope") != std::string::npos);
+  CHECK(s.find("nlid-envelope") < s.find("nlid-series"));
+  CHECK(s.find("fill=\"#2ca02c\" fill-opacity=\"0.2\"") != std::string::npos);
+  const auto poly = envelope_polygons(s);
+  REQUIRE(poly.size() == 1);
+  REQUIRE(poly[0].size() == 10);  // upper edge forwards, lower edge back
+  for (std::size_t k = 0; k < 5; ++k) {
+    CHECK(poly[0][k].x == poly[0][9 - k].x);
+    CHECK(poly[0][k].y < poly[0][9 - k].y);  // upper above lower (pixel y grows downwards)
+  }
+  // The axes hold the envelope: the same line is drawn lower and flatter than without it.
+  const auto line_plain = series_paths(plain.svg()), line_banded = series_paths(s);
+  REQUIRE(line_plain.size() == 1);
+  REQUIRE(line_banded.size() == 1);
+  const double rise_plain = line_plain[0][0][0].y - line_plain[0][0][2].y;
+  const double rise_banded = line_banded[0][0][0].y - line_banded[0][0][2].y;
+  CHECK(rise_banded < 0.5 * rise_plain);
+  // Its legend entry: a filled swatch and the text.
+  CHECK(s.find("+-2 sigma") != std::string::npos);
+  CHECK(count(s, "fill-opacity=\"0.35\"") == 1);
+  // Edges given the other way round are the same region.
+  nlid::LineChart swapped;
+  swapped.envelope("+-2 sigma", x, hi, lo, "#2ca02c").line("simulated", x, y);
+  CHECK(swapped.svg() == s);
+
+  // A gap splits it into two polygons.
+  std::vector<double> lo_gap = lo;
+  lo_gap[2] = std::nan("");
+  nlid::LineChart gap;
+  gap.envelope("", x, lo_gap, hi);
+  const auto two = envelope_polygons(gap.svg());
+  REQUIRE(two.size() == 2);
+  CHECK(two[0].size() == 4);
+  CHECK(two[1].size() == 4);
+  CHECK(gap.svg().find("fill-opacity=\"0.35\"") == std::string::npos);  // no name, no legend entry
+
+  // Bad input is said.
+  CHECK_THROWS_WITH(nlid::LineChart().envelope("e", x, std::vector<double>{1, 2}, hi),
+                    Catch::Contains("envelope 'e': x has 5 values, lower 2 and upper 5"));
+  const std::vector<double> back{0, 1, 2, 1.5, 4};
+  CHECK_THROWS_WITH(nlid::LineChart().envelope("e", back, lo, hi), Catch::Contains("x decreases at sample 3"));
+}
+
+TEST_CASE("Envelope decimation keeps each pixel column's lowest and highest edge") {
+  const std::size_t n = 100000;
+  std::vector<double> x(n), lo(n), hi(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    x[k] = static_cast<double>(k) * 1e-4;
+    lo[k] = std::sin(x[k] * 3.0) - 0.2;
+    hi[k] = std::sin(x[k] * 3.0) + 0.2;
+  }
+  hi[43210] = 6.0;   // one sample's wide spread
+  lo[65432] = -5.0;
+  nlid::LineChart full, dec;
+  full.envelope("band", x, lo, hi).decimate(false);
+  dec.envelope("band", x, lo, hi);
+  const auto pf = envelope_polygons(full.svg()), pd = envelope_polygons(dec.svg());
+  REQUIRE(pf.size() == 1);
+  REQUIRE(pd.size() == 1);
+  CHECK(pf[0].size() == 2 * n);
+  CHECK(pd[0].size() <= 2 * 730);
+  CHECK(dec.svg().find("data-samples=\"100000\"") != std::string::npos);
+  const auto top = [](const std::vector<Point>& v) {
+    return std::min_element(v.begin(), v.end(), [](Point a, Point b) { return a.y < b.y; })->y;
+  };
+  const auto bottom = [](const std::vector<Point>& v) {
+    return std::max_element(v.begin(), v.end(), [](Point a, Point b) { return a.y < b.y; })->y;
+  };
+  CHECK(top(pd[0]) == top(pf[0]));        // the one-sample spread upwards is drawn
+  CHECK(bottom(pd[0]) == bottom(pf[0]));  // and downwards
+}

@@ -85,6 +85,15 @@ struct ShadedInterval {
   std::string colour;  ///< fill colour; empty: a translucent red
 };
 
+/// A filled region between two curves over the same abscissae, e.g. a simulation ± 2σ.
+struct ChartEnvelope {
+  std::string name;            ///< legend text (escaped); empty: no legend entry
+  std::vector<double> x;       ///< abscissae, non-decreasing over the finite samples
+  std::vector<double> lower;   ///< one edge; a non-finite sample (in x, lower or upper) is a gap
+  std::vector<double> upper;   ///< the other edge
+  std::string colour;          ///< fill colour; empty: the palette's first (blue), translucent
+};
+
 /// A horizontal band across the full plot width, e.g. hard stops or a tolerance.
 struct HorizontalBand {
   double y_low = 0;    ///< one edge of the band
@@ -195,6 +204,28 @@ class LineChart {
         {std::min(x_begin, x_end), std::max(x_begin, x_end), std::move(label), std::move(colour)});
     return *this;
   }
+  /// Fills the region between `lower` and `upper` over `x` (a simulation's ±2σ band), under the
+  /// lines. Long envelopes keep, per pixel column, the lowest lower and highest upper edge.
+  /// Throws if the lengths differ or x decreases.
+  template <DoubleSequence X, DoubleSequence L, DoubleSequence U>
+  LineChart& envelope(std::string name, const X& x, const L& lower, const U& upper, std::string colour = {}) {
+    ChartEnvelope e{std::move(name), copy(x), copy(lower), copy(upper), std::move(colour)};
+    if (e.lower.size() != e.x.size() || e.upper.size() != e.x.size()) {
+      throw Error("envelope '" + e.name + "': x has " + std::to_string(e.x.size()) + " values, lower " +
+                  std::to_string(e.lower.size()) + " and upper " + std::to_string(e.upper.size()));
+    }
+    double prev = -std::numeric_limits<double>::infinity();
+    for (std::size_t i = 0; i < e.x.size(); ++i) {
+      if (!std::isfinite(e.x[i])) continue;
+      if (e.x[i] < prev) {
+        throw Error("envelope '" + e.name + "': x decreases at sample " + std::to_string(i) +
+                    " (an envelope is drawn over increasing x)");
+      }
+      prev = e.x[i];
+    }
+    envelopes_.push_back(std::move(e));
+    return *this;
+  }
   /// Draws a horizontal band between y_low and y_high (either order) over the full width.
   LineChart& band(double y_low, double y_high, std::string label = {}, std::string colour = {}) {
     require(std::isfinite(y_low) && std::isfinite(y_high),
@@ -235,6 +266,7 @@ class LineChart {
   std::vector<ChartSeries> series_;
   std::vector<ShadedInterval> shaded_;
   std::vector<HorizontalBand> bands_;
+  std::vector<ChartEnvelope> envelopes_;
 };
 
 /// One bar of a `BarChart`.
@@ -673,6 +705,18 @@ inline std::string LineChart::svg() const {
       }
     }
   }
+  // An envelope is data too: the axes hold its finite samples (within fixed x limits).
+  for (const ChartEnvelope& en : envelopes_) {
+    for (std::size_t i = 0; i < en.x.size(); ++i) {
+      if (!std::isfinite(en.x[i]) || !std::isfinite(en.lower[i]) || !std::isfinite(en.upper[i])) continue;
+      xmin = std::min(xmin, en.x[i]);
+      xmax = std::max(xmax, en.x[i]);
+      if (!has_x_limits_ || (en.x[i] >= x_limits_.first && en.x[i] <= x_limits_.second)) {
+        ymin = std::min({ymin, en.lower[i], en.upper[i]});
+        ymax = std::max({ymax, en.lower[i], en.upper[i]});
+      }
+    }
+  }
   // Bands and shaded intervals are part of the message (e.g. where the hard stops are), so the
   // automatic axes always include them.
   for (const HorizontalBand& b : bands_) {
@@ -747,6 +791,17 @@ inline std::string LineChart::svg() const {
     legend.push_back({std::move(text), lx, ly});
     lx += w;
   }
+  const std::size_t series_entries = legend.size();
+  for (const ChartEnvelope& en : envelopes_) {
+    if (en.name.empty()) continue;
+    const double w = 26 + detail::text_width(en.name, 11) + 14;
+    if (lx + w > f.right && lx > f.left) {
+      lx = f.left;
+      ly += 16;
+    }
+    legend.push_back({en.name, lx, ly});
+    lx += w;
+  }
   f.top = legend.empty() ? (title_.empty() ? 12.0 : 30.0) : ly + 12;
   f.bottom = height_ - (x_label_.empty() ? 24.0 : 40.0);
   require(f.bottom - f.top >= 40 && f.right - f.left >= 80,
@@ -793,6 +848,68 @@ inline std::string LineChart::svg() const {
   for (const ShadedInterval& s : shaded_) {
     const std::string c = s.colour.empty() ? "#d62728" : s.colour;
     f.rect(px(s.x_begin), f.top, px(s.x_end), f.bottom, c, R"( fill-opacity="0.15")");
+  }
+  // Envelopes: one closed polygon per finite run — the upper edge forwards, the lower back.
+  std::vector<std::string> envelope_colours;
+  for (const ChartEnvelope& en : envelopes_) {
+    envelope_colours.push_back(en.colour.empty() ? std::string(chart_palette[0]) : en.colour);
+    const int columns = static_cast<int>(std::ceil(pw));
+    const std::size_t n = en.x.size();
+    auto finite = [&](std::size_t k) {
+      return std::isfinite(en.x[k]) && std::isfinite(en.lower[k]) && std::isfinite(en.upper[k]);
+    };
+    std::string d;
+    std::size_t drawn = 0;
+    std::size_t i = 0;
+    std::vector<double> ex, elo, ehi;  // the run's points after per-column reduction
+    while (i < n) {
+      while (i < n && !finite(i)) ++i;
+      std::size_t b = i;
+      while (i < n && finite(i)) ++i;
+      std::size_t e = i;
+      if (e == b) continue;
+      while (b + 1 < e && en.x[b + 1] < x_lo) ++b;  // the visible part, one sample beyond each side
+      while (e - 1 > b + 1 && en.x[e - 2] > x_hi) --e;
+      ex.clear(), elo.clear(), ehi.clear();
+      const bool reduce = decimate_ && (e - b) > static_cast<std::size_t>(2 * columns);
+      for (std::size_t k = b; k < e; ++k) {
+        const double lo = std::min(en.lower[k], en.upper[k]), hi = std::max(en.lower[k], en.upper[k]);
+        // A pixel column keeps its first abscissa with the widest extent of its samples.
+        const int col = static_cast<int>(std::floor((px(en.x[k]) - f.left)));
+        if (reduce && !ex.empty() && static_cast<int>(std::floor(px(ex.back()) - f.left)) == col) {
+          elo.back() = std::min(elo.back(), lo);
+          ehi.back() = std::max(ehi.back(), hi);
+          continue;
+        }
+        ex.push_back(en.x[k]);
+        elo.push_back(lo);
+        ehi.push_back(hi);
+      }
+      for (std::size_t k = 0; k < ex.size(); ++k) {
+        d.append(k == 0 ? (d.empty() ? "M" : " M") : " L");
+        append_coord(d, px(ex[k]));
+        d.push_back(',');
+        append_coord(d, py(ehi[k]));
+      }
+      for (std::size_t k = ex.size(); k-- > 0;) {
+        d.append(" L");
+        append_coord(d, px(ex[k]));
+        d.push_back(',');
+        append_coord(d, py(elo[k]));
+      }
+      d.append(" Z");
+      drawn += ex.size();
+    }
+    if (d.empty()) continue;
+    f.out.append("<path class=\"nlid-envelope\" data-points=\"")
+        .append(std::to_string(drawn))
+        .append("\" data-samples=\"")
+        .append(std::to_string(n))
+        .append("\" fill=\"")
+        .append(detail::escape_xml(envelope_colours.back()))
+        .append("\" fill-opacity=\"0.2\" stroke=\"none\" d=\"")
+        .append(d)
+        .append("\"/>\n");
   }
   std::size_t palette_next = 0;
   std::vector<std::string> colours;
@@ -904,6 +1021,14 @@ inline std::string LineChart::svg() const {
         .append("\" stroke-width=\"");
     append_coord(f.out, std::min(series_[s].width, 4.0));
     f.out.append("\"").append(detail::dash_array(series_[s].style)).append("/>\n");
+    f.text(en.x + 26, en.y, en.text, "start");
+  }
+  // Envelope entries follow the series' ones: a filled swatch in the envelope's colour.
+  e = series_entries;
+  for (std::size_t v = 0; v < envelopes_.size() && e < legend.size(); ++v) {
+    if (envelopes_[v].name.empty()) continue;
+    const Entry& en = legend[e++];
+    f.rect(en.x, en.y - 9, en.x + 20, en.y + 1, envelope_colours[v], R"( fill-opacity="0.35")");
     f.text(en.x + 26, en.y, en.text, "start");
   }
   f.axis_labels(x_label_, y_label_);
