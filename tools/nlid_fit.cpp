@@ -226,7 +226,10 @@ int main(int argc, char** argv) {
     // estimated initial states are unknowns of the formula but not listed).
     if (uncertainty) std::printf("%s", uncertainty->report(static_cast<int>(m.parameters().size())).c_str());
     if (band) std::printf("validation records: %s", band->report().c_str());
-    std::printf("saved %s\n", a.save.c_str());
+    // Say whether the file can give nlid-sim --band its y_std (the uncertainty may not have been computable).
+    const nlid::DynamicGreyBox* grey = m.target<nlid::DynamicGreyBox>();
+    const bool keeps = m.info().uncertainty.has_value() || (grey != nullptr && grey->parameter_covariance().size() > 0);
+    std::printf("saved %s%s\n", a.save.c_str(), keeps ? " (with the parameters' covariance: nlid-sim --band)" : "");
     return nlid_tools::exit_ok;
   });
 }

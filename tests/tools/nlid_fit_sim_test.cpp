@@ -65,6 +65,7 @@ TEST_CASE("nlid-fit + nlid-sim: a nonlinear ARX model of a known first-order lag
                         Catch::Contains("  " + vname + ": no change of the parameters removes more than"));
   CHECK(f.out.find("Parameter uncertainty") < f.out.find("Simulation band"));
   CHECK(f.out.find("Simulation band") < f.out.find("saved "));
+  CHECK_THAT(f.out, Catch::Contains("(with the parameters' covariance: nlid-sim --band)"));
   REQUIRE(fs::exists(model));
   const nlid::Json j = nlid::Json::parse(slurp(model));
   CHECK(j["format"].as_string() == "nlid-model");
@@ -392,7 +393,9 @@ TEST_CASE("nlid-sim --band: the covariance nlid-fit saves gives y_std, models wi
 
   // A linear ARX model file keeps no covariance: refused, saying so, nothing written.
   const fs::path arx = work_dir() / "band_arx.json", none = work_dir() / "band_none.csv";
-  REQUIRE(fit("--model linear:arx:na=1,nb=1,nk=1 --est " + q(est) + " --save " + q(arx)).code == 0);
+  const Run fa = fit("--model linear:arx:na=1,nb=1,nk=1 --est " + q(est) + " --save " + q(arx));
+  REQUIRE(fa.code == 0);
+  CHECK_THAT(fa.out, Catch::Contains("saved ") && !Catch::Contains("parameters' covariance"));
   const Run r = sim("--model " + q(arx) + " --input " + q(val) + " --band --out " + q(none));
   CHECK(r.code == 1);
   CHECK_THAT(r.err, Catch::Contains("--band needs the parameters' covariance") && Catch::Contains("does not keep"));
