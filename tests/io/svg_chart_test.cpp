@@ -471,3 +471,25 @@ TEST_CASE("Envelope decimation keeps each pixel column's lowest and highest edge
   CHECK(top(pd[0]) == top(pf[0]));        // the one-sample spread upwards is drawn
   CHECK(bottom(pd[0]) == bottom(pf[0]));  // and downwards
 }
+
+TEST_CASE("Envelope with fixed x limits: the visible part, one sample beyond each side, any distance away") {
+  const std::size_t n = 5000;
+  std::vector<double> x(n), lo(n), hi(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    x[k] = static_cast<double>(k);
+    lo[k] = -1.0;
+    hi[k] = 1.0;
+  }
+  // The samples just outside the visible window, which are drawn to reach the frame, lie
+  // astronomically far away.
+  for (std::size_t k = 0; k < 1000; ++k) x[k] = -1e300;
+  for (std::size_t k = 1501; k < n; ++k) x[k] = 1e300;
+  nlid::LineChart c;
+  c.envelope("band", x, lo, hi).x_limits(1000.0, 1500.0);
+  const std::string s = c.svg();
+  const auto p = envelope_polygons(s);
+  REQUIRE(p.size() == 1);
+  CHECK(p[0].size() <= 2 * 740);
+  CHECK(s.find("nan") == std::string::npos);
+  CHECK(s.find("inf") == std::string::npos);
+}

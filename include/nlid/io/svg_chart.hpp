@@ -874,9 +874,10 @@ inline std::string LineChart::svg() const {
       const bool reduce = decimate_ && (e - b) > static_cast<std::size_t>(2 * columns);
       for (std::size_t k = b; k < e; ++k) {
         const double lo = std::min(en.lower[k], en.upper[k]), hi = std::max(en.lower[k], en.upper[k]);
-        // A pixel column keeps its first abscissa with the widest extent of its samples.
-        const int col = static_cast<int>(std::floor((px(en.x[k]) - f.left)));
-        if (reduce && !ex.empty() && static_cast<int>(std::floor(px(ex.back()) - f.left)) == col) {
+        // A pixel column keeps its first abscissa with the widest extent of its samples (compared
+        // as doubles: the one sample kept beyond fixed x limits may lie far outside int's range).
+        const double col = std::floor(px(en.x[k]) - f.left);
+        if (reduce && !ex.empty() && std::floor(px(ex.back()) - f.left) == col) {
           elo.back() = std::min(elo.back(), lo);
           ehi.back() = std::max(ehi.back(), hi);
           continue;
