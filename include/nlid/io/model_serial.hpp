@@ -279,6 +279,26 @@ inline void write_info_uncertainty(Json& j, const ModelFileInfo& info, const std
   j["uncertainty"] = std::move(block);
 }
 
+/// An n × n parameter covariance written as n rows (grey boxes' "parameters.covariance", the
+/// others' "uncertainty.covariance"); errors name the row and its key path.
+inline Eigen::MatrixXd read_covariance_rows(const JsonView& cv, Eigen::Index n) {
+  if (cv.type() != Json::Type::array || static_cast<Eigen::Index>(cv.size()) != n) {
+    cv.fail("the parameter covariance at " + cv.path_text() + " must be an array of " + std::to_string(n) +
+            " rows (one per parameter)");
+  }
+  Eigen::MatrixXd c(n, n);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const JsonView row = cv.at(static_cast<std::size_t>(i));
+    const Eigen::VectorXd v = read_extended_vector(row);
+    if (v.size() != n) {
+      row.fail("row " + std::to_string(i) + " of the parameter covariance at " + row.path_text() + " has " +
+               std::to_string(v.size()) + " entries, the model has " + std::to_string(n) + " parameters");
+    }
+    c.row(i) = v.transpose();
+  }
+  return c;
+}
+
 /// The top-level "uncertainty" a file keeps for a model whose parameters are `names` = `values`
 /// (nullopt without it). Errors name the key path of the offending entry or row.
 inline std::optional<ParameterUncertainty> read_info_uncertainty(const JsonView& file, const std::vector<std::string>& names,
@@ -304,20 +324,7 @@ inline std::optional<ParameterUncertainty> read_info_uncertainty(const JsonView&
     }
   }
   const JsonView cv = block.at("covariance");
-  if (cv.type() != Json::Type::array || static_cast<Eigen::Index>(cv.size()) != n) {
-    cv.fail("the parameter covariance at " + cv.path_text() + " must be an array of " + std::to_string(n) +
-            " rows (one per parameter)");
-  }
-  Eigen::MatrixXd c(n, n);
-  for (Eigen::Index i = 0; i < n; ++i) {
-    const JsonView row = cv.at(static_cast<std::size_t>(i));
-    const Eigen::VectorXd v = read_extended_vector(row);
-    if (v.size() != n) {
-      row.fail("row " + std::to_string(i) + " of the parameter covariance at " + row.path_text() + " has " +
-               std::to_string(v.size()) + " entries, the model has " + std::to_string(n) + " parameters");
-    }
-    c.row(i) = v.transpose();
-  }
+  Eigen::MatrixXd c = read_covariance_rows(cv, n);
   try {
     return uncertainty_from_covariance(names, values, std::move(c), std::move(sd));
   } catch (const Error& e) {
@@ -766,21 +773,7 @@ struct ModelSerial<GreyBox<P>> {
     }
     if (file.at("parameters").contains("covariance")) {
       const JsonView cv = file.at("parameters").at("covariance");
-      const Eigen::Index n = m.num_parameters();
-      if (cv.type() != Json::Type::array || static_cast<Eigen::Index>(cv.size()) != n) {
-        cv.fail("the parameter covariance at " + cv.path_text() + " must be an array of " + std::to_string(n) +
-                " rows (one per parameter)");
-      }
-      Eigen::MatrixXd c(n, n);
-      for (Eigen::Index i = 0; i < n; ++i) {
-        const JsonView row = cv.at(static_cast<std::size_t>(i));
-        const Eigen::VectorXd v = read_extended_vector(row);
-        if (v.size() != n) {
-          row.fail("row " + std::to_string(i) + " of the parameter covariance at " + row.path_text() + " has " +
-                   std::to_string(v.size()) + " entries, the model has " + std::to_string(n) + " parameters");
-        }
-        c.row(i) = v.transpose();
-      }
+      const Eigen::MatrixXd c = detail::read_covariance_rows(cv, m.num_parameters());
       try {
         m.set_parameter_covariance(c);
       } catch (const Error& e) {
