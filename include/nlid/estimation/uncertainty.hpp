@@ -43,6 +43,7 @@
 
 #include "nlid/core/error.hpp"
 #include "nlid/estimation/concepts.hpp"
+#include "nlid/estimation/detail/covariance_check.hpp"
 #include "nlid/estimation/levenberg_marquardt.hpp"
 
 namespace nlid {
@@ -555,36 +556,17 @@ ParameterUncertainty parameter_uncertainty(const Pb& problem, const Eigen::Vecto
   require(fixed.empty() || fixed.size() == static_cast<std::size_t>(n),
           "stored uncertainty: " + std::to_string(fixed.size()) + " fixed flags for " + std::to_string(n) + " parameters",
           at_parameter("fixed"));
-  auto number = [](double v) {
-    char b[32];
-    std::snprintf(b, sizeof b, "%.6g", v);
-    return std::string(b);
-  };
-  // Every entry finite before the symmetry test, whose scale one NaN would spoil.
   for (Eigen::Index i = 0; i < n; ++i) {
     const std::string& q = names[static_cast<std::size_t>(i)];
     require(std::isfinite(theta[i]), "stored uncertainty: the value of " + q + " is not finite", at_parameter(q));
-    for (Eigen::Index j = 0; j < n; ++j) {
-      require(std::isfinite(covariance(i, j)),
-              "stored uncertainty: the covariance of " + q + " with " + names[static_cast<std::size_t>(j)] +
-                  " is not finite",
-              at_parameter(q));
-    }
   }
-  const double scale = covariance.cwiseAbs().maxCoeff();
-  for (Eigen::Index i = 0; i < n; ++i) {
+  detail::check_covariance("stored uncertainty: ", names, covariance);
+  for (Eigen::Index i = 0; i < stddev.size(); ++i) {
     const std::string& q = names[static_cast<std::size_t>(i)];
-    require(covariance(i, i) >= 0.0, "stored uncertainty: the variance of " + q + " must be >= 0, got " + number(covariance(i, i)),
-            at_parameter(q));
-    for (Eigen::Index j = 0; j < i; ++j) {
-      require(std::abs(covariance(i, j) - covariance(j, i)) <= 1e-9 * scale,
-              "stored uncertainty: the covariance is not symmetric (" + q + " with " + names[static_cast<std::size_t>(j)] +
-                  ": " + number(covariance(i, j)) + " and " + number(covariance(j, i)) + ")",
-              at_parameter(q));
-    }
-    if (stddev.size() > 0) {
-      require(stddev[i] >= 0.0, "stored uncertainty: the standard deviation of " + q + " must be >= 0 (or inf), got " + number(stddev[i]),
-              at_parameter(q));
+    if (!(stddev[i] >= 0.0)) {
+      char b[32];
+      std::snprintf(b, sizeof b, "%.6g", stddev[i]);
+      throw Error("stored uncertainty: the standard deviation of " + q + " must be >= 0 (or inf), got " + b, at_parameter(q));
     }
   }
   ParameterUncertainty u;
