@@ -283,6 +283,50 @@ TEST_CASE("known Hammerstein system recovered with a Dynamic structure", "[model
   CHECK(nlid::fit_percent(Eigen::VectorXd(val.y().col(0)), Eigen::VectorXd(yv.col(0))) > 99.9);
 }
 
+TEST_CASE("unit-slope static blocks get their scale from the data: Wiener and Hammerstein with a saturation",
+          "[models][series][estimate]") {
+  // The throttle's shape: a positive input (a motor command, 0 … 1) and an output in degrees
+  // between hard stops. A saturation has slope 1, so the linear block must carry the whole gain
+  // (DC gain 100 here). Scaled to unit RMS as for a network, the saturation saw a signal the
+  // size of u against a target in the tens: its least-squares limits collapsed to one value, a
+  // constant model the solver could not leave (fit below 0 %).
+  using W = nlid::Wiener<Tf220, nlid::Saturation>;
+  W truth;
+  Eigen::VectorXd th(6);
+  th << 20.0, 10.0, -1.2, 0.5, 15.0, 90.0;  // G = (20 q⁻¹ + 10 q⁻²)/(1 − 1.2 q⁻¹ + 0.5 q⁻²), stops 15 and 90
+  truth.set_parameters(th);
+  auto make = [&](const auto& model, const Eigen::VectorXd& theta, unsigned seed, double mean, double sd) {
+    Eigen::MatrixXd u = gaussian_input(3000, seed, sd);
+    u.array() += mean;
+    std::vector<double> y(3000);
+    model.template simulate<double>(u, nlid::detail::as_const_span(theta), {}, std::span<double>(y));
+    return nlid::Experiment(u, Eigen::Map<Eigen::MatrixXd>(y.data(), 3000, 1), 0.01);
+  };
+  nlid::SeriesEstimateOptions o;
+  o.solver.max_iterations = 60;
+  {
+    const nlid::Experiment est = make(truth, th, 31, 0.5, 0.35), val = make(truth, th, 32, 0.5, 0.35);
+    const W m = nlid::estimate(W{}, nlid::Dataset(est), o);
+    INFO(m.describe());
+    CHECK(nlid::fit_percent(Eigen::VectorXd(val.y().col(0)), Eigen::VectorXd(m.simulate(val).col(0))) > 99.0);
+    const Eigen::VectorXd p = m.parameters();
+    CHECK(std::min(p(4), p(5)) == Approx(15.0).margin(0.5));
+    CHECK(std::max(p(4), p(5)) == Approx(90.0).margin(0.5));
+  }
+  {
+    // Hammerstein: the gain goes to the linear block after the saturation.
+    using H = nlid::Hammerstein<nlid::Saturation, Tf220>;
+    H htruth;
+    Eigen::VectorXd hth(6);
+    hth << 0.2, 0.8, 20.0, 10.0, -1.2, 0.5;  // saturation [0.2, 0.8], then G
+    htruth.set_parameters(hth);
+    const nlid::Experiment est = make(htruth, hth, 33, 0.5, 0.35), val = make(htruth, hth, 34, 0.5, 0.35);
+    const H m = nlid::estimate(H{}, nlid::Dataset(est), o);
+    INFO(m.describe());
+    CHECK(nlid::fit_percent(Eigen::VectorXd(val.y().col(0)), Eigen::VectorXd(m.simulate(val).col(0))) > 99.0);
+  }
+}
+
 TEST_CASE("series rejects bad input with located messages", "[models][series]") {
   Wh m;
   auto message = [](auto&& f) {

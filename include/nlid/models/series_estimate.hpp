@@ -30,7 +30,11 @@
 ///    own `initialize(x, v)` (so a PwLinear or Saturation inherits the shape the data asked
 ///    for); other static blocks start as identities (`initialize(x, x)`). Linear blocks before
 ///    the pivot are scaled to unit RMS gain on the data, so the static block sees a signal of
-///    the size of u.
+///    the size of u. A static block of fixed unit slope (Saturation, DeadZone) cannot take the
+///    gain from there to the output's units: when the initialised model simulates more than 10
+///    points of fit below the quick fit, the linear block next to the pivot (before it, else
+///    after it) is rescaled by multiples of the target's slope on the pivot's input, and the
+///    scale with the smallest free-run error is kept.
 /// 4. Joint refinement of all θ by simulation error — first a short run for each of the
 ///    `candidates` best splits (the quick fit ranks splits well but not perfectly), then the
 ///    full run from the best of them.
@@ -596,7 +600,13 @@ SeriesInitialization initialize_series(Series<B...>& model, const Dataset& data,
                      (info.chosen_split.empty() ? std::string() : " (" + info.chosen_split + ")"));
 
   // 3. θ from a split: linear blocks (scaled), static blocks (pivot from the surrogate).
-  auto apply = [&](const Split& s, Eigen::VectorXd& th) {
+  // `gain` multiplies one linear block next to the pivot on top of the unit-RMS scaling: the
+  // last one before it, else the first one after it. A pivot that can absorb any gain (a
+  // network, a piecewise-linear map) does not need it; one with a fixed unit slope (Saturation,
+  // DeadZone) does: its input must already be in the output's units (see `apply_best`).
+  // Returns the least-squares slope of the pivot's target on its input (NaN when unknown).
+  auto apply = [&](const Split& s, Eigen::VectorXd& th, double gain = 1.0) -> double {
+    double slope = std::numeric_limits<double>::quiet_NaN();
     Split sc = s;
     // Unit RMS gain on the data for linear blocks before the pivot; the blocks after it keep
     // the scale the BLA gave (the pivot's fit absorbs whatever is left).
@@ -613,6 +623,14 @@ SeriesInitialization initialize_series(Series<B...>& model, const Dataset& data,
       const Eigen::VectorXd xn = detail::filter_rest(sc.b[k], sc.f[k], uw);
       const double g = detail::series_rms(uw) > 0 && detail::series_rms(xn) > 0 ? detail::series_rms(uw) / detail::series_rms(xn) : 1.0;
       sc.b[k] *= g;
+    }
+    if (gain != 1.0 && sc.b.size() == K) {
+      long at = -1;
+      for (std::size_t k = 0; k < piv && k < K; ++k)
+        if (pat[k] == 'L' && sc.b[k].size() > 0) at = static_cast<long>(k);
+      for (std::size_t k = piv + 1; at < 0 && k < K; ++k)
+        if (pat[k] == 'L' && sc.b[k].size() > 0) at = static_cast<long>(k);
+      if (at >= 0) sc.b[static_cast<std::size_t>(at)] *= gain;
     }
     // Recompute the quick fit with the scaled blocks (scales change c, not the residual).
     score(sc);
@@ -661,6 +679,12 @@ SeriesInitialization initialize_series(Series<B...>& model, const Dataset& data,
                   q += data[e].size();
                 }
               }
+              if (static_cast<long>(I) == pivot) {
+                const double xm = xin.col(0).mean(), vm = target.mean();
+                const double sxx = (xin.col(0).array() - xm).square().sum();
+                const double sxv = ((xin.col(0).array() - xm) * (target.array() - vm)).sum();
+                if (sxx > 0.0) slope = sxv / sxx;
+              }
               model.template block<I>().initialize(xin, target, thk);
               for (auto& v : sig) {
                 for (Eigen::Index t = 0; t < v.size(); ++t) {
@@ -674,11 +698,57 @@ SeriesInitialization initialize_series(Series<B...>& model, const Dataset& data,
     }(std::make_index_sequence<K>{});
     (void)x_all;
     (void)v_all;
+    return slope;
+  };
+
+  // Sum of squared free-run errors of θ on all data from rest (∞ if the run fails).
+  auto simulation_sse = [&](const Eigen::VectorXd& th) {
+    double sse = 0.0;
+    try {
+      model.set_parameters(th);
+      for (std::size_t e = 0; e < data.size(); ++e) sse += (data[e].y().col(0) - model.simulate(data[e]).col(0)).squaredNorm();
+    } catch (const Error&) {
+      return std::numeric_limits<double>::infinity();
+    }
+    return std::isfinite(sse) ? sse : std::numeric_limits<double>::infinity();
+  };
+  // `apply` at unit RMS scaling, unless the initialised model simulates far worse than the
+  // quick fit promised: then the pivot could not take the surrogate's gain (a saturation has
+  // slope 1 — fed a signal the size of u while the output is in degrees, its least-squares
+  // limits collapse to one value, a constant model with no gradient to the linear blocks).
+  // The gain next to the pivot is then chosen among multiples of the target's slope on the
+  // pivot's input by the free-run error.
+  auto apply_best = [&](const Split& s, Eigen::VectorXd& th) {
+    const Eigen::VectorXd th0 = th;
+    const double slope = apply(s, th);
+    if (pivot < 0 || !(std::isfinite(slope) && slope != 0.0) || !std::isfinite(info.best_quick_fit_percent)) return;
+    double best = simulation_sse(th);
+    Eigen::Index n = 0;
+    double ss = 0.0;
+    for (std::size_t e = 0; e < data.size(); ++e) {
+      const Eigen::VectorXd y = data[e].y().col(0);
+      ss += (y.array() - y.mean()).square().sum();
+      n += y.size();
+    }
+    const double fit = ss > 0.0 ? 100.0 * (1.0 - std::sqrt(best / ss)) : 100.0;
+    if (n == 0 || fit >= info.best_quick_fit_percent - 10.0) return;
+    Eigen::VectorXd keep = th;
+    for (const double m : {1.0, 0.5, 2.0, 0.25, 4.0}) {
+      Eigen::VectorXd t = th0;
+      (void)apply(s, t, slope * m);
+      const double c = simulation_sse(t);
+      if (c < best) {
+        best = c;
+        keep = t;
+      }
+    }
+    th = keep;
+    model.set_parameters(th);
   };
 
   if (splits.empty()) {
     Split none;
-    apply(none, theta);
+    apply(none, theta);  // no split: nothing to scale
     model.set_parameters(theta);
     return info;
   }
@@ -691,7 +761,7 @@ SeriesInitialization initialize_series(Series<B...>& model, const Dataset& data,
     const Split& s = splits[order[c]];
     if (!std::isfinite(s.score)) break;
     Eigen::VectorXd th = theta;
-    apply(s, th);
+    apply_best(s, th);
     double cost = std::numeric_limits<double>::infinity();
     if (options.candidate_iterations > 0 && ncand > 1) {
       std::vector<detail::EstimationSegment> segs(data.size());
@@ -729,7 +799,7 @@ SeriesInitialization initialize_series(Series<B...>& model, const Dataset& data,
   }
   if (best_theta.size() == 0) {
     best_theta = theta;
-    apply(splits[order[0]], best_theta);
+    apply_best(splits[order[0]], best_theta);
   }
   model.set_parameters(best_theta);
   return info;
