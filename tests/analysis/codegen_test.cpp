@@ -292,6 +292,20 @@ TEST_CASE("codegen rejects bad names, missing sample times and the adaptive inte
   CHECK_THROWS_WITH(nlid::generate_c(g, o), Catch::Contains("Dormand-Prince"));
   const nlid::GeneratedCode none{};
   CHECK_THROWS_WITH(none.write("/nonexistent/dir"), Catch::Contains("does not exist"));
+  // A sample time so long that the automatic rule hits its sub-step ceiling with a step beyond
+  // RK4's stability limit (ρ ≈ 100 1/s at the default stop stiffness; 100 s needs 10⁴ sub-steps):
+  // the generated code would blow up on the target, so generation refuses, saying what to do.
+  g.set_integrator(nlid::IntegratorOptions{});
+  o.ts = 100.0;
+  CHECK_THROWS_WITH(nlid::generate_c(g, o), Catch::Contains("needs 1") && Catch::Contains("more than the ceiling of 2000") &&
+                                                Catch::Contains("CodegenOptions::substeps"));
+  o.substeps = 20000;  // the user's explicit choice stands
+  CHECK_NOTHROW(nlid::generate_c(g, o));
+  // The library's own simulation names the same cause when it diverges there.
+  // (a command that drives the valve onto its upper stop, where the contact stiffness acts)
+  const nlid::Experiment slow(Eigen::MatrixXd::Constant(5, 1, 2.0), Eigen::MatrixXd::Zero(5, 1), 100.0);
+  CHECK_THROWS_WITH(g.simulate(slow, nlid::InitialCondition::zero),
+                    Catch::Contains("too long for the model's stiffness") && Catch::Contains("max_substeps = 2000"));
 }
 
 namespace {
