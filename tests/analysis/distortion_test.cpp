@@ -123,4 +123,23 @@ TEST_CASE("Distortion analysis refuses records it cannot analyse, naming the par
   } catch (const nlid::Error& err) {
     CHECK(err.where().parameter == "period");
   }
+  // An input that does not repeat with the given period: a wrong period (one sample short) or
+  // a non-periodic excitation. Analysed anyway, the input's own change between periods would
+  // read as "noise" and the verdict would be the confident "a linear model can explain these data".
+  CHECK_THROWS_WITH(nlid::distortion_analysis(e, kPeriod - 1), Catch::Contains("the input does not repeat every 511 samples"));
+  const Eigen::VectorXd noise_u = nlid::random_gaussian(4 * kPeriod, {0.0, 0.5}, {-1.0, 1.0}, 5);
+  const nlid::Experiment random_input(noise_u, 0.5 * noise_u, 0.01);
+  CHECK_THROWS_WITH(nlid::distortion_analysis(random_input, kPeriod), Catch::Contains("needs a periodic input"));
+  // A periodic input with a little measurement noise (-40 dB) is still analysed.
+  nlid::Experiment noisy_u = wiener(0.0, 0.0);
+  noisy_u.u().col(0) += nlid::random_gaussian(noisy_u.size(), {}, {-0.003, 0.003}, 9);
+  CHECK_NOTHROW(nlid::distortion_analysis(noisy_u, kPeriod));
+}
+
+TEST_CASE("Distortion analysis: an output buried in noise gives no verdict, not 'linear'", "[analysis][distortion]") {
+  // σ = 10 against an output of about 0.1: nothing above the noise on any line.
+  const nlid::DistortionAnalysis d = nlid::distortion_analysis(wiener(0.5, 0.5, nlid::MultisineLines::random_odd, 10.0), kPeriod);
+  CHECK_FALSE(d.conclusive());
+  CHECK_THAT(d.report(), Catch::Contains("no conclusion") && !Catch::Contains("a linear model can explain"));
+  CHECK(nlid::distortion_analysis(wiener(0.0, 0.0), kPeriod).conclusive());
 }

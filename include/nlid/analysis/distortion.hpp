@@ -82,6 +82,10 @@ struct DistortionAnalysis {
   [[nodiscard]] bool even_detected() const { return even_db() > threshold_db; }
   [[nodiscard]] bool odd_detected() const { return odd_db() > threshold_db; }
 
+  /// True when the excited output stands above the noise by more than the threshold: only then
+  /// does "no distortion detected" say something about the system.
+  [[nodiscard]] bool conclusive() const { return noise_free() || snr_db() > threshold_db; }
+
   /// A few lines for a person: levels, what they mean for the choice of model.
   [[nodiscard]] std::string report() const {
     char buf[256];
@@ -105,7 +109,13 @@ struct DistortionAnalysis {
     };
     line("even", even_lines, even_db(), even_detected());
     line("odd", odd_lines, odd_db(), odd_detected());
-    if (even_detected() || odd_detected())
+    if (!conclusive()) {
+      std::snprintf(buf, sizeof buf,
+                    "  no conclusion: the output at the excited lines is only %.1f dB above the noise (needs more than "
+                    "%.1f dB): too noisy, or not a response to this input\n",
+                    snr_db(), threshold_db);
+      s += buf;
+    } else if (even_detected() || odd_detected())
       s += "  a linear model leaves this distortion unexplained; a nonlinear structure is warranted\n";
     else if (!even_lines.empty() || !odd_lines.empty())
       s += "  no distortion above the noise: a linear model can explain these data\n";
@@ -145,6 +155,30 @@ struct DistortionAnalysis {
   const auto y = e.y().col(0);
   require(u.allFinite() && y.allFinite(), "distortion analysis: the record has non-finite samples",
           at_parameter("experiment"));
+
+  // The method rests on the input repeating: on a record that is not periodic with this
+  // period (a wrong period, a non-periodic excitation) the "noise" is the input's own change
+  // between periods and every verdict would be meaningless. A measured input may carry some
+  // noise; a spread of a tenth of its variation means it does not repeat.
+  {
+    Eigen::VectorXd mean_period = Eigen::VectorXd::Zero(period);
+    for (Eigen::Index q = 0; q < p; ++q) mean_period += u.segment((skip_periods + q) * period, period);
+    mean_period /= static_cast<double>(p);
+    double spread = 0.0;
+    for (Eigen::Index q = 0; q < p; ++q)
+      spread += (u.segment((skip_periods + q) * period, period) - mean_period).squaredNorm();
+    spread = std::sqrt(spread / static_cast<double>(p * period));
+    const double variation = std::sqrt((mean_period.array() - mean_period.mean()).square().mean());
+    if (variation > 0.0 && spread > 0.1 * variation) {
+      char buf[96];
+      std::snprintf(buf, sizeof buf, "%.3g %%", 100.0 * spread / variation);
+      throw Error("distortion analysis: the input does not repeat every " + std::to_string(period) +
+                      " samples (its periods differ from their mean by " + buf +
+                      " of the input's variation, RMS); the analysis needs a periodic input: give its period, and skip "
+                      "the periods before the steady state",
+                  at_parameter("period"));
+    }
+  }
 
   DistortionAnalysis r;
   r.period = period;
