@@ -332,6 +332,25 @@ TEST_CASE("model specs refuse a key or map given twice and options that do nothi
   // Two order fields of a Wiener-Hammerstein spec repeat their keys legitimately.
   CHECK(parse_model_spec("wh:nb=4,nf=3,nk=0:poly1d:9:nb=4,nf=3,nk=0").orders.size() == 2);
   CHECK(parse_model_spec("hw:nb=3,nf=3,nk=0:in=pwlinear:10:out=pwlinear:breakpoints=10").nonlinearities.size() == 2);
+  // A map's size given twice (bare number and key, or two numbers) and an option the map does
+  // not have were taken silently (the last value won, or nothing happened).
+  CHECK_THROWS_WITH(parse_model_spec("nlarx:na=2,nb=2,nk=0:sigmoidnet:5:7"), Contains("the units of sigmoidnet is given twice"));
+  CHECK_THROWS_WITH(parse_model_spec("nlarx:na=2,nb=2,nk=0:sigmoidnet:units=5:units=6"),
+                    Contains("the units of sigmoidnet is given twice"));
+  CHECK_THROWS_WITH(parse_model_spec("nlarx:na=2,nb=2,nk=0:wavenet:4:units=6"), Contains("the units of wavenet is given twice"));
+  CHECK_THROWS_WITH(parse_model_spec("hw:nb=2,nf=2,nk=0:in=poly1d:units=4"),
+                    Contains("poly1d has no option 'units' (its options: degree)"));
+  CHECK_THROWS_WITH(parse_model_spec("nlarx:na=2,nb=2,nk=0:linear:units=3"), Contains("linear has no option 'units' (its options: none)"));
+  CHECK_THROWS_WITH(parse_model_spec("hw:nb=2,nf=2,nk=0:in=pwlinear:linear=1"), Contains("pwlinear has no option 'linear'"));
+  CHECK_THROWS_WITH(parse_model_spec("hw:nb=2,nf=2,nk=0:out=saturation:3"), Contains("takes no size"));
+  CHECK_THROWS_WITH(parse_model_spec("nlarx:na=2,nb=2,nk=0:sigmoidnet:0"), Contains("the units of sigmoidnet must be >= 1, got 0"));
+  CHECK_THROWS_WITH(parse_model_spec("hw:nb=2,nf=2,nk=0:in=pwlinear:1"), Contains("the breakpoints of pwlinear must be >= 2, got 1"));
+  CHECK_THROWS_WITH(parse_model_spec("nlarx:na=2,nb=2,nk=0:treepartition:depth=0"), Contains("must be >= 1"));
+  // The same option for two different maps is not a repeat.
+  const ModelSpec two = parse_model_spec("hw:nb=3,nf=3,nk=0:in=pwlinear:4:out=pwlinear:breakpoints=6");
+  CHECK(two.nonlinearities[0].options.breakpoints == 4);
+  CHECK(two.nonlinearities[1].options.breakpoints == 6);
+  CHECK(parse_model_spec("nlarx:na=2,nb=2,nk=0:sigmoidnet:5:linear=0").nonlinearities[0].options.units == 5);
 }
 
 TEST_CASE("model file: the estimation data's range is recorded by fit_model_spec and round-trips (optional in older files)",

@@ -114,11 +114,21 @@ TEST_CASE("multi-start NARX: starts compared by estimation cost, the cheapest co
   CHECK(one.report().chosen_start == -1);
   o.starts = 3;
   o.start_iterations = 10;
+  std::vector<std::string> stages;
+  o.progress = [&stages](const std::string& s) { stages.push_back(s); };
   const Model multi = nlid::estimate(Model{}, train, o);
   const auto& costs = multi.report().start_costs;
   REQUIRE(costs.size() == 3);
   const int k = multi.report().chosen_start;
   REQUIRE(k >= 0);
+  // Each stage is announced, so costs printed by a callback can be told apart: per start a
+  // prediction stage (one-step costs) and a simulation stage, then the chosen start continues.
+  REQUIRE(stages.size() == 7);
+  CHECK(stages[0] == "start 1 of 3: prediction stage (one-step errors, the free run's start)");
+  CHECK(stages[1] == "start 1 of 3: simulation stage (free-run errors)");
+  CHECK(stages[5] == "start 3 of 3: simulation stage (free-run errors)");
+  CHECK_THAT(stages[6], Catch::Contains("start " + std::to_string(k + 1) + " has the lowest cost") &&
+                            Catch::Contains("continues for 30 iteration(s)"));
   for (double c : costs) CHECK(costs[static_cast<std::size_t>(k)] <= c);
   CHECK(multi.report().final_cost <= costs[static_cast<std::size_t>(k)]);  // the continuation only improves
   CHECK(multi.describe().find("3 data-driven starts") != std::string::npos);

@@ -34,6 +34,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <optional>
 #include <span>
@@ -107,6 +108,10 @@ struct EstimateOptions {
   /// parameters; entries for estimated initial states are added automatically — free, not
   /// penalised), tolerances. `regularization` applies to the prediction stage too.
   LmOptions solver;
+  /// Nlarx: receives one line as each stage begins ("start 2 of 4: prediction stage …"), so
+  /// that a `solver.callback` printing costs can be read: the prediction stage's costs are of
+  /// one-step errors, far below the free-run costs that follow. Empty: silent.
+  std::function<void(const std::string&)> progress;
 };
 
 namespace detail {
@@ -464,8 +469,14 @@ template <Regressor R, Nonlinearity F>
   // One start: the prediction stage from `th` (the whole estimation for prediction focus), then
   // for simulation focus the free-run stage with `main_iterations`; `fallback` is the start to
   // use if the refined predictor diverges in free run. Updates th, segs, summary, iterations.
+  std::string start_label;  // "start k of n: " while several starts run
+  auto say = [&](const std::string& what) {
+    if (options.progress) options.progress(start_label + what);
+  };
   auto run_start = [&](Eigen::VectorXd& th, const Eigen::VectorXd& fallback, int main_iterations) {
     if (options.focus == Focus::prediction || options.initialize) {
+      say(options.focus == Focus::simulation ? "prediction stage (one-step errors, the free run's start)"
+                                             : "prediction stage");
       LmOptions o = detail::extend_options(options.solver, model.num_parameters(), 0, model.parameter_names());
       if (options.focus == Focus::simulation) o.max_iterations = std::min(o.max_iterations, options.prediction_iterations);
       else o.max_iterations = main_iterations;
@@ -505,6 +516,7 @@ template <Regressor R, Nonlinearity F>
     }
     LmOptions o = options.solver;
     o.max_iterations = main_iterations;
+    say("simulation stage (free-run errors)");
     summary = detail::simulation_stage(model, segs, ic, th, o, limit, options.structured_jacobian);
     iterations += summary.iterations;
   };
@@ -534,6 +546,7 @@ template <Regressor R, Nonlinearity F>
         start_costs.push_back(std::numeric_limits<double>::infinity());
         Eigen::VectorXd th = theta;
         if (k > 0) model.nonlinearity().initialize(x, yr, detail::as_span(th), k);
+        start_label = "start " + std::to_string(k + 1) + " of " + std::to_string(options.starts) + ": ";
         const Eigen::VectorXd th0 = th;
         iterations = 0;
         try {
@@ -561,6 +574,10 @@ template <Regressor R, Nonlinearity F>
       iterations = best_iterations;
       summary = best_summary;
       const int rest = options.solver.max_iterations - pilot;
+      start_label.clear();
+      if (rest > 0)
+        say("start " + std::to_string(chosen + 1) + " has the lowest cost (" + detail::format_value(best_cost) +
+            "): it continues for " + std::to_string(rest) + " iteration(s)");
       if (rest > 0) {
         LmOptions o = detail::extend_options(options.solver, model.num_parameters(), 0, model.parameter_names());
         o.max_iterations = rest;

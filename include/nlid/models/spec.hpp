@@ -194,15 +194,26 @@ inline int spec_int(const std::string& v, const std::string& key, const std::str
   return static_cast<int>(x);
 }
 
-/// Applies a size number to a nonlinearity by its kind.
-inline void apply_size(NonlinearitySpec& n, int v, const std::string& spec) {
-  if (n.kind == "sigmoidnet" || n.kind == "wavenet") n.options.units = v;
-  else if (n.kind == "pwlinear") n.options.breakpoints = v;
-  else if (n.kind == "poly1d") n.options.degree = v;
-  else if (n.kind == "treepartition") n.options.depth = v;
-  else
-    throw Error("nonlinearity '" + n.kind + "' takes no size, got " + std::to_string(v) + " in model spec '" + spec + "'",
-                at_parameter("model"));
+/// The option a bare size number sets for a nonlinearity kind ("" if the kind takes no size).
+inline std::string size_key(const std::string& kind) {
+  if (kind == "sigmoidnet" || kind == "wavenet") return "units";
+  if (kind == "pwlinear") return "breakpoints";
+  if (kind == "poly1d") return "degree";
+  if (kind == "treepartition") return "depth";
+  return {};
+}
+
+/// Whether a nonlinearity kind has option `key` (units, breakpoints, degree, depth, linear).
+inline bool takes_option(const std::string& kind, const std::string& key) {
+  if (key == "linear") return kind == "sigmoidnet" || kind == "wavenet";
+  return !key.empty() && size_key(kind) == key;
+}
+
+/// The options a nonlinearity kind takes, for messages: "units, linear" or "none".
+inline std::string options_of(const std::string& kind) {
+  const std::string k = size_key(kind);
+  if (k.empty()) return "none";
+  return takes_option(kind, "linear") ? k + ", linear" : k;
 }
 
 }  // namespace detail
@@ -236,7 +247,33 @@ inline ModelSpec parse_model_spec(const std::string& text) {
     i = 2;
   }
   NonlinearitySpec* last = nullptr;  // the map a following bare number or option belongs to
+  std::vector<std::string>* last_keys = nullptr;  // the options already given to that map
+  std::vector<std::vector<std::string>> map_keys;  // per entry of s.nonlinearities
   std::vector<std::string> fit_keys;  // whole-fit options seen so far
+  // A map's option given twice (as a bare size and as key=value, or in two fields) would
+  // silently take the last value, and an option the map does not have would be ignored:
+  // refuse both, naming the map.
+  auto set_option = [&](const std::string& key, int x) {
+    require(detail::takes_option(last->kind, key),
+            "model spec '" + text + "': " + last->kind + " has no option '" + key + "' (its options: " +
+                detail::options_of(last->kind) + ")",
+            at_parameter(key));
+    require(std::find(last_keys->begin(), last_keys->end(), key) == last_keys->end(),
+            "model spec '" + text + "': the " + key + " of " + last->kind + " is given twice", at_parameter(key));
+    last_keys->push_back(key);
+    // The smallest sizes the maps accept (checked here so a command line fails before any data
+    // are read, with the spec's words).
+    const int least = key == "breakpoints" ? 2 : key == "linear" ? 0 : 1;
+    require(x >= least,
+            "model spec '" + text + "': the " + key + " of " + last->kind + " must be >= " + std::to_string(least) +
+                ", got " + std::to_string(x),
+            at_parameter(key));
+    if (key == "units") last->options.units = x;
+    if (key == "breakpoints") last->options.breakpoints = x;
+    if (key == "degree") last->options.degree = x;
+    if (key == "depth") last->options.depth = x;
+    if (key == "linear") last->options.linear_term = x != 0;
+  };
   bool in_given = false, out_given = false;
   for (; i < f.size(); ++i) {
     const std::string& tok = f[i];
@@ -244,7 +281,11 @@ inline ModelSpec parse_model_spec(const std::string& text) {
     if (std::isdigit(static_cast<unsigned char>(tok[0]))) {
       require(last != nullptr, "model spec '" + text + "': the number '" + tok + "' follows no nonlinearity",
               at_parameter("model"));
-      detail::apply_size(*last, detail::spec_int(tok, last->kind, text), text);
+      const std::string key = detail::size_key(last->kind);
+      require(!key.empty(),
+              "nonlinearity '" + last->kind + "' takes no size, got " + tok + " in model spec '" + text + "'",
+              at_parameter("model"));
+      set_option(key, detail::spec_int(tok, last->kind, text));
       continue;
     }
     std::string kind = tok;
@@ -252,7 +293,10 @@ inline ModelSpec parse_model_spec(const std::string& text) {
       require(s.family == "hw", "model spec '" + text + "': 'in=' and 'out=' belong to hw models", at_parameter("model"));
       kind = tok.substr(tok.find('=') + 1);
       const bool is_in = tok[0] == 'i';
-      if (s.nonlinearities.empty()) s.nonlinearities.resize(2);
+      if (s.nonlinearities.empty()) {
+        s.nonlinearities.resize(2);
+        map_keys.resize(2);
+      }
       require(detail::is_nonlinearity_kind(kind), "unknown nonlinearity '" + kind + "' in model spec '" + text +
                                                       "' (accepted: " + detail::spec_nonlinearities() + ")",
               at_parameter("model"));
@@ -261,6 +305,7 @@ inline ModelSpec parse_model_spec(const std::string& text) {
               at_parameter("model"));
       (is_in ? in_given : out_given) = true;
       last = &s.nonlinearities[is_in ? 0 : 1];
+      last_keys = &map_keys[is_in ? 0 : 1];
       *last = NonlinearitySpec{kind, {}};
       continue;
     }
@@ -269,7 +314,9 @@ inline ModelSpec parse_model_spec(const std::string& text) {
                                                       "' (accepted: " + detail::spec_nonlinearities() + ")",
               at_parameter("model"));
       s.nonlinearities.push_back(NonlinearitySpec{kind, {}});
+      map_keys.emplace_back();
       last = &s.nonlinearities.back();
+      last_keys = &map_keys.back();
       continue;
     }
     // key=value list: orders, nonlinearity options or fit options.
@@ -294,12 +341,7 @@ inline ModelSpec parse_model_spec(const std::string& text) {
         has_order = true;
       } else if (k == "units" || k == "breakpoints" || k == "degree" || k == "depth" || k == "linear") {
         require(last != nullptr, "model spec '" + text + "': '" + kv + "' follows no nonlinearity", at_parameter("model"));
-        const int x = detail::spec_int(v, k, text);
-        if (k == "units") last->options.units = x;
-        if (k == "breakpoints") last->options.breakpoints = x;
-        if (k == "degree") last->options.degree = x;
-        if (k == "depth") last->options.depth = x;
-        if (k == "linear") last->options.linear_term = x != 0;
+        set_option(k, detail::spec_int(v, k, text));
       } else if (k == "starts" || k == "start_iterations") {
         require(s.family == "nlarx", "model spec '" + text + "': '" + k + "' applies to nlarx models", at_parameter(k));
         const int x = detail::spec_int(v, k, text);
@@ -510,6 +552,7 @@ AnyModel fit_model_spec_kind(const ModelSpec& s, const Dataset& data, const Spec
     eo.focus = s.focus.value_or(Focus::simulation);
     eo.initial_condition = s.initial_condition;
     eo.solver.callback = o.callback;
+    eo.progress = o.progress;
     if (o.iterations >= 0) eo.solver.max_iterations = o.iterations;
     eo.starts = s.starts;
     if (s.start_iterations) eo.start_iterations = *s.start_iterations;
