@@ -19,10 +19,12 @@
 #include <new>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <system_error>
 #include <utility>
 #include <vector>
 
+#include "nlid/core/atomic_file.hpp"
 #include "nlid/core/error.hpp"
 #include "nlid/data/experiment.hpp"
 
@@ -115,9 +117,10 @@ struct ParsedOptions {
 /// Reads argv against `options`. The first problem, in command-line order, is a usage error naming
 /// the word: an unknown option (no tool takes positional arguments, so any other word is one too),
 /// an option without its value, a once-option given twice, a value not among `allowed`. -h or
-/// --help stops the scan (what follows is not checked). `dashed_value_is_missing`: a value that
-/// starts with "--" counts as missing, as nlid-diagnose has always read "--est --val b.csv" (a
-/// forgotten file); the other tools have always taken such a word as the value.
+/// --help stops the scan (what follows is not checked). A value that is one of the tool's own
+/// options (or -h, --help) counts as missing: "--save --val b.csv" is a forgotten file name, not
+/// a model saved as "./--val". `dashed_value_is_missing`: any value starting with "--" does, as
+/// nlid-diagnose has always read it.
 inline ParsedOptions parse_options(int argc, const char* const* argv, const std::vector<OptionSpec>& options,
                                    bool dashed_value_is_missing = false) {
   ParsedOptions r;
@@ -134,7 +137,12 @@ inline ParsedOptions parse_options(int argc, const char* const* argv, const std:
       values.emplace_back();
       continue;
     }
-    if (i + 1 >= argc || (dashed_value_is_missing && std::string(argv[i + 1]).rfind("--", 0) == 0))
+    const auto names_option = [&](const std::string& w) {
+      return w == "-h" || w == "--help" ||
+             std::any_of(options.begin(), options.end(), [&](const OptionSpec& o) { return o.name == w; });
+    };
+    if (i + 1 >= argc || names_option(argv[i + 1]) ||
+        (dashed_value_is_missing && std::string(argv[i + 1]).rfind("--", 0) == 0))
       throw UsageError("option " + k + " needs a value");
     const std::string v = argv[++i];
     if (spec->kind == OptionSpec::once && !values.empty())
@@ -188,6 +196,22 @@ inline void check_outputs_distinct(const std::vector<FlagPath>& outputs, const s
 
 /// Checks, before any work, that an output file can be created where asked: its directory exists
 /// and the path is not itself a directory (exit 1 via nlid::Error naming the option).
+/// Creates and removes a probe file where `target` would be written (the atomic writer's own
+/// temporary-name scheme), so an unwritable location (no permission, a read-only or virtual file
+/// system such as /proc) stops the tool before any work, not after it.
+inline void check_can_create(const std::string& flag, const std::string& shown, const std::string& target,
+                             const std::string& dir) {
+  const std::filesystem::path probe = nlid::detail::temporary_sibling(std::filesystem::path(target));
+  try {
+    nlid::detail::write_temporary(probe, std::string_view(), nlid::detail::file_location(target));
+  } catch (const nlid::Error& e) {
+    throw nlid::Error(flag + " " + shown + ": cannot create files in directory '" + dir + "' (" + e.message() + ")",
+                      nlid::at_parameter(flag));
+  }
+  std::error_code ec;
+  std::filesystem::remove(probe, ec);
+}
+
 inline void check_output_file(const std::string& flag, const std::string& path) {
   namespace fs = std::filesystem;
   if (path.empty()) return;
@@ -201,6 +225,7 @@ inline void check_output_file(const std::string& flag, const std::string& path) 
                       nlid::at_parameter(flag));
   if (!fs::is_directory(dir, ec))
     throw nlid::Error(flag + " " + path + ": '" + dir.string() + "' is not a directory", nlid::at_parameter(flag));
+  check_can_create(flag, path, path, dir.string());
 }
 
 /// Checks that an output directory exists and is a directory (exit 1 via nlid::Error).
@@ -212,6 +237,7 @@ inline void check_output_dir(const std::string& flag, const std::string& dir) {
   if (!fs::is_directory(dir, ec))
     throw nlid::Error(flag + " " + dir + " is not a directory (it names the directory for the output files)",
                       nlid::at_parameter(flag));
+  check_can_create(flag, dir, (std::filesystem::path(dir) / "nlid").string(), dir);
 }
 
 /// A library message in the tools' words: hints that name C++ option fields name the flag.
@@ -222,9 +248,16 @@ inline std::string translate(std::string s) {
       // In the tools --ts does not paper over a gap (docs/tools.md): resampling is the remedy.
       {"missing samples? cut the record at the gap or fill it, or raise CsvReadOptions::time_tolerance if the stamps only jitter",
        "missing samples? cut the record at the gap or resample it onto a uniform grid (--ts cannot make it even)"},
+      // No tool reads with gaps left open: the remedy is in the data, not in an option.
+      {" under NonFinitePolicy::error; use NonFinitePolicy::keep or ::interpolate for missing data",
+       ": the tools need complete records; fill or cut out the missing samples first"},
+      {" (use NonFinitePolicy::keep or ::interpolate for missing data)",
+       " (the tools need complete records; fill or cut out the missing samples first)"},
       {"set CsvReadOptions::ts", "give --ts"},
       {"set it (set_ts) or CodegenOptions::ts", "give --ts"},
       {"set CodegenOptions::ts", "give --ts"},
+      {"set CodegenOptions::substeps", "give --substeps"},
+      {"more than IntegratorOptions::max_substeps = ", "more than the ceiling of "},
       {"CodegenOptions::ts", "--ts"},
       {"CsvReadOptions::ts", "--ts"},
       {"CsvReadOptions::delimiter", "--delimiter"},

@@ -23,6 +23,7 @@
 #include "nlid/data/dataset.hpp"
 #include "nlid/data/resample.hpp"
 #include "nlid/models/any_model.hpp"
+#include "nlid/models/greybox_dynamic.hpp"
 #include "nlid/models/spec.hpp"
 #include "cli_common.hpp"
 #include "record_options.hpp"
@@ -119,7 +120,9 @@ nlid::Experiment load(const std::string& path, const Args& a) {
 
 // One row of the fit table. A model whose free run diverges on a record (a prediction-focus
 // model can be unstable in simulation) is reported as such: the model is saved and usable for
-// prediction, and the other records are still scored.
+// prediction, and the other records are still scored. So is a record the model cannot be
+// scored on (shorter than its history, a constant output for fit %): the row says why, the
+// table and the summary go on.
 void print_fit_row(const char* role, const nlid::AnyModel& m, const nlid::Experiment& e) {
   Eigen::MatrixXd y;
   try {
@@ -128,11 +131,20 @@ void print_fit_row(const char* role, const nlid::AnyModel& m, const nlid::Experi
     std::printf("%-12s %-30s %10s %14s  (free run not finite from sample %ld)\n", role, e.name().c_str(), "diverged", "-",
                 d.sample());
     return;
+  } catch (const nlid::Error& err) {
+    std::printf("%-12s %-30s %10s %14s  (not scored: %s)\n", role, e.name().c_str(), "-", "-", err.message().c_str());
+    return;
   }
   const Eigen::VectorXd d = y.col(0) - e.y().col(0);
   const double rmse = std::sqrt(d.squaredNorm() / static_cast<double>(d.size()));
-  const double f = nlid::fit_percent(Eigen::VectorXd(e.y().col(0)), Eigen::VectorXd(y.col(0)));
-  std::printf("%-12s %-30s %10.4f %14.6g\n", role, e.name().c_str(), f, rmse);
+  try {
+    const double f = nlid::fit_percent(Eigen::VectorXd(e.y().col(0)), Eigen::VectorXd(y.col(0)));
+    std::printf("%-12s %-30s %10.4f %14.6g\n", role, e.name().c_str(), f, rmse);
+  } catch (const nlid::Error& err) {
+    std::printf("%-12s %-30s %10s %14.6g  (fit %% not defined: %s)\n", role, e.name().c_str(), "-", rmse,
+                err.message().c_str());
+    return;
+  }
 }
 
 }  // namespace
@@ -149,6 +161,8 @@ int main(int argc, char** argv) {
     nlid::ModelSpec spec;
     try {
       spec = nlid::parse_model_spec(a.model);
+      // An unknown physics is a SPEC that does not parse: say so before any data are read.
+      if (spec.family == "greybox") (void)nlid::make_physics(spec.physics);
     } catch (const nlid::Error& e) {
       throw UsageError(e.what());
     }

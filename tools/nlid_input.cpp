@@ -112,6 +112,9 @@ int main(int argc, char** argv) {
     if (a.has("--levels")) {
       const auto [lo, hi] = parse_pair("--levels", a.get("--levels"));
       if (!(lo < hi)) throw UsageError("--levels needs LO < HI, got '" + a.get("--levels") + "'");
+      // The signals are scaled by HI - LO: near the largest doubles that overflows to inf.
+      if (!std::isfinite(hi - lo))
+        throw UsageError("--levels needs a finite span HI - LO, got '" + a.get("--levels") + "'");
       levels = {lo, hi};
     }
     nlid::InputBand band;

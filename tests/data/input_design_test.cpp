@@ -208,6 +208,14 @@ TEST_CASE("Input design refuses bad arguments, naming them", "[data][input_desig
   CHECK_THROWS_WITH(nlid::prbs(5, 1, {}, 0), Contains("hold must be >= 1"));
   CHECK_THROWS_WITH(nlid::prbs(5, 1, {1.0, 1.0}), Contains("low < high"));
   CHECK_THROWS_WITH(nlid::prbs(5, 1, {0.0, NAN}), Contains("levels must be finite"));
+  // Levels whose span overflows: refused by every generator, not written as inf/NaN.
+  CHECK_THROWS_WITH(nlid::random_steps(100, 5, 10, {-1e308, 1e308}), Contains("finite span") && Contains("-1e+308"));
+  nlid::MultisineOptions wide;
+  wide.levels = {-1e308, 1e308};
+  CHECK_THROWS_WITH(nlid::multisine(64, wide), Contains("finite span"));
+  CHECK_THROWS_WITH(nlid::random_gaussian(100, {}, {-1e308, 1e308}), Contains("finite span"));
+  CHECK_THROWS_WITH(nlid::random_gaussian(1000, {}, {-8e307, 8e307}), Contains("tails are not finite"));
+  CHECK(nlid::random_gaussian(1000, {}, {-1e300, 1e300}).allFinite());
   CHECK_THROWS_WITH(nlid::prbs(24, 200), Contains("more than 2^31"));
   CHECK_THROWS_WITH(nlid::random_binary(0), Contains("at least 1 sample"));
   CHECK_THROWS_WITH(nlid::random_binary(100, {0.5, 0.5}), Contains("0 <= low < high <= 1"));

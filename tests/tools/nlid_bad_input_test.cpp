@@ -348,3 +348,70 @@ TEST_CASE("tools: unknown last flags, repeated flags, output locations, --baseli
   CHECK_THAT(r.err, Catch::Contains("--decimal ,"));
   CHECK_FALSE(fs::exists(model));
 }
+
+TEST_CASE("tools: a forgotten value, an unwritable location, a gap in the data, a SPEC that cannot be built",
+          "[tools][bad_input]") {
+  const fs::path est = write_record("more_est", 600, 211u, 0);
+  const fs::path model = work_dir() / "more.json";
+  const std::string base = "--model linear:arx:na=1,nb=1,nk=1 --est " + q(est);
+  // (a) an option's value forgotten before the next option: not a file named "--val"
+  fs::remove("--val");
+  Run r = tool_test::run_tool(NLID_FIT_EXE, base + " --save --val " + q(est));
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("option --save needs a value"));
+  CHECK_FALSE(fs::exists("--val"));
+  r = fit("--est --val " + q(est) + " --model linear:arx:na=1,nb=1,nk=1 --save " + q(model));
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("option --est needs a value"));
+  // (b) a directory that exists but takes no files: refused before the estimation
+  r = fit(base + " --save /proc/nlid_probe_test.json");
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("--save") && Catch::Contains("cannot create files in directory '/proc'") &&
+                        !Catch::Contains("estimating"));
+  r = diagnose("--baseline first_order --est " + q(est) + " --val " + q(est) + " --json " + q(work_dir() / "d.json") +
+               " --save /proc/r.json");
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("cannot create files in directory '/proc'"));
+  CHECK_FALSE(fs::exists(work_dir() / "d.json"));
+  // (c) a gap in a record: the remedy in the tools' words, not a C++ enum the tools do not have
+  const fs::path gap = work_dir() / "gap.csv";
+  {
+    std::ofstream f(gap);
+    f << "t,u,y\n";
+    for (int k = 0; k < 300; ++k) f << k * 0.01 << "," << (k / 40 % 2) << "," << (k == 120 ? std::string() : "0.5") << "\n";
+  }
+  r = fit("--model linear:arx:na=1,nb=1,nk=1 --est " + q(gap) + " --save " + q(model));
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("empty cell") && Catch::Contains("the tools need complete records") &&
+                        !Catch::Contains("NonFinitePolicy"));
+  // (d) a SPEC that parses as text but names nothing buildable is a command-line error (2),
+  // found before any data are read
+  r = fit("--model greybox:foo --est " + q(work_dir() / "missing.csv") + " --save " + q(model));
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("unknown physics 'foo'") && !Catch::Contains("missing.csv"));
+  r = fit("--model nlarx:na=1,nb=1,nk=1:sigmoidnet:0 --est " + q(work_dir() / "missing.csv") + " --save " + q(model));
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("units of sigmoidnet must be >= 1"));
+  r = fit("--model nlarx:na=1,nb=1,nk=1:sigmoidnet:5:7 --est " + q(est) + " --save " + q(model));
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("the units of sigmoidnet is given twice"));
+  CHECK_FALSE(fs::exists(model));
+}
+
+TEST_CASE("nlid-fit: a validation record it cannot score gets a row saying why, and the summary completes",
+          "[tools][fit][bad_input]") {
+  const fs::path est = write_record("score_est", 600, 212u, 0);
+  const fs::path flat = work_dir() / "score_flat.csv";
+  {
+    std::ofstream f(flat);
+    f << "t,u,y\n";
+    for (int k = 0; k < 200; ++k) f << k * 0.01 << "," << (k / 30 % 2) << ",0.5\n";
+  }
+  const fs::path model = work_dir() / "score.json";
+  const Run r = fit("--model linear:arx:na=1,nb=1,nk=1 --est " + q(est) + " --val " + q(flat) + " --save " + q(model));
+  INFO(r.out << r.err);
+  CHECK(r.code == 0);
+  CHECK_THAT(r.out, Catch::Contains("score_flat.csv") && Catch::Contains("fit % not defined") &&
+                        Catch::Contains("saved " + model.string()));
+  CHECK(fs::exists(model));
+}

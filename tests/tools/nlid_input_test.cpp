@@ -112,6 +112,7 @@ TEST_CASE("nlid-input refuses bad command lines, naming the option", "[tools][in
       {"--signal random-steps --samples 100 --hold 5 --ts 0.01", "--hold needs two numbers separated by a comma"},
       {"--signal random-steps --samples 100 --ts 0.01", "needs --hold"},
       {"--signal random-gaussian --samples 100 --levels 2,1 --ts 0.01", "--levels needs LO < HI"},
+      {"--signal random-steps --samples 100 --hold 2,5 --levels -1e308,1e308 --ts 0.01", "--levels needs a finite span"},
       {"--signal random-gaussian --samples 100 --band 0,1.5 --ts 0.01", "--band needs 0 <= LO < HI <= 1"},
       {"--signal random-binary --samples 100 --ts -1", "--ts needs a positive sample time"},
       {"--signal random-binary --samples 100 --ts 0.01 --seed -3", "--seed needs an integer >= 0"},

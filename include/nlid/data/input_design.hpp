@@ -34,6 +34,7 @@
 #include <bit>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <numbers>
 #include <random>
 #include <string>
@@ -86,9 +87,15 @@ struct MultisineOptions {
 namespace detail {
 
 inline void check_levels(const InputLevels& l) {
-  require(std::isfinite(l.low) && std::isfinite(l.high) && l.low < l.high,
-          "input design: levels must be finite with low < high, got [" + std::to_string(l.low) + ", " +
-              std::to_string(l.high) + "]",
+  auto number = [](double v) {
+    char b[32];
+    std::snprintf(b, sizeof b, "%.6g", v);
+    return std::string(b);
+  };
+  // The span too: the generators scale by high − low, which overflows for levels near ±1e308.
+  require(std::isfinite(l.low) && std::isfinite(l.high) && l.low < l.high && std::isfinite(l.high - l.low),
+          "input design: levels must be finite with low < high and a finite span high - low, got [" + number(l.low) +
+              ", " + number(l.high) + "]",
           at_parameter("levels"));
 }
 
@@ -208,7 +215,11 @@ inline std::uint32_t prbs_next_state(int bits, std::uint32_t state) {
   const double sd = std::sqrt(e.squaredNorm() / static_cast<double>(n));
   require(sd > 0.0, "random_gaussian: the band is too narrow for " + std::to_string(n) + " samples (no power left)",
           at_parameter("band"));
-  return (e * ((levels.high - levels.low) / (2.0 * sd))).array() + 0.5 * (levels.low + levels.high);
+  Eigen::VectorXd out = (e * ((levels.high - levels.low) / (2.0 * sd))).array() + 0.5 * (levels.low + levels.high);
+  // Gaussian tails reach several deviations past the levels: near the largest doubles they overflow.
+  require(out.allFinite(), "random_gaussian: levels this large overflow: the signal's tails are not finite",
+          at_parameter("levels"));
+  return out;
 }
 
 /// DFT lines (k of f = k/period cycles per sample) a multisine of this period and these options
