@@ -149,6 +149,14 @@ TEST_CASE("Dataset overloads act per experiment and name the failing one", "[dat
   CHECK(err.where().experiment == 1);
   CHECK_THAT(err.what(), Contains("experiment 1"));
   CHECK_THAT(err.what(), Contains("reaches outside the record"));
+  // By index: samples 20 … 34 exist in the first record (50 samples), not in the second (30).
+  const nlid::Dataset s = nlid::select_samples(d, 5, 10);
+  CHECK(s.total_samples() == 20);
+  CHECK(s[1].y()(0, 0) == d[1].y()(5, 0));
+  CHECK(s[1].t0() == Approx(d[1].t0() + 5 * d[1].ts()));
+  const auto err2 = error_of([&] { (void)nlid::select_samples(d, 20, 15); });
+  CHECK(err2.where().experiment == 1);
+  CHECK_THAT(err2.what(), Contains("outside the record of 30 samples"));
 }
 
 TEST_CASE("resample to an integer multiple equals decimate", "[data][resample]") {

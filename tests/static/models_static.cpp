@@ -2,7 +2,9 @@
 // is a static_assert, every misuse a `requires !requires` negative. Building this file is the test.
 #include <span>
 
+#include "nlid/analysis/concepts.hpp"
 #include "nlid/models.hpp"
+#include "nlid/models/physics/throttle.hpp"
 #include "nlid/nonlinearities.hpp"
 #include "nlid/regressors.hpp"
 
@@ -77,5 +79,11 @@ static_assert(!FormsHw<nlid::SigmoidNet<2, 3>, Tf330, nlid::Saturation>);  // in
 static_assert(!FormsHw<nlid::UnitGain, nlid::LinearMap<1>, nlid::Saturation>);  // not a LinearBlock
 static_assert(FormsTransferFunction<1, 2, 1> && !FormsTransferFunction<0, 2, 1>);  // nb >= 1
 static_assert(nlid::Model<nlid::HammersteinWiener<nlid::UnitGain, Tf330, nlid::Saturation>>);
+
+// ---- Grey box --------------------------------------------------------------------------------
+// Continuous time without a noise model: what `compare` needs, not the discrete-time `Model`
+// (docs/models.md says so).
+static_assert(nlid::SimulationModel<nlid::GreyBox<nlid::physics::Throttle>>);
+static_assert(!nlid::Model<nlid::GreyBox<nlid::physics::Throttle>>);
 
 }  // namespace static_checks

@@ -319,6 +319,11 @@ inline Dataset select(const Dataset& d, double t_begin, double t_end) {
   return detail::per_experiment(d, [&](const Experiment& e) { return select(e, t_begin, t_end); });
 }
 
+/// The same sample range cut from every experiment (an experiment too short for it is named).
+inline Dataset select_samples(const Dataset& d, Eigen::Index first, Eigen::Index count) {
+  return detail::per_experiment(d, [&](const Experiment& e) { return select_samples(e, first, count); });
+}
+
 /// Pooled channel means over all samples of all experiments, as a constant trend: the one
 /// operating point to remove from estimation and validation data alike.
 inline Trend mean_trend(const Dataset& d) {

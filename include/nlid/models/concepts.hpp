@@ -75,7 +75,9 @@ concept ModelStructure =
 
 /// A user-level model: simulates and predicts experiments, reports its parameters and itself.
 /// This is all `analysis/compare.hpp` and the diagnosis layer need.
-/// Satisfied by `Nlarx`, `HammersteinWiener`, the grey-box models and the linear models.
+/// Satisfied by `Nlarx`, `HammersteinWiener`, `Series` and the linear models. Grey boxes are
+/// continuous-time and have no noise model (no `predict`, no `ts`): they satisfy
+/// `SimulationModel` (analysis/concepts.hpp), which is what `compare` needs.
 template <class M>
 concept Model = requires(const M& m, const Experiment& e, InitialCondition ic, int k) {
   { m.simulate(e, ic) } -> std::convertible_to<Eigen::MatrixXd>;
