@@ -4,6 +4,7 @@
 
 #include <catch2/catch.hpp>
 #include <cmath>
+#include <limits>
 #include <numbers>
 
 namespace {
@@ -131,6 +132,20 @@ TEST_CASE("select keeps a time window with its original times", "[data][preproce
   CHECK(ss.u()(2, 0) == 12.0);
   CHECK_THROWS_WITH(nlid::select_samples(e, 100, 2), Contains("outside the record of 101 samples"));
   CHECK_THROWS_AS(nlid::select_samples(e, 0, 0), nlid::Error);
+}
+
+TEST_CASE("resampling and decimation refuse requests that leave no record", "[data][preprocess][errors]") {
+  const nlid::Experiment e = trended(1.0, 0.1, 0.1, 100);
+  // A sample time so short that the count overflows (it aborted inside Eigen before).
+  CHECK_THROWS_WITH(nlid::resample(e, 1e-300), Contains("more than 2^31 - 1"));
+  // A factor that leaves one sample, mostly the filter's start-up (it returned NaN or -8.5 for
+  // a record between 1 and 11).
+  CHECK_THROWS_WITH(nlid::decimate(e, 1000), Contains("needs more than 1000 samples"));
+  CHECK_THROWS_WITH(nlid::decimate(e, 100), Contains("the record has 100"));
+  CHECK(nlid::decimate(e, 50).size() == 2);
+  // Absurd counts: the message names them without overflowing.
+  CHECK_THROWS_WITH(nlid::select_samples(e, 1, std::numeric_limits<Eigen::Index>::max()),
+                    Contains("from index 1 is empty or outside the record of 100 samples"));
 }
 
 TEST_CASE("Dataset overloads act per experiment and name the failing one", "[data][preprocess]") {

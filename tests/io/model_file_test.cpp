@@ -254,6 +254,11 @@ TEST_CASE("model file: every nonlinearity and compile-time types round-trip exac
   }
 }
 
+TEST_CASE("model file: an empty path is named as such") {
+  GreyBox<physics::Throttle> g;
+  CHECK_THROWS_WITH(save_model("", g), Catch::Contains("empty file name"));
+}
+
 TEST_CASE("model file: grey-box throttle by catalogue name, parameter table and bounds") {
   GreyBox<physics::Throttle> g;
   const auto names = g.parameter_names();

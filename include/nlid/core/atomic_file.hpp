@@ -89,6 +89,7 @@ inline Location file_location(const std::string& path) {
 // Checks that `path` can be replaced: its directory exists and it is not itself a directory.
 inline void check_writable_target(const std::string& path) {
   namespace fs = std::filesystem;
+  if (path.empty()) throw Error("empty file name: give a path to write to", file_location(path));
   const fs::path target(path);
   const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
   std::error_code ec;

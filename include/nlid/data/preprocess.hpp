@@ -198,8 +198,9 @@ inline Experiment detrend(const Experiment& e) { return remove_trend(e, linear_t
 inline Experiment select_samples(const Experiment& e, Eigen::Index first, Eigen::Index count) {
   e.validate(true);
   if (first < 0 || count < 1 || first > e.size() - count) {
-    throw Error("sample range [" + std::to_string(first) + ", " + std::to_string(first + count) +
-                    ") is empty or outside the record of " + std::to_string(e.size()) + " samples",
+    // first + count may overflow for absurd counts: name the two numbers instead.
+    throw Error("sample range of " + std::to_string(count) + " sample(s) from index " + std::to_string(first) +
+                    " is empty or outside the record of " + std::to_string(e.size()) + " samples",
                 at_parameter("first"));
   }
   Experiment out =

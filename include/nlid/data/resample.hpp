@@ -78,6 +78,12 @@ inline Experiment decimate(const Experiment& e, int factor, const DecimateOption
                 at_parameter("factor"));
   }
   if (factor == 1) return e;
+  // One sample out is no record, and what the filter leaves of it is mostly its start-up.
+  if (e.size() <= factor) {
+    throw Error("decimation by " + std::to_string(factor) + " needs more than " + std::to_string(factor) +
+                    " samples (at least two out), the record has " + std::to_string(e.size()),
+                at_parameter("factor"));
+  }
   if (!(options.cutoff > 0.0 && options.cutoff < 1.0)) {
     throw Error(
         "cutoff must lie strictly between 0 and 1 (fraction of the new Nyquist "
@@ -136,7 +142,15 @@ inline Experiment resample(const Experiment& e, double new_ts,
   }
   const double span = static_cast<double>(e.size() - 1) * e.ts();
   // The last new sample may coincide with the last old one; 1e-12 keeps rounding from dropping it.
-  const auto m = static_cast<Eigen::Index>(std::floor(span / new_ts * (1.0 + 1e-12))) + 1;
+  const double count = std::floor(span / new_ts * (1.0 + 1e-12)) + 1.0;
+  // A sample time far below the record's would ask for more samples than memory holds (or an
+  // index type does): say so instead of overflowing the count.
+  if (!(count <= 2147483647.0)) {
+    throw Error("resampling to " + detail::fmt_g(new_ts) + " s would give " + detail::fmt_g(count) +
+                    " samples (more than 2^31 - 1); choose a longer sample time or a shorter record",
+                at_parameter("new_ts"));
+  }
+  const auto m = static_cast<Eigen::Index>(count);
   Eigen::VectorXd pos(m);  // new sample instants in units of old samples
   for (Eigen::Index k = 0; k < m; ++k) {
     pos(k) = std::min(static_cast<double>(k) * ratio, static_cast<double>(e.size() - 1));

@@ -98,6 +98,7 @@ OperatingPoint equilibrium(const GreyBox<P>& model, const Eigen::VectorXd& u0) {
           "equilibrium: the model takes " + std::to_string(model.input_dimension()) + " input(s), got " +
               std::to_string(u0.size()),
           at_parameter("u0"));
+  require(u0.allFinite(), "equilibrium: the held input must be finite", at_parameter("u0"));
   OperatingPoint op;
   op.x = model.equilibrium(u0);
   op.u = u0;

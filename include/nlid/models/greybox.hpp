@@ -388,6 +388,7 @@ class GreyBox {
     require(ts > 0.0 && std::isfinite(ts), "sample time must be positive and finite",
             at_parameter("ts"));
     require(u.allFinite(), "input contains non-finite samples; a simulation cannot run through them");
+    require(x0.allFinite(), "initial state of grey-box model '" + name() + "' is not finite", at_parameter("x0"));
     const ParameterVector p = parameters();
     StateVector x = x0;
     Eigen::MatrixXd y(u.rows(), output_dimension());

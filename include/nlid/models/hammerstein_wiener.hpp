@@ -277,6 +277,7 @@ class HammersteinWiener {
   /// Simulated output (N×1) of an experiment. Throws `nlid::Error` naming the experiment if the
   /// data do not fit the model or the simulation diverges.
   [[nodiscard]] Eigen::MatrixXd simulate(const Experiment& e, InitialCondition ic = InitialCondition::zero) const {
+    detail::require_complete_for(e, -1, ic == InitialCondition::estimate, "simulation");
     const Eigen::VectorXd x0 = initial_state(e, ic);
     Eigen::MatrixXd yhat(e.size(), 1);
     const Eigen::Index bad = simulate_until(e.u(), detail::as_const_span(theta_), detail::as_const_span(x0),

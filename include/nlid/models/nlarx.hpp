@@ -346,6 +346,7 @@ class Nlarx {
   /// do not fit the model or the simulation diverges.
   [[nodiscard]] Eigen::MatrixXd simulate(const Experiment& e,
                                          InitialCondition ic = InitialCondition::zero) const {
+    detail::require_complete_for(e, -1, false, "simulation");
     const Eigen::VectorXd x0 = initial_state(e, ic);
     const Eigen::Index n = e.size();
     Eigen::MatrixXd yhat(n, 1);
@@ -371,14 +372,23 @@ class Nlarx {
   [[nodiscard]] Eigen::MatrixXd predict(const Experiment& e, int k = 1) const {
     require(k >= 1, "prediction horizon k must be >= 1, got " + std::to_string(k), at_parameter("k"));
     detail::check_experiment(e, -1, num_inputs(), history_length(), ts_, "nonlinear ARX");
+    detail::require_complete_for(e, -1, true, "prediction");
     const Eigen::Index n = e.size();
     const int n0 = history_length();
     const Eigen::VectorXd y = e.y().col(0);
-    Eigen::MatrixXd yhat(n, 1);
+    Eigen::MatrixXd yhat = Eigen::MatrixXd::Constant(n, 1, std::numeric_limits<double>::quiet_NaN());
     yhat.topRows(n0) = e.y().topRows(n0);
     if (k == 1) {
-      predict(e.u(), y, detail::as_const_span(theta_),
-              std::span<double>(yhat.data() + n0, static_cast<std::size_t>(n - n0)));
+      // The core stops at the first non-finite prediction (the model overflows there): say
+      // where, as the k-step branch does, instead of returning the unwritten rest.
+      if (!predict(e.u(), y, detail::as_const_span(theta_),
+                   std::span<double>(yhat.data() + n0, static_cast<std::size_t>(n - n0)))) {
+        Eigen::Index t = n0;
+        while (t < n && std::isfinite(yhat(t, 0))) ++t;
+        throw DivergenceError("one-step prediction of " + detail::experiment_label(e, -1) +
+                                  " is not finite at sample " + std::to_string(t) + " (the model overflows there)",
+                              static_cast<long>(t), detail::experiment_location(-1));
+      }
       return yhat;
     }
     Eigen::VectorXd buf(std::min<Eigen::Index>(k, n));

@@ -141,12 +141,22 @@ class Series {
 
   /// p = Σ p_k.
   [[nodiscard]] int num_parameters() const { return p_off_[num_blocks]; }
-  /// Offset of θ_k in θ (k = 0 … K; k = K gives p).
-  [[nodiscard]] int parameter_offset(std::size_t k) const { return p_off_.at(k); }
-  /// Number of parameters of block k.
-  [[nodiscard]] int block_num_parameters(std::size_t k) const { return p_off_.at(k + 1) - p_off_.at(k); }
+  /// Offset of θ_k in θ (k = 0 … K; k = K gives p). Throws `nlid::Error` for k > K.
+  [[nodiscard]] int parameter_offset(std::size_t k) const {
+    check_block_index(k, num_blocks);
+    return p_off_[k];
+  }
+  /// Number of parameters of block k. Throws `nlid::Error` for k ≥ K.
+  [[nodiscard]] int block_num_parameters(std::size_t k) const {
+    check_block_index(k, num_blocks - 1);
+    return p_off_[k + 1] - p_off_[k];
+  }
   /// Offset of block k's state in x0 (static blocks: where the next linear block's state starts).
-  [[nodiscard]] int state_offset(std::size_t k) const { return s_off_.at(k); }
+  /// Throws `nlid::Error` for k > K.
+  [[nodiscard]] int state_offset(std::size_t k) const {
+    check_block_index(k, num_blocks);
+    return s_off_[k];
+  }
   /// One input.
   [[nodiscard]] int num_inputs() const { return 1; }
   /// One output.
@@ -233,14 +243,21 @@ class Series {
 
   /// θ_k as a view of the stored parameters.
   [[nodiscard]] std::span<const double> block_parameters(std::size_t k) const {
-    return std::span<const double>(theta_.data() + p_off_.at(k), static_cast<std::size_t>(block_num_parameters(k)));
+    check_block_index(k, num_blocks - 1);
+    return std::span<const double>(theta_.data() + p_off_[k], static_cast<std::size_t>(block_num_parameters(k)));
   }
-  /// Sets θ_k. Throws `nlid::Error` naming the block if the length is wrong.
+  /// Sets θ_k. Throws `nlid::Error` naming the block if the length is wrong or a value is not
+  /// finite.
   void set_block_parameters(std::size_t k, std::span<const double> theta_k) {
+    check_block_index(k, num_blocks - 1);
     require(static_cast<int>(theta_k.size()) == block_num_parameters(k),
             "block " + std::to_string(k) + " (" + labels_.at(k) + ") has " +
                 std::to_string(block_num_parameters(k)) + " parameters, got " + std::to_string(theta_k.size()),
             at_parameter(labels_.at(k)));
+    for (std::size_t j = 0; j < theta_k.size(); ++j)
+      require(std::isfinite(theta_k[j]),
+              "block " + std::to_string(k) + " (" + labels_.at(k) + "): parameter " + std::to_string(j) + " is not finite",
+              at_parameter(labels_.at(k)));
     for (std::size_t j = 0; j < theta_k.size(); ++j) theta_(p_off_[k] + static_cast<Eigen::Index>(j)) = theta_k[j];
   }
   /// Sets linear block I from toolbox polynomials B̃ (with or without nk leading zeros) and
@@ -400,6 +417,7 @@ class Series {
   /// Simulated output (N×1) of an experiment. Throws `nlid::Error` naming the experiment if the
   /// data do not fit the model or the simulation diverges.
   [[nodiscard]] Eigen::MatrixXd simulate(const Experiment& e, InitialCondition ic = InitialCondition::zero) const {
+    detail::require_complete_for(e, -1, ic == InitialCondition::estimate, "simulation");
     const Eigen::VectorXd x0 = initial_state(e, ic);
     Eigen::MatrixXd yhat(e.size(), 1);
     const Eigen::Index bad = simulate_until(e.u(), detail::as_const_span(theta_), detail::as_const_span(x0),
@@ -432,6 +450,11 @@ class Series {
 
   // ---- Implementation details below ----------------------------------------------------------
  private:
+  static void check_block_index(std::size_t k, std::size_t last) {
+    require(k <= last, "block " + std::to_string(k) + " is out of range: the chain has " + std::to_string(num_blocks) +
+                           " block(s), 0 ... " + std::to_string(num_blocks - 1),
+            at_parameter("block"));
+  }
   template <class T>
   using State = Eigen::Matrix<T, num_states, 1>;
 

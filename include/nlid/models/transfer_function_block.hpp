@@ -180,6 +180,9 @@ class TransferFunctionBlock {
                                     std::to_string(nf + 1),
             at_parameter("F"));
     require(f(0) == 1.0, "F must be monic (F(0) = 1), got " + std::to_string(f(0)), at_parameter("F"));
+    // A NaN here would surface much later as a "diverging" simulation or an unwritable file.
+    require(b.allFinite(), "B has a non-finite coefficient", at_parameter("B"));
+    require(f.allFinite(), "F has a non-finite coefficient", at_parameter("F"));
     const Eigen::VectorXd bt = b.tail(nb);
     for (Eigen::Index i = 0; i < nb; ++i) theta[static_cast<std::size_t>(i)] = bt(i);
     for (Eigen::Index i = 0; i < nf; ++i) theta[static_cast<std::size_t>(nb + i)] = f(i + 1);
