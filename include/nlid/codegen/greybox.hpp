@@ -96,11 +96,11 @@ GeneratedCode generate_c(const GreyBox<P>& model, const CodegenOptions& options)
     const int sub = options.substeps > 0 ? options.substeps : substeps_for(m.ts, rho, io);
     // The automatic rule at its ceiling would emit a step the method cannot keep stable: the
     // generated code would blow up on the target, far from any message. Say it here.
-    if (options.substeps == 0 && io.substeps == 0 && sub >= io.max_substeps && rho > 0.0 && std::isfinite(rho) &&
-        m.ts * rho / sub > (io.method == IntegratorMethod::euler ? 2.0 : 2.78)) {
+    const double need = options.substeps == 0 ? unstable_capped_substeps(m.ts, rho, sub, io) : 0.0;
+    if (need > 0.0) {
       throw Error("grey-box code generation: at the sample time " + detail::format_value(m.ts, 6) +
                       " s the model's stiffness (spectral radius " + detail::format_value(rho, 6) +
-                      " 1/s) needs " + detail::format_value(std::ceil(m.ts * rho / io.stability_target), 6) +
+                      " 1/s) needs " + detail::format_value(need, 6) +
                       " integrator sub-steps per sample for a stable step, more than the ceiling of " +
                       std::to_string(io.max_substeps) + "; use a shorter sample time or set CodegenOptions::substeps",
                   at_parameter("ts"));

@@ -34,7 +34,6 @@
 #include <bit>
 #include <cmath>
 #include <cstdint>
-#include <cstdio>
 #include <numbers>
 #include <random>
 #include <string>
@@ -44,6 +43,7 @@
 
 #include "nlid/core/error.hpp"
 #include "nlid/data/detail/dft_table.hpp"
+#include "nlid/data/detail/per_experiment.hpp"
 #include "nlid/data/filter.hpp"
 
 namespace nlid {
@@ -87,15 +87,10 @@ struct MultisineOptions {
 namespace detail {
 
 inline void check_levels(const InputLevels& l) {
-  auto number = [](double v) {
-    char b[32];
-    std::snprintf(b, sizeof b, "%.6g", v);
-    return std::string(b);
-  };
   // The span too: the generators scale by high − low, which overflows for levels near ±1e308.
   require(std::isfinite(l.low) && std::isfinite(l.high) && l.low < l.high && std::isfinite(l.high - l.low),
-          "input design: levels must be finite with low < high and a finite span high - low, got [" + number(l.low) +
-              ", " + number(l.high) + "]",
+          "input design: levels must be finite with low < high and a finite span high - low, got [" + fmt_g(l.low) +
+              ", " + fmt_g(l.high) + "]",
           at_parameter("levels"));
 }
 

@@ -563,11 +563,9 @@ ParameterUncertainty parameter_uncertainty(const Pb& problem, const Eigen::Vecto
   detail::check_covariance("stored uncertainty: ", names, covariance);
   for (Eigen::Index i = 0; i < stddev.size(); ++i) {
     const std::string& q = names[static_cast<std::size_t>(i)];
-    if (!(stddev[i] >= 0.0)) {
-      char b[32];
-      std::snprintf(b, sizeof b, "%.6g", stddev[i]);
-      throw Error("stored uncertainty: the standard deviation of " + q + " must be >= 0 (or inf), got " + b, at_parameter(q));
-    }
+    require(stddev[i] >= 0.0,
+            "stored uncertainty: the standard deviation of " + q + " must be >= 0 (or inf), got " + detail::format_g6(stddev[i]),
+            at_parameter(q));
   }
   ParameterUncertainty u;
   u.stored = true;

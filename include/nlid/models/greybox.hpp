@@ -417,14 +417,10 @@ class GreyBox {
   /// wanted more sub-steps than its ceiling, and the capped step is beyond the method's
   /// stability limit (h·ρ ≈ 2.78 for RK4, 2 for Euler). Empty otherwise.
   [[nodiscard]] std::string capped_substeps_note(double ts, double rho, int sub) const {
-    if (integrator_.substeps > 0 || integrator_.method == IntegratorMethod::dormand_prince || !(rho > 0.0) ||
-        !std::isfinite(rho) || sub < integrator_.max_substeps)
-      return {};
-    const double limit = integrator_.method == IntegratorMethod::euler ? 2.0 : 2.78;
-    if (ts * rho / sub <= limit) return {};
+    const double need = unstable_capped_substeps(ts, rho, sub, integrator_);
+    if (need == 0.0) return {};
     return " (the sample time " + detail::format_number(ts) + " s is too long for the model's stiffness, spectral radius " +
-           detail::format_number(rho) + " 1/s: a stable step needs " +
-           detail::format_number(std::ceil(ts * rho / integrator_.stability_target)) +
+           detail::format_number(rho) + " 1/s: a stable step needs " + detail::format_number(need) +
            " sub-steps, more than IntegratorOptions::max_substeps = " + std::to_string(integrator_.max_substeps) + ")";
   }
 

@@ -132,6 +132,19 @@ inline int substeps_for(double h, double spectral_radius, const IntegratorOption
   return std::max(o.min_substeps, static_cast<int>(need));
 }
 
+/// Sub-steps a stable step would need when the automatic rule stopped at its ceiling with a
+/// step beyond the fixed-step method's stability limit (h·ρ ≈ 2.78 for RK4, 2 for Euler) —
+/// what a diverging simulation or refused code generation should name; 0 otherwise (a fixed
+/// count, the adaptive method, an unknown ρ, or a capped step that is still stable).
+inline double unstable_capped_substeps(double h, double spectral_radius, int substeps, const IntegratorOptions& o) {
+  if (o.substeps > 0 || o.method == IntegratorMethod::dormand_prince || !(spectral_radius > 0.0) ||
+      !std::isfinite(spectral_radius) || substeps < o.max_substeps)
+    return 0.0;
+  const double limit = o.method == IntegratorMethod::euler ? 2.0 : 2.78;
+  if (h * spectral_radius / substeps <= limit) return 0.0;
+  return std::ceil(h * spectral_radius / o.stability_target);
+}
+
 namespace detail {
 /// A dual number with a compile-time derivative count (its gradient lives inside the object).
 template <class S>

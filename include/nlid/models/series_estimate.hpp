@@ -718,20 +718,15 @@ SeriesInitialization initialize_series(Series<B...>& model, const Dataset& data,
   // limits collapse to one value, a constant model with no gradient to the linear blocks).
   // The gain next to the pivot is then chosen among multiples of the target's slope on the
   // pivot's input by the free-run error.
+  double y_spread = 0.0;  // Σ (y − ȳ)² per record: the fit's denominator
+  for (std::size_t e = 0; e < data.size(); ++e) y_spread += (data[e].y().col(0).array() - data[e].y().col(0).mean()).square().sum();
   auto apply_best = [&](const Split& s, Eigen::VectorXd& th) {
     const Eigen::VectorXd th0 = th;
     const double slope = apply(s, th);
     if (pivot < 0 || !(std::isfinite(slope) && slope != 0.0) || !std::isfinite(info.best_quick_fit_percent)) return;
     double best = simulation_sse(th);
-    Eigen::Index n = 0;
-    double ss = 0.0;
-    for (std::size_t e = 0; e < data.size(); ++e) {
-      const Eigen::VectorXd y = data[e].y().col(0);
-      ss += (y.array() - y.mean()).square().sum();
-      n += y.size();
-    }
-    const double fit = ss > 0.0 ? 100.0 * (1.0 - std::sqrt(best / ss)) : 100.0;
-    if (n == 0 || fit >= info.best_quick_fit_percent - 10.0) return;
+    const double fit = y_spread > 0.0 ? 100.0 * (1.0 - std::sqrt(best / y_spread)) : 100.0;
+    if (fit >= info.best_quick_fit_percent - 10.0) return;
     Eigen::VectorXd keep = th;
     for (const double m : {1.0, 0.5, 2.0, 0.25, 4.0}) {
       Eigen::VectorXd t = th0;

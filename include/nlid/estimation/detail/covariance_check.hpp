@@ -14,15 +14,17 @@
 
 namespace nlid::detail {
 
+/// "%.6g": covariance entries and deviations in messages.
+inline std::string format_g6(double v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.6g", v);
+  return b;
+}
+
 /// Throws `nlid::Error` (message prefixed by `who`, located at the parameter) unless `c` is
 /// finite, symmetric to 1e-9 of its largest entry and has a non-negative diagonal. `names`
 /// must hold one name per row; the size check is the caller's, with its own wording.
 inline void check_covariance(const std::string& who, const std::vector<std::string>& names, const Eigen::MatrixXd& c) {
-  auto number = [](double v) {
-    char b[32];
-    std::snprintf(b, sizeof b, "%.6g", v);
-    return std::string(b);
-  };
   const Eigen::Index n = c.rows();
   // Every entry finite before the symmetry test, whose scale one NaN would spoil.
   for (Eigen::Index i = 0; i < n; ++i) {
@@ -36,11 +38,11 @@ inline void check_covariance(const std::string& who, const std::vector<std::stri
   const double scale = n > 0 ? c.cwiseAbs().maxCoeff() : 0.0;
   for (Eigen::Index i = 0; i < n; ++i) {
     const std::string& q = names[static_cast<std::size_t>(i)];
-    require(c(i, i) >= 0.0, who + "the variance of " + q + " must be >= 0, got " + number(c(i, i)), at_parameter(q));
+    require(c(i, i) >= 0.0, who + "the variance of " + q + " must be >= 0, got " + format_g6(c(i, i)), at_parameter(q));
     for (Eigen::Index j = 0; j < i; ++j) {
       require(std::abs(c(i, j) - c(j, i)) <= 1e-9 * scale,
               who + "the covariance is not symmetric (" + q + " with " + names[static_cast<std::size_t>(j)] + ": " +
-                  number(c(i, j)) + " and " + number(c(j, i)) + ")",
+                  format_g6(c(i, j)) + " and " + format_g6(c(j, i)) + ")",
               at_parameter(q));
     }
   }

@@ -100,18 +100,14 @@ inline void check_experiment(const Experiment& e, long index, int num_inputs, in
 /// `outputs_too` (one-step prediction reads the measured outputs) — before a simulation or
 /// prediction runs into it and the stop is reported as a divergence of the model.
 inline void require_complete_for(const Experiment& e, long index, bool outputs_too, const char* run) {
-  auto scan = [&](const Eigen::MatrixXd& m, const char* what) {
-    if (m.allFinite()) return;
-    for (Eigen::Index c = 0; c < m.cols(); ++c)
-      for (Eigen::Index k = 0; k < m.rows(); ++k)
-        if (!std::isfinite(m(k, c)))
-          throw Error(experiment_label(e, index) + " has a missing (non-finite) " + what + " sample at sample index " +
-                          std::to_string(k) + " (" + what + " " + std::to_string(c) + "): a " + run +
-                          " cannot run through it; fill the gap (Experiment::fill_missing) or cut the record there",
-                      experiment_location(index));
-  };
-  scan(e.u(), "input");
-  if (outputs_too) scan(e.y(), "output");
+  // first_missing scans every input before any output: an output found first means no input gap.
+  const auto m = e.first_missing();
+  if (!m || (m->output && !outputs_too)) return;
+  const char* what = m->output ? "output" : "input";
+  throw Error(experiment_label(e, index) + " has a missing (non-finite) " + what + " sample at sample index " +
+                  std::to_string(m->sample) + " (" + what + " " + std::to_string(m->channel) + "): a " + run +
+                  " cannot run through it; fill the gap (Experiment::fill_missing) or cut the record there",
+              experiment_location(index));
 }
 
 /// Throws unless every value of θ is finite, naming the first that is not by its index and name
