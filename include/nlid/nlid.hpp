@@ -8,6 +8,7 @@
 #include "nlid/core/atomic_file.hpp"
 #include "nlid/core/batch.hpp"
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/core/initial_condition.hpp"
 #include "nlid/core/sizes.hpp"
 

@@ -107,3 +107,9 @@ TEST_CASE("format_polynomial writes the toolbox form", "[linear][polynomial]") {
   r << std::complex<double>(0.5, 0.25), std::complex<double>(0.5, -0.25), 0.1;
   CHECK(nlid::format_roots(r) == "0.5 +/- 0.25i, 0.1");
 }
+
+TEST_CASE("format_number: the toolbox's 4 significant digits by default", "[linear][polynomial]") {
+  CHECK(nlid::format_number(1.523456) == "1.523");
+  CHECK(nlid::format_number(1.523456, 6) == "1.52346");
+  CHECK(nlid::format_number(-0.000123456) == "-0.0001235");
+}

@@ -35,6 +35,7 @@
 
 #include "nlid/codegen/emitter.hpp"
 #include "nlid/codegen/trace_scalar.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/data/experiment.hpp"
 #include "nlid/diagnose/augmented.hpp"
 #include "nlid/models/detail/model_common.hpp"
@@ -51,9 +52,9 @@ GeneratedCode generate_c(const AugmentedModel<P>& model, const CodegenOptions& o
   const codegen::PrecisionScope precision(options.precision);
   codegen::check_name(options.name);
   require(options.ts <= 0 || std::abs(options.ts - model.ts()) <= 1e-9 * model.ts(),
-          "codegen: an augmented grey-box model runs at its own sample time " + detail::format_value(model.ts(), 10) +
+          "codegen: an augmented grey-box model runs at its own sample time " + detail::format_g(model.ts(), 10) +
               " s (its dead time and friction updates are per sample); CodegenOptions::ts was " +
-              detail::format_value(options.ts, 10) + " s",
+              detail::format_g(options.ts, 10) + " s",
           at_parameter("ts"));
   const auto& phys = model.physics();
   const int nx = model.state_dimension(), nu = detail::physics_inputs(phys), nc = nx + 1;
@@ -110,9 +111,9 @@ GeneratedCode generate_c(const AugmentedModel<P>& model, const CodegenOptions& o
     std::vector<double> p;
     for (const ParameterInfo& q : model.baseline_parameters()) p.push_back(q.value);
     const EquilibriumResult eq = physics_equilibrium(phys, u0.data(), p.data(), xb.data());
-    require(eq.converged, "codegen: no equilibrium of the baseline for u = " + detail::format_value(u0(0), 17),
+    require(eq.converged, "codegen: no equilibrium of the baseline for u = " + detail::format_g(u0(0), 17),
             at_parameter("equilibrium_input"));
-    m.x0_doc = "the baseline's equilibrium for u held at " + detail::format_value(u0(0), 17) +
+    m.x0_doc = "the baseline's equilibrium for u held at " + detail::format_g(u0(0), 17) +
                "; effect states start from the first sample";
   } else {
     m.x0_doc = "zero baseline state; effect states start from the first sample";

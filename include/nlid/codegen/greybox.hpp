@@ -31,6 +31,7 @@
 
 #include "nlid/codegen/emitter.hpp"
 #include "nlid/codegen/trace_scalar.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/models/equilibrium.hpp"
 #include "nlid/models/greybox.hpp"
 #include "nlid/models/greybox_simulate.hpp"
@@ -86,7 +87,7 @@ GeneratedCode generate_c(const GreyBox<P>& model, const CodegenOptions& options)
       const OperatingPoint op = equilibrium(model, *options.equilibrium_input);
       m.x0 = op.x;
       u_sub = *options.equilibrium_input;
-      m.x0_doc = "the equilibrium for u held at " + detail::format_value((*options.equilibrium_input)(0), 17);
+      m.x0_doc = "the equilibrium for u held at " + detail::format_g((*options.equilibrium_input)(0), 17);
     } else {
       m.x0 = Eigen::VectorXd::Zero(m.nx);
       m.x0_doc = "zero";
@@ -98,9 +99,9 @@ GeneratedCode generate_c(const GreyBox<P>& model, const CodegenOptions& options)
     // generated code would blow up on the target, far from any message. Say it here.
     const double need = options.substeps == 0 ? unstable_capped_substeps(m.ts, rho, sub, io) : 0.0;
     if (need > 0.0) {
-      throw Error("grey-box code generation: at the sample time " + detail::format_value(m.ts, 6) +
-                      " s the model's stiffness (spectral radius " + detail::format_value(rho, 6) +
-                      " 1/s) needs " + detail::format_value(need, 6) +
+      throw Error("grey-box code generation: at the sample time " + detail::format_g(m.ts) +
+                      " s the model's stiffness (spectral radius " + detail::format_g(rho) +
+                      " 1/s) needs " + detail::format_g(need) +
                       " integrator sub-steps per sample for a stable step, more than the ceiling of " +
                       std::to_string(io.max_substeps) + "; use a shorter sample time or set CodegenOptions::substeps",
                   at_parameter("ts"));

@@ -41,6 +41,7 @@
 
 #include "nlid/codegen/delta_form.hpp"
 #include "nlid/codegen/emitter.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/linear/arx.hpp"
 #include "nlid/linear/output_error.hpp"
 #include "nlid/models/detail/model_common.hpp"
@@ -165,7 +166,8 @@ inline GeneratedCode generate_c(const Arx& model, const CodegenOptions& options 
     const double y_past = std::abs(a1) > 1e-14 ? drive / a1 : 0.0;
     m.x0.head(na).setConstant(y_past);
     for (int i = 0; i < nu; ++i) m.x0.segment(off[static_cast<std::size_t>(i)], lags[static_cast<std::size_t>(i)]).setConstant(u0(i));
-    m.x0_doc = "the steady state for u held at " + detail::format_value(u0(0), 17) + " (y = " + detail::format_value(y_past, 17) + ")";
+    m.x0_doc = "the steady state for u held at " + detail::format_g(u0(0), 17) +
+               " (y = " + detail::format_g(y_past, 17) + ")";
   } else {
     m.x0_doc = "zero (past outputs and inputs 0)";
   }
@@ -313,7 +315,7 @@ inline GeneratedCode generate_c(const OutputError& model, const CodegenOptions& 
       m.x0.segment(uoff[ii], lags[ii]).setConstant(u0(i));
       m.x0.segment(woff[ii], model.f(i).size()).setConstant(w0);
     }
-    m.x0_doc = "the steady state for u held at " + detail::format_value(u0(0), 17);
+    m.x0_doc = "the steady state for u held at " + detail::format_g(u0(0), 17);
   } else {
     m.x0_doc = "zero (past inputs and block outputs 0)";
   }

@@ -27,6 +27,7 @@
 #include "nlid/analysis/linearize.hpp"
 #include "nlid/codegen/emitter.hpp"
 #include "nlid/codegen/trace_scalar.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/models/equilibrium.hpp"
 #include "nlid/models/nlarx.hpp"
 
@@ -57,8 +58,8 @@ GeneratedCode generate_c(const Nlarx<R, F>& model, const CodegenOptions& options
   if (options.equilibrium_input) {
     const OperatingPoint op = equilibrium(model, *options.equilibrium_input);
     m.x0 = op.x;
-    m.x0_doc = "the equilibrium for u held at " + detail::format_value((*options.equilibrium_input)(0), 17) +
-               " (y = " + detail::format_value(op.y(0), 17) + ")";
+    m.x0_doc = "the equilibrium for u held at " + detail::format_g((*options.equilibrium_input)(0), 17) +
+               " (y = " + detail::format_g(op.y(0), 17) + ")";
   } else {
     m.x0 = Eigen::VectorXd::Zero(m.nx);
     m.x0_doc = "zero (all past outputs and inputs 0)";

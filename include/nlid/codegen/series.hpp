@@ -25,6 +25,7 @@
 #include "nlid/codegen/delta_form.hpp"
 #include "nlid/codegen/emitter.hpp"
 #include "nlid/codegen/trace_scalar.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/models/series.hpp"
 
 namespace nlid {
@@ -154,7 +155,7 @@ GeneratedCode generate_c(const Series<Blocks...>& model, const CodegenOptions& o
     m.x0 = model.template equilibrium_state<double>(u0, theta);
     std::vector<double> s(m.x0.data(), m.x0.data() + m.x0.size());
     const double y0 = model.step(std::span<double>(s), u0, theta);
-    m.x0_doc = "the steady state for u held at " + detail::format_value(u0, 17) + " (y = " + detail::format_value(y0, 17) + ")";
+    m.x0_doc = "the steady state for u held at " + detail::format_g(u0, 17) + " (y = " + detail::format_g(y0, 17) + ")";
   } else {
     m.x0 = Eigen::VectorXd::Zero(m.nx);
     m.x0_doc = "zero (every linear block at rest)";

@@ -26,6 +26,7 @@
 #include <vector>
 
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/data/experiment.hpp"
 
 namespace nlid {
@@ -137,11 +138,7 @@ class Dataset {
   // ---- Implementation details below ----------------------------------------------------------
 
  private:
-  static std::string number(double x) {
-    char buf[32];
-    std::snprintf(buf, sizeof buf, "%.17g", x);
-    return buf;
-  }
+  static std::string number(double x) { return detail::format_g(x, 17); }
   static std::string label(const Experiment& e) {
     return e.name().empty() ? std::string("experiment ") : "experiment '" + e.name() + "' ";
   }

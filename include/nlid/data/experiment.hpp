@@ -36,6 +36,7 @@
 #include <vector>
 
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/data/detail/missing.hpp"
 
 namespace nlid {
@@ -255,11 +256,7 @@ class Experiment {
   // ---- Implementation details below ----------------------------------------------------------
 
  private:
-  static std::string number(double x) {
-    char buf[32];
-    std::snprintf(buf, sizeof buf, "%.17g", x);
-    return buf;
-  }
+  static std::string number(double x) { return detail::format_g(x, 17); }
 
   static std::vector<std::string> default_names(const std::string& stem, int n) {
     std::vector<std::string> names;

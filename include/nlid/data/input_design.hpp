@@ -42,6 +42,7 @@
 #include <Eigen/Core>
 
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/data/detail/dft_table.hpp"
 #include "nlid/data/detail/per_experiment.hpp"
 #include "nlid/data/filter.hpp"
@@ -89,8 +90,9 @@ namespace detail {
 inline void check_levels(const InputLevels& l) {
   // The span too: the generators scale by high − low, which overflows for levels near ±1e308.
   require(std::isfinite(l.low) && std::isfinite(l.high) && l.low < l.high && std::isfinite(l.high - l.low),
-          "input design: levels must be finite with low < high and a finite span high - low, got [" + fmt_g(l.low) +
-              ", " + fmt_g(l.high) + "]",
+          "input design: levels must be finite with low < high and a finite span high - low, got [" +
+              detail::format_g(l.low, 10) +
+              ", " + detail::format_g(l.high, 10) + "]",
           at_parameter("levels"));
 }
 

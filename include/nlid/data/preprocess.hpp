@@ -35,6 +35,7 @@
 #include <vector>
 
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/data/dataset.hpp"
 #include "nlid/data/detail/per_experiment.hpp"
 #include "nlid/data/experiment.hpp"
@@ -117,9 +118,7 @@ inline Experiment trend_applied(const Experiment& e, const Trend& t, double sign
 inline std::string vec_str(const Eigen::VectorXd& v) {
   std::string s = "[";
   for (Eigen::Index i = 0; i < v.size(); ++i) {
-    char buf[32];
-    std::snprintf(buf, sizeof buf, "%.6g", v(i));
-    s += (i ? ", " : "") + std::string(buf);
+    s += (i ? ", " : "") + detail::format_g(v(i));
   }
   return s + "]";
 }
@@ -215,8 +214,8 @@ inline Experiment select_samples(const Experiment& e, Eigen::Index first, Eigen:
 /// record [t_0, t_end] by more than half a sample, or contains no sample.
 inline Experiment select(const Experiment& e, double t_begin, double t_end) {
   e.validate(true);
-  const std::string range = "[" + detail::fmt_g(t_begin) + ", " + detail::fmt_g(t_end) + "]";
-  const std::string rec = "[" + detail::fmt_g(e.t0()) + ", " + detail::fmt_g(e.t_end()) + "]";
+  const std::string range = "[" + detail::format_g(t_begin, 10) + ", " + detail::format_g(t_end, 10) + "]";
+  const std::string rec = "[" + detail::format_g(e.t0(), 10) + ", " + detail::format_g(e.t_end(), 10) + "]";
   if (!std::isfinite(t_begin) || !std::isfinite(t_end) || t_begin > t_end) {
     throw Error("time window " + range + " is not a finite, ordered interval",
                 at_parameter("t_begin"));
@@ -236,7 +235,7 @@ inline Experiment select(const Experiment& e, double t_begin, double t_end) {
   const Eigen::Index last = std::min<Eigen::Index>(k1, e.size() - 1);
   if (last < first) {
     throw Error(
-        "time window " + range + " contains no sample (sample time " + detail::fmt_g(e.ts()) + ")",
+        "time window " + range + " contains no sample (sample time " + detail::format_g(e.ts(), 10) + ")",
         at_parameter("t_begin"));
   }
   Experiment out = select_samples(e, first, last - first + 1);

@@ -35,6 +35,7 @@
 #include <vector>
 
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/data/dataset.hpp"
 #include "nlid/data/detail/per_experiment.hpp"
 #include "nlid/data/detail/spline.hpp"
@@ -88,7 +89,7 @@ inline Experiment decimate(const Experiment& e, int factor, const DecimateOption
     throw Error(
         "cutoff must lie strictly between 0 and 1 (fraction of the new Nyquist "
         "frequency), got " +
-            detail::fmt_g(options.cutoff),
+            detail::format_g(options.cutoff, 10),
         at_parameter("cutoff"));
   }
   const SosFilter lp = chebyshev1_lowpass(options.order, options.ripple_db,
@@ -104,7 +105,7 @@ inline Experiment decimate(const Experiment& e, int factor, const DecimateOption
                                         pick(e.y(), options.filter_outputs),
                                         e.ts() * static_cast<double>(factor), e.t0());
   out.add_note("decimated by " + std::to_string(factor) + " (zero-phase Chebyshev I order " +
-               std::to_string(options.order) + ", edge " + detail::fmt_g(options.cutoff) +
+               std::to_string(options.order) + ", edge " + detail::format_g(options.cutoff, 10) +
                " x new Nyquist" + (options.filter_inputs ? "" : "; inputs sampled unfiltered") +
                (options.filter_outputs ? "" : "; outputs sampled unfiltered") + ")");
   return out;
@@ -118,7 +119,7 @@ inline Experiment resample(const Experiment& e, double new_ts,
                            const ResampleOptions& options = {}) {
   e.validate(false);
   if (!(new_ts > 0.0) || !std::isfinite(new_ts)) {
-    throw Error("new sample time must be positive and finite, got " + detail::fmt_g(new_ts),
+    throw Error("new sample time must be positive and finite, got " + detail::format_g(new_ts, 10),
                 at_parameter("new_ts"));
   }
   const double ratio = new_ts / e.ts();
@@ -146,7 +147,7 @@ inline Experiment resample(const Experiment& e, double new_ts,
   // A sample time far below the record's would ask for more samples than memory holds (or an
   // index type does): say so instead of overflowing the count.
   if (!(count <= 2147483647.0)) {
-    throw Error("resampling to " + detail::fmt_g(new_ts) + " s would give " + detail::fmt_g(count) +
+    throw Error("resampling to " + detail::format_g(new_ts, 10) + " s would give " + detail::format_g(count, 10) +
                     " samples (more than 2^31 - 1); choose a longer sample time or a shorter record",
                 at_parameter("new_ts"));
   }
@@ -174,7 +175,7 @@ inline Experiment resample(const Experiment& e, double new_ts,
   Experiment out = detail::with_samples(e, convert(e.u(), options.inputs),
                                         convert(e.y(), options.outputs), new_ts, e.t0());
   out.add_note(
-      "resampled from ts " + detail::fmt_g(e.ts()) + " to " + detail::fmt_g(new_ts) +
+      "resampled from ts " + detail::format_g(e.ts(), 10) + " to " + detail::format_g(new_ts, 10) +
       (down ? " (zero-phase anti-alias low-pass, then interpolation)" : " (interpolation)"));
   return out;
 }

@@ -77,6 +77,7 @@
 #include <Eigen/Householder>  // makeHouseholderInPlace
 
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/estimation/concepts.hpp"
 #include "nlid/estimation/robust_loss.hpp"
 
@@ -257,11 +258,7 @@ struct LmSummary {
   }
   /// One-paragraph human-readable account: status, costs, counts, time.
   std::string message() const {
-    auto num = [](double v) {
-      char buf[32];
-      std::snprintf(buf, sizeof buf, "%.6g", v);
-      return std::string(buf);
-    };
+    auto num = [](double v) { return detail::format_g(v); };
     std::string s = std::string("Levenberg-Marquardt: ") + to_string(status) +
                     (converged()          ? " (converged)"
                      : stalled_at_start() ? " (stalled: no step reduced the cost, the start was kept)"
@@ -541,11 +538,7 @@ class LmEngine {
     if (!options_.parameter_names.empty()) return options_.parameter_names[static_cast<std::size_t>(k)];
     return "theta[" + std::to_string(k) + "]";
   }
-  static std::string num(double v) {
-    char buf[32];
-    std::snprintf(buf, sizeof buf, "%.9g", v);
-    return buf;
-  }
+  static std::string num(double v) { return detail::format_g(v, 9); }
 
   void validate_options(int n) const {
     const LmOptions& o = options_;

@@ -57,6 +57,7 @@
 #include <Eigen/Core>
 
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/estimation/concepts.hpp"
 #include "nlid/estimation/levenberg_marquardt.hpp"
 
@@ -121,11 +122,7 @@ struct MultiStartSummary {
   }
   /// Human-readable table: one line per start, the best marked, and the agreement count.
   [[nodiscard]] std::string report() const {
-    auto num = [](double v) {
-      char b[32];
-      std::snprintf(b, sizeof b, "%.6g", v);
-      return std::string(b);
-    };
+    auto num = [](double v) { return detail::format_g(v); };
     std::string s = "Multi-start: " + std::to_string(starts.size()) +
                     " Levenberg-Marquardt run(s) from the best of " + std::to_string(num_candidates) +
                     " candidates (" + sequence + ", " + std::to_string(num_sampled_parameters) +

@@ -42,6 +42,7 @@
 #include <Eigen/SVD>
 
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/estimation/concepts.hpp"
 #include "nlid/estimation/detail/covariance_check.hpp"
 #include "nlid/estimation/levenberg_marquardt.hpp"
@@ -123,11 +124,7 @@ struct ParameterUncertainty {
   /// Readable account: one line per parameter (`count` first ones; −1: all) with ±1σ and the
   /// white-formula value, the unidentifiable combinations, and pairs correlated beyond 0.95.
   [[nodiscard]] std::string report(int count = -1) const {
-    auto num = [](double v) {
-      char b[32];
-      std::snprintf(b, sizeof b, "%.4g", v);
-      return std::string(b);
-    };
+    auto num = [](double v) { return detail::format_g(v, 4); };
     const Eigen::Index n = count < 0 ? theta.size() : std::min<Eigen::Index>(count, theta.size());
     std::string s = "Parameter uncertainty (1 sigma; ";
     if (stored) {
@@ -564,7 +561,8 @@ ParameterUncertainty parameter_uncertainty(const Pb& problem, const Eigen::Vecto
   for (Eigen::Index i = 0; i < stddev.size(); ++i) {
     const std::string& q = names[static_cast<std::size_t>(i)];
     require(stddev[i] >= 0.0,
-            "stored uncertainty: the standard deviation of " + q + " must be >= 0 (or inf), got " + detail::format_g6(stddev[i]),
+            "stored uncertainty: the standard deviation of " + q + " must be >= 0 (or inf), got " +
+                detail::format_g(stddev[i]),
             at_parameter(q));
   }
   ParameterUncertainty u;

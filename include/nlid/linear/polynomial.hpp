@@ -39,6 +39,7 @@
 
 #include "nlid/ad/dual.hpp"
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 
 namespace nlid {
 
@@ -163,11 +164,7 @@ inline Eigen::VectorXcd frequency_response(const Eigen::VectorXd& b, const Eigen
 }
 
 /// A number with `digits` significant digits, as the toolbox prints coefficients.
-inline std::string format_number(double v, int digits = 4) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.*g", digits, v);
-  return buf;
-}
+inline std::string format_number(double v, int digits = 4) { return detail::format_g(v, digits); }
 
 /// Human-readable polynomial, e.g. `1 - 1.523 q^-1 + 0.5891 q^-2` (zero terms skipped).
 /// `stddev`, if given (same length), appends ` (+/- s)` after each coefficient, as the

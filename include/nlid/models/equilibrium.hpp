@@ -30,6 +30,7 @@
 #include <Eigen/Core>
 
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/models/detail/model_common.hpp"
 #include "nlid/models/greybox.hpp"
 #include "nlid/models/hammerstein_wiener.hpp"
@@ -144,8 +145,8 @@ OperatingPoint equilibrium_for_output(const M& model, double y_target, double u_
     u0 = u1; g0 = g1; op0 = op1;
     u1 = u2; g1 = g2; op1 = op2;
   }
-  throw Error("equilibrium_for_output: no constant input found whose steady output is " + detail::format_value(y_target, 6) +
-                  " (closest: " + detail::format_value(y_target + g1, 6) + " at u = " + detail::format_value(u1, 6) +
+  throw Error("equilibrium_for_output: no constant input found whose steady output is " + detail::format_g(y_target) +
+                  " (closest: " + detail::format_g(y_target + g1) + " at u = " + detail::format_g(u1) +
                   "); the target may lie outside the model's steady-state range",
               at_parameter("y_target"));
 }

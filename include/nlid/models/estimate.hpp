@@ -47,6 +47,7 @@
 
 #include "nlid/analysis/fit.hpp"
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/core/initial_condition.hpp"
 #include "nlid/data/dataset.hpp"
 #include "nlid/estimation/autodiff.hpp"
@@ -576,7 +577,7 @@ template <Regressor R, Nonlinearity F>
       const int rest = options.solver.max_iterations - pilot;
       start_label.clear();
       if (rest > 0)
-        say("start " + std::to_string(chosen + 1) + " has the lowest cost (" + detail::format_value(best_cost) +
+        say("start " + std::to_string(chosen + 1) + " has the lowest cost (" + detail::format_g(best_cost, 4) +
             "): it continues for " + std::to_string(rest) + " iteration(s)");
       if (rest > 0) {
         LmOptions o = detail::extend_options(options.solver, model.num_parameters(), 0, model.parameter_names());

@@ -49,6 +49,7 @@
 #include <Eigen/Core>
 
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/core/initial_condition.hpp"
 #include "nlid/data/dataset.hpp"
 #include "nlid/data/experiment.hpp"
@@ -79,11 +80,6 @@ concept HasInitializeHook = requires(const P& p, const Dataset& d, std::span<Par
   p.initialize(d, s);
 };
 
-inline std::string format_number(double v) {
-  char buf[40];
-  std::snprintf(buf, sizeof buf, "%.6g", v);
-  return buf;
-}
 }  // namespace detail
 
 /// A grey-box model of physics P (see the file comment).
@@ -120,7 +116,7 @@ class GreyBox {
                 at_parameter(q.name));
       }
       require(q.lower <= q.value && q.value <= q.upper,
-              "default value " + detail::format_number(q.value) + " of '" + q.name +
+              "default value " + detail::format_g(q.value) + " of '" + q.name +
                   "' is outside its bounds",
               at_parameter(q.name));
       params_.push_back(q);
@@ -218,9 +214,9 @@ class GreyBox {
     require(!(lower > upper) && !std::isnan(lower) && !std::isnan(upper),
             "bounds of '" + q.name + "' must satisfy lower <= upper", at_parameter(q.name));
     require(lower <= q.value && q.value <= upper,
-            "current value " + detail::format_number(q.value) + " of '" + q.name +
-                "' lies outside the new bounds [" + detail::format_number(lower) + ", " +
-                detail::format_number(upper) + "]; set the value first",
+            "current value " + detail::format_g(q.value) + " of '" + q.name +
+                "' lies outside the new bounds [" + detail::format_g(lower) + ", " +
+                detail::format_g(upper) + "]; set the value first",
             at_parameter(q.name));
     q.lower = lower;
     q.upper = upper;
@@ -276,7 +272,7 @@ class GreyBox {
     for (Eigen::Index i = 0; i < sd.size(); ++i) {
       const std::string& q = params_[static_cast<std::size_t>(i)].name;
       require(sd[i] >= 0.0, "grey-box model '" + name() + "': the standard deviation of " + q + " must be >= 0 (or inf), got " +
-                                detail::format_number(sd[i]),
+                                detail::format_g(sd[i]),
               at_parameter(q));
     }
     stddev_ = std::move(sd);
@@ -404,7 +400,7 @@ class GreyBox {
       throw DivergenceError("simulation of grey-box model '" + name() + "'" +
                   (label.empty() ? std::string() : " on '" + label + "'") +
                   " diverged at sample " + std::to_string(got) + " (t = " +
-                  detail::format_number(static_cast<double>(got) * ts) + " s after start) with " +
+                  detail::format_g(static_cast<double>(got) * ts) + " s after start) with " +
                   std::to_string(sub) + " sub-step(s) per sample" + capped_substeps_note(ts, rho, sub) +
                   "; check the parameters, or raise "
                   "IntegratorOptions::substeps / min_substeps, or use the adaptive method",
@@ -419,8 +415,8 @@ class GreyBox {
   [[nodiscard]] std::string capped_substeps_note(double ts, double rho, int sub) const {
     const double need = unstable_capped_substeps(ts, rho, sub, integrator_);
     if (need == 0.0) return {};
-    return " (the sample time " + detail::format_number(ts) + " s is too long for the model's stiffness, spectral radius " +
-           detail::format_number(rho) + " 1/s: a stable step needs " + detail::format_number(need) +
+    return " (the sample time " + detail::format_g(ts) + " s is too long for the model's stiffness, spectral radius " +
+           detail::format_g(rho) + " 1/s: a stable step needs " + detail::format_g(need) +
            " sub-steps, more than IntegratorOptions::max_substeps = " + std::to_string(integrator_.max_substeps) + ")";
   }
 
@@ -469,7 +465,7 @@ class GreyBox {
     if (!res.converged) {
       throw Error("grey-box model '" + name() + "' has no equilibrium for the input held at its " +
                   (label.empty() ? std::string("given") : "first ('" + label + "')") +
-                  " value (|f(x)| stays at " + detail::format_number(res.residual) +
+                  " value (|f(x)| stays at " + detail::format_g(res.residual) +
                   "); use InitialCondition::estimate or zero");
     }
     return x;
@@ -537,17 +533,17 @@ class GreyBox {
     for (const auto& q : params_) w = std::max(w, q.name.size());
     for (const auto& q : params_) {
       std::string line = "    " + q.name + std::string(w - q.name.size() + 2, ' ');
-      std::string val = detail::format_number(q.value);
+      std::string val = detail::format_g(q.value);
       line += val + std::string(val.size() < 14 ? 14 - val.size() : 1, ' ');
       std::string unit = detail::substitute_units(q.unit, y_unit_, u_unit_);
       line += unit + std::string(unit.size() < 18 ? 18 - unit.size() : 1, ' ');
       line += q.fixed ? "fixed" : "estimated";
       if (stddev_.size() == num_parameters() && !q.fixed) {
         const double sd = stddev_[&q - params_.data()];
-        line += std::isfinite(sd) ? " +- " + detail::format_number(sd) : std::string(" +- inf (not identifiable)");
+        line += std::isfinite(sd) ? " +- " + detail::format_g(sd) : std::string(" +- inf (not identifiable)");
       }
       if (std::isfinite(q.lower) || std::isfinite(q.upper)) {
-        line += "  bounds [" + detail::format_number(q.lower) + ", " + detail::format_number(q.upper) + "]";
+        line += "  bounds [" + detail::format_g(q.lower) + ", " + detail::format_g(q.upper) + "]";
       }
       if (!q.description.empty()) line += "  -- " + q.description;
       s += line + "\n";
@@ -557,12 +553,12 @@ class GreyBox {
                                                                          : "dormand_prince";
     s += "  integrator: " + std::string(method);
     if (integrator_.method == IntegratorMethod::dormand_prince) {
-      s += " (rtol " + detail::format_number(integrator_.relative_tolerance) + ", atol " +
-           detail::format_number(integrator_.absolute_tolerance) + ")";
+      s += " (rtol " + detail::format_g(integrator_.relative_tolerance) + ", atol " +
+           detail::format_g(integrator_.absolute_tolerance) + ")";
     } else if (integrator_.substeps > 0) {
       s += ", " + std::to_string(integrator_.substeps) + " sub-steps per sample";
     } else {
-      s += ", automatic sub-steps (h*rho <= " + detail::format_number(integrator_.stability_target) + ")";
+      s += ", automatic sub-steps (h*rho <= " + detail::format_g(integrator_.stability_target) + ")";
     }
     s += "; input held between samples (zero-order hold)\n";
     return s;
@@ -594,8 +590,8 @@ class GreyBox {
   static void check_value(const ParameterInfo& q, double v) {
     require(std::isfinite(v), "value of '" + q.name + "' is not finite", at_parameter(q.name));
     require(q.lower <= v && v <= q.upper,
-            "value " + detail::format_number(v) + " of '" + q.name + "' is outside its bounds [" +
-                detail::format_number(q.lower) + ", " + detail::format_number(q.upper) + "]",
+            "value " + detail::format_g(v) + " of '" + q.name + "' is outside its bounds [" +
+                detail::format_g(q.lower) + ", " + detail::format_g(q.upper) + "]",
             at_parameter(q.name));
   }
 

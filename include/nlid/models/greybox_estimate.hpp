@@ -35,6 +35,7 @@
 #include <Eigen/Core>
 
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/core/initial_condition.hpp"
 #include "nlid/data/dataset.hpp"
 #include "nlid/estimation/levenberg_marquardt.hpp"
@@ -88,11 +89,7 @@ struct GreyBoxEstimate {
 
   /// Human-readable report: parameters with ±1σ, fit per experiment, multi-start agreement.
   [[nodiscard]] std::string report() const {
-    auto num = [](double v) {
-      char b[32];
-      std::snprintf(b, sizeof b, "%.6g", v);
-      return std::string(b);
-    };
+    auto num = [](double v) { return detail::format_g(v); };
     std::string s = "Grey-box estimation: cost " + num(cost) + ", " + num(seconds) + " s\n";
     if (uncertainty.theta.size() >= parameters.size() && parameters.size() > 0) {
       s += uncertainty.report(static_cast<int>(parameters.size()));

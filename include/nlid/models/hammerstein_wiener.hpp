@@ -37,6 +37,7 @@
 
 #include "nlid/ad/dual.hpp"
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/core/initial_condition.hpp"
 #include "nlid/data/experiment.hpp"
 #include "nlid/models/concepts.hpp"
@@ -301,7 +302,7 @@ class HammersteinWiener {
   [[nodiscard]] std::string describe() const {
     const auto [th_f, th_l, th_h] = split(detail::as_const_span(theta_));
     std::string s = "Hammerstein-Wiener model: " + output_name_ + " = h(B/F f(" + input_name_ + "))";
-    if (ts_ > 0) s += ", sample time " + detail::format_value(ts_) + " s";
+    if (ts_ > 0) s += ", sample time " + detail::format_g(ts_, 4) + " s";
     s += "\n  input nonlinearity f: " + f_.describe(th_f);
     if (s.back() != '\n') s += "\n";
     s += "  " + lin_.describe(th_l);

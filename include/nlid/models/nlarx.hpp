@@ -46,6 +46,7 @@
 
 #include "nlid/ad/dual.hpp"
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/core/initial_condition.hpp"
 #include "nlid/data/experiment.hpp"
 #include "nlid/models/concepts.hpp"
@@ -264,7 +265,7 @@ class Nlarx {
       const double tail = (ys.tail(100).array() - ys(n - 1)).abs().maxCoeff();
       if (tail <= 1e-9 * (1.0 + std::abs(ys(n - 1)))) return ys(n - 1);
     }
-    throw Error("no steady state found for the held input u = " + detail::format_value(u0(0)) +
+    throw Error("no steady state found for the held input u = " + detail::format_g(u0(0), 4) +
                     " (the model oscillates or diverges)",
                 at_parameter("initial"));
   }
@@ -409,7 +410,7 @@ class Nlarx {
   /// the estimation did.
   [[nodiscard]] std::string describe() const {
     std::string s = "Nonlinear ARX model: " + output_name_ + "(t) = F(regressors)";
-    if (ts_ > 0) s += ", sample time " + detail::format_value(ts_) + " s";
+    if (ts_ > 0) s += ", sample time " + detail::format_g(ts_, 4) + " s";
     s += "\n  regressors (" + std::to_string(regs_.size()) + "):\n";
     const auto names = regressor_names();
     for (std::size_t i = 0; i < names.size(); ++i) s += "    x[" + std::to_string(i) + "] = " + names[i] + "\n";
@@ -425,7 +426,7 @@ class Nlarx {
     const auto pn = parameter_names();
     for (Eigen::Index i = 0; i < theta_.size(); ++i) {
       s += "    " + (static_cast<std::size_t>(i) < pn.size() ? pn[static_cast<std::size_t>(i)] : "p" + std::to_string(i)) +
-           " = " + detail::format_value(theta_(i), 6) + "\n";
+           " = " + detail::format_g(theta_(i)) + "\n";
     }
     s += detail::describe_report(report_);
     return s;

@@ -52,6 +52,7 @@
 
 #include "nlid/ad/dual.hpp"
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/core/initial_condition.hpp"
 #include "nlid/core/sizes.hpp"
 #include "nlid/data/experiment.hpp"
@@ -441,7 +442,7 @@ class Series {
   /// and the estimation report.
   [[nodiscard]] std::string describe() const {
     std::string s = kind() + " model (" + chain_formula() + ")";
-    if (ts_ > 0) s += ", sample time " + detail::format_value(ts_) + " s";
+    if (ts_ > 0) s += ", sample time " + detail::format_g(ts_, 4) + " s";
     s += "\n";
     describe_all(s, std::index_sequence_for<Blocks...>{});
     s += detail::describe_report(report_);

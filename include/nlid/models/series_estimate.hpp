@@ -60,6 +60,7 @@
 
 #include "nlid/analysis/fit.hpp"
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/core/initial_condition.hpp"
 #include "nlid/data/dataset.hpp"
 #include "nlid/estimation/levenberg_marquardt.hpp"
@@ -108,8 +109,8 @@ struct SeriesInitialization {
   int candidate_iterations = 0;              ///< iterations spent refining candidates
   /// One line summary.
   [[nodiscard]] std::string summary() const {
-    return "BLA fit " + detail::format_value(bla_fit_percent) + " %, " + std::to_string(splits_scored) +
-           " split(s) scored, best quick fit " + detail::format_value(best_quick_fit_percent) + " %" +
+    return "BLA fit " + detail::format_g(bla_fit_percent, 4) + " %, " + std::to_string(splits_scored) +
+           " split(s) scored, best quick fit " + detail::format_g(best_quick_fit_percent, 4) + " %" +
            (chosen_split.empty() ? std::string() : " (" + chosen_split + ")");
   }
 };
@@ -241,13 +242,13 @@ inline std::string describe_groups(const std::vector<RootGroup>& groups, const s
   std::string s;
   for (std::size_t g = 0; g < groups.size(); ++g) {
     if (assign[g] == -2 - block) {
-      s += (s.empty() ? "" : ", ") + format_value(std::abs(groups[g].r)) + " (from pair)";
+      s += (s.empty() ? "" : ", ") + detail::format_g(std::abs(groups[g].r), 4) + " (from pair)";
       continue;
     }
     if (assign[g] != block) continue;
     if (!s.empty()) s += ", ";
-    s += format_value(groups[g].r.real());
-    if (groups[g].size == 2) s += "±" + format_value(groups[g].r.imag()) + "i";
+    s += detail::format_g(groups[g].r.real(), 4);
+    if (groups[g].size == 2) s += "±" + detail::format_g(groups[g].r.imag(), 4) + "i";
   }
   return s.empty() ? "none" : s;
 }
@@ -519,7 +520,7 @@ SeriesInitialization initialize_series(Series<B...>& model, const Dataset& data,
     if (options.progress)
       options.progress("initialisation: best linear approximation [nb nf nk] = [" + std::to_string(nbt) + " " +
                        std::to_string(nft) + " " + std::to_string(nkt) + "], fit " +
-                       detail::format_value(info.bla_fit_percent) + " %");
+                       detail::format_g(info.bla_fit_percent, 4) + " %");
     Eigen::VectorXcd bla_poles = nft > 0 ? roots(bla.f) : Eigen::VectorXcd();
     Eigen::VectorXcd bla_zeros = roots(Eigen::VectorXd(bla.b.tail(nbt)));
     detail::remove_cancellations(bla_poles, bla_zeros);
@@ -596,7 +597,7 @@ SeriesInitialization initialize_series(Series<B...>& model, const Dataset& data,
   }
   if (options.progress && !splits.empty())
     options.progress("initialisation: " + std::to_string(splits.size()) + " pole/zero split(s) scored, best quick fit " +
-                     detail::format_value(info.best_quick_fit_percent) + " %" +
+                     detail::format_g(info.best_quick_fit_percent, 4) + " %" +
                      (info.chosen_split.empty() ? std::string() : " (" + info.chosen_split + ")"));
 
   // 3. θ from a split: linear blocks (scaled), static blocks (pivot from the surrogate).
@@ -781,7 +782,7 @@ SeriesInitialization initialize_series(Series<B...>& model, const Dataset& data,
       }
       if (options.progress)
         options.progress("initialisation: candidate " + std::to_string(c + 1) + " (" + s.text + "): cost " +
-                         detail::format_value(cost) + " after " + std::to_string(options.candidate_iterations) +
+                         detail::format_g(cost, 4) + " after " + std::to_string(options.candidate_iterations) +
                          " iterations");
     } else {
       cost = s.score;

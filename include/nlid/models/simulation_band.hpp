@@ -36,6 +36,7 @@
 #include <Eigen/SVD>
 
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/core/initial_condition.hpp"
 #include "nlid/data/dataset.hpp"
 #include "nlid/estimation/autodiff.hpp"
@@ -104,12 +105,7 @@ struct SimulationBand {
   /// Table of the band against the error per experiment and output, one verdict per row, and
   /// the unidentifiable directions' effect.
   [[nodiscard]] std::string report() const {
-    auto num = [](double v) {
-      char b[32];
-      if (std::isnan(v)) return std::string("-");
-      std::snprintf(b, sizeof b, "%.4g", v);
-      return std::string(b);
-    };
+    auto num = [](double v) { return std::isnan(v) ? std::string("-") : detail::format_g(v, 4); };
     auto pct = [&](double v) { return std::isnan(v) ? std::string("-") : num(100.0 * v) + " %"; };
     char line[320];
     std::string s = "Simulation band (1 sigma of the simulated output from the parameters' covariance)\n";
@@ -158,11 +154,7 @@ struct SimulationBand {
   [[nodiscard]] std::string verdict(Eigen::Index e, Eigen::Index j) const {
     const double reach = reachable_share(e, j), near = plausible_share(e, j);
     if (std::isnan(rms_error(e, j)) || std::isnan(reach)) return {};
-    auto num = [](double v) {
-      char b[32];
-      std::snprintf(b, sizeof b, "%.3g", v);
-      return std::string(b);
-    };
+    auto num = [](double v) { return detail::format_g(v, 3); };
     const std::string who = "  " + experiment_names[static_cast<std::size_t>(e)] +
                             (rms_stddev.cols() > 1 ? " " + output_names[static_cast<std::size_t>(j)] : "") + ": ";
     const std::string radius = num(plausible_radius()) + " sigma";

@@ -29,6 +29,7 @@
 #include <Eigen/Core>
 
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/nonlinearities/detail/common.hpp"
 #include "nlid/nonlinearities/detail/limit_scan.hpp"
 
@@ -55,8 +56,8 @@ class DeadZone {
       throw Error("DeadZone: limits must be finite", at_parameter(std::isfinite(lower) ? "upper" : "lower"));
     }
     if (lower > upper) {
-      throw Error("DeadZone: lower limit " + detail::fmt_num(lower) + " exceeds upper limit " +
-                      detail::fmt_num(upper),
+      throw Error("DeadZone: lower limit " + detail::format_g(lower) + " exceeds upper limit " +
+                      detail::format_g(upper),
                   at_parameter("lower"));
     }
     initial_ = std::make_pair(lower, upper);
@@ -114,9 +115,9 @@ class DeadZone {
     detail::check_size(theta.size(), 2, "theta", "DeadZone");
     const double lo = std::min(theta[0], theta[1]);
     const double hi = std::max(theta[0], theta[1]);
-    std::string s = "dead zone: g(x) = x - (" + detail::fmt_num(lo) + ") for x < " + detail::fmt_num(lo) +
-                    ", 0 for " + detail::fmt_num(lo) + " <= x <= " + detail::fmt_num(hi) +
-                    ", x - (" + detail::fmt_num(hi) + ") for x > " + detail::fmt_num(hi) + "\n";
+    std::string s = "dead zone: g(x) = x - (" + detail::format_g(lo) + ") for x < " + detail::format_g(lo) +
+                    ", 0 for " + detail::format_g(lo) + " <= x <= " + detail::format_g(hi) +
+                    ", x - (" + detail::format_g(hi) + ") for x > " + detail::format_g(hi) + "\n";
     if (theta[1] < theta[0]) s += "  note: lower > upper in theta; the limits are used swapped\n";
     return s;
   }

@@ -23,6 +23,7 @@
 #include <Eigen/Core>
 
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/core/sizes.hpp"
 #include "nlid/nonlinearities/detail/common.hpp"
 
@@ -90,7 +91,7 @@ class LinearMap {
     std::string s = "linear map: g(x) = ";
     for (int j = 0; j < m_; ++j) {
       const double v = theta[static_cast<std::size_t>(j)];
-      s += (j == 0 ? (v < 0 ? "-" + detail::fmt_num(-v) : detail::fmt_num(v)) : detail::fmt_signed(v)) +
+      s += (j == 0 ? (v < 0 ? "-" + detail::format_g(-v) : detail::format_g(v)) : detail::fmt_signed(v)) +
            "·" + names[static_cast<std::size_t>(j)];
     }
     s += detail::fmt_signed(theta[static_cast<std::size_t>(m_)]) + "\n";

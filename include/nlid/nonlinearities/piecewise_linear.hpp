@@ -47,6 +47,7 @@
 #include <Eigen/Core>
 
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/core/sizes.hpp"
 #include "nlid/nonlinearities/detail/common.hpp"
 #include "nlid/nonlinearities/detail/forward_selection.hpp"
@@ -87,9 +88,9 @@ class PwLinear {
       }
       if (k > 0 && !(positions[k] > positions[k - 1])) {
         throw Error("PwLinear: breakpoints must be strictly increasing, but breakpoint " +
-                        std::to_string(k) + " (" + detail::fmt_num(positions[k]) +
+                        std::to_string(k) + " (" + detail::format_g(positions[k]) +
                         ") is not greater than breakpoint " + std::to_string(k - 1) + " (" +
-                        detail::fmt_num(positions[k - 1]) + ")",
+                        detail::format_g(positions[k - 1]) + ")",
                     at_parameter("breakpoints"));
       }
     }
@@ -229,9 +230,9 @@ class PwLinear {
     std::string s = "piecewise linear (" + std::to_string(n_) +
                     " breakpoints, linear extrapolation beyond the ends): g(x) through\n";
     for (std::size_t k = 0; k < xs.size(); ++k) {
-      s += "  (" + detail::fmt_num(xs[k]) + ", " + detail::fmt_num(ys[k]) + ")";
+      s += "  (" + detail::format_g(xs[k]) + ", " + detail::format_g(ys[k]) + ")";
       if (k + 1 < xs.size()) {
-        s += "   slope to next: " + detail::fmt_num((ys[k + 1] - ys[k]) / (xs[k + 1] - xs[k]));
+        s += "   slope to next: " + detail::format_g((ys[k + 1] - ys[k]) / (xs[k + 1] - xs[k]));
       }
       s += "\n";
     }
@@ -244,7 +245,7 @@ class PwLinear {
     const double xmin = x.minCoeff();
     const double xmax = x.maxCoeff();
     if (!(xmax > xmin)) {
-      throw Error("PwLinear: column 1 of X is constant (" + detail::fmt_num(xmin) +
+      throw Error("PwLinear: column 1 of X is constant (" + detail::format_g(xmin) +
                       "); breakpoints cannot be placed — give them to the constructor",
                   at_parameter("X"));
     }

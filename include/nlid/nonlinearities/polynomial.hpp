@@ -25,6 +25,7 @@
 #include <Eigen/Core>
 
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/core/sizes.hpp"
 #include "nlid/nonlinearities/detail/common.hpp"
 
@@ -106,7 +107,7 @@ class Poly1d {
     for (int k = degree_; k >= 0; --k) {
       const double v = theta[static_cast<std::size_t>(k)];
       if (v == 0.0 && !(k == 0 && first)) continue;
-      std::string mag = detail::fmt_num(std::abs(v));
+      std::string mag = detail::format_g(std::abs(v));
       std::string term = k == 0 ? mag : (k == 1 ? mag + "·x" : mag + "·x^" + std::to_string(k));
       s += first ? (v < 0 ? " -" + term : " " + term) : (v < 0 ? " - " : " + ") + term;
       first = false;

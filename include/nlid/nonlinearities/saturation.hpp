@@ -37,6 +37,7 @@
 #include <Eigen/Core>
 
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/nonlinearities/detail/common.hpp"
 #include "nlid/nonlinearities/detail/limit_scan.hpp"
 
@@ -63,8 +64,8 @@ class Saturation {
       throw Error("Saturation: limits must be finite", at_parameter(std::isfinite(lower) ? "upper" : "lower"));
     }
     if (lower > upper) {
-      throw Error("Saturation: lower limit " + detail::fmt_num(lower) + " exceeds upper limit " +
-                      detail::fmt_num(upper),
+      throw Error("Saturation: lower limit " + detail::format_g(lower) + " exceeds upper limit " +
+                      detail::format_g(upper),
                   at_parameter("lower"));
     }
     initial_ = std::make_pair(lower, upper);
@@ -122,9 +123,9 @@ class Saturation {
     detail::check_size(theta.size(), 2, "theta", "Saturation");
     const double lo = std::min(theta[0], theta[1]);
     const double hi = std::max(theta[0], theta[1]);
-    std::string s = "saturation: g(x) = min(max(x, " + detail::fmt_num(lo) + "), " +
-                    detail::fmt_num(hi) + ")   [linear interval " + detail::fmt_num(lo) +
-                    " <= x <= " + detail::fmt_num(hi) + "]\n";
+    std::string s = "saturation: g(x) = min(max(x, " + detail::format_g(lo) + "), " +
+                    detail::format_g(hi) + ")   [linear interval " + detail::format_g(lo) +
+                    " <= x <= " + detail::format_g(hi) + "]\n";
     if (theta[1] < theta[0]) s += "  note: lower > upper in theta; the limits are used swapped\n";
     return s;
   }

@@ -43,6 +43,7 @@
 #include <Eigen/Eigenvalues>
 
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/core/sizes.hpp"
 #include "nlid/nonlinearities/detail/common.hpp"
 #include "nlid/nonlinearities/detail/regressor_cloud.hpp"
@@ -176,9 +177,9 @@ class TreePartition {
     std::string o = "tree partition (" + std::to_string(m_) + " inputs, depth " + std::to_string(depth_) + ", " +
                     std::to_string(leaves()) + " leaves): g(x) = z'L[leaf] + d[leaf],  z = (x - r)./s\n";
     o += "  r = [";
-    for (int j = 0; j < m_; ++j) o += (j ? ", " : "") + detail::fmt_num(r(j));
+    for (int j = 0; j < m_; ++j) o += (j ? ", " : "") + detail::format_g(r(j));
     o += "],  s = [";
-    for (int j = 0; j < m_; ++j) o += (j ? ", " : "") + detail::fmt_num(s(j));
+    for (int j = 0; j < m_; ++j) o += (j ? ", " : "") + detail::format_g(s(j));
     o += "]\n  splits (node: go right if v'z > t; children 2n+1, 2n+2):\n";
     for (int nd = 0; nd < leaves() - 1; ++nd) {
       o += "    " + std::to_string(nd) + ": ";
@@ -190,17 +191,19 @@ class TreePartition {
       for (int j = 0; j < m_; ++j) {
         const double v = dir_[static_cast<std::size_t>(nd * m_ + j)];
         if (v == 0.0) continue;
-        o += (first ? (v < 0 ? "-" : "") : (v < 0 ? " - " : " + ")) + detail::fmt_num(std::abs(v)) + "*z(" +
+        o += (first ? (v < 0 ? "-" : "") : (v < 0 ? " - " : " + ")) + detail::format_g(std::abs(v)) + "*z(" +
              names[static_cast<std::size_t>(j)] + ")";
         first = false;
       }
-      o += " > " + detail::fmt_num(thr_[static_cast<std::size_t>(nd)]) + "\n";
+      o += " > " + detail::format_g(thr_[static_cast<std::size_t>(nd)]) + "\n";
     }
     o += "  leaf models:\n";
     for (int l = 0; l < leaves(); ++l) {
       o += "    " + std::to_string(l) + ": L = [";
-      for (int j = 0; j < m_; ++j) o += (j ? ", " : "") + detail::fmt_num(theta[static_cast<std::size_t>(l * (m_ + 1) + j)]);
-      o += "], d = " + detail::fmt_num(theta[static_cast<std::size_t>(l * (m_ + 1) + m_)]) + "\n";
+      for (int j = 0; j < m_; ++j) {
+        o += (j ? ", " : "") + detail::format_g(theta[static_cast<std::size_t>(l * (m_ + 1) + j)]);
+      }
+      o += "], d = " + detail::format_g(theta[static_cast<std::size_t>(l * (m_ + 1) + m_)]) + "\n";
     }
     return o;
   }

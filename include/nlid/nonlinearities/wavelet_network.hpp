@@ -48,6 +48,7 @@
 #include <Eigen/Core>
 
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/core/sizes.hpp"
 #include "nlid/nonlinearities/detail/common.hpp"
 #include "nlid/nonlinearities/detail/forward_selection.hpp"
@@ -217,17 +218,17 @@ class WaveletNet {
     if constexpr (LinearTerm) o += "     L[j]          L[j]/s (per unit of x)";
     o += "\n";
     for (int j = 0; j < m_; ++j) {
-      o += "  " + pad(names[static_cast<std::size_t>(j)], 16) + " " + pad(detail::fmt_num(r(j)), 13) + " " +
-           pad(detail::fmt_num(s(j)), 13);
-      if constexpr (LinearTerm) o += " " + pad(detail::fmt_num(th(j)), 13) + " " + detail::fmt_num(th(j) / s(j));
+      o += "  " + pad(names[static_cast<std::size_t>(j)], 16) + " " + pad(detail::format_g(r(j)), 13) + " " +
+           pad(detail::format_g(s(j)), 13);
+      if constexpr (LinearTerm) o += " " + pad(detail::format_g(th(j)), 13) + " " + detail::format_g(th(j) / s(j));
       o += "\n";
     }
-    o += "  d = " + detail::fmt_num(th(offset_d())) + "\n";
+    o += "  d = " + detail::format_g(th(offset_d())) + "\n";
     o += "  unit  a[k] (scaling)  w[k] (wavelet)  b[k] (dilation)  c[k] (translation, in z)\n";
     for (int k = 0; k < units_; ++k) {
-      o += "  " + pad(std::to_string(k), 5) + " " + pad(detail::fmt_num(th(offset_a() + k)), 15) + " " +
-           pad(detail::fmt_num(th(offset_w() + k)), 15) + " " + pad(detail::fmt_num(th(offset_b() + k)), 16) + " [";
-      for (int j = 0; j < m_; ++j) o += (j ? ", " : "") + detail::fmt_num(th(offset_c() + k * m_ + j));
+      o += "  " + pad(std::to_string(k), 5) + " " + pad(detail::format_g(th(offset_a() + k)), 15) + " " +
+           pad(detail::format_g(th(offset_w() + k)), 15) + " " + pad(detail::format_g(th(offset_b() + k)), 16) + " [";
+      for (int j = 0; j < m_; ++j) o += (j ? ", " : "") + detail::format_g(th(offset_c() + k * m_ + j));
       o += "]\n";
     }
     return o;

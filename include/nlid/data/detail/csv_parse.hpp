@@ -21,6 +21,7 @@
 
 #include "nlid/core/atomic_file.hpp"
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/data/detail/missing.hpp"
 #include "nlid/data/experiment.hpp"
 
@@ -469,11 +470,7 @@ inline std::string percent(double x) {
   return buf;
 }
 
-inline std::string num(double x) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.10g", x);
-  return buf;
-}
+inline std::string num(double x) { return format_g(x, 10); }
 
 /// Throws if one file column is used twice (time, inputs, outputs).
 inline void check_distinct_columns(const CsvText& t, bool has_time, std::size_t time_col,

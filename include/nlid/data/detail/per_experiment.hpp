@@ -15,13 +15,6 @@
 
 namespace nlid::detail {
 
-/// "%.10g": short numbers for notes and messages.
-inline std::string fmt_g(double x) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.10g", x);
-  return buf;
-}
-
 /// A new experiment with these samples and everything else (name, channel names and units,
 /// notes) from `like`.
 inline Experiment with_samples(const Experiment& like, Eigen::MatrixXd u, Eigen::MatrixXd y,

@@ -11,15 +11,9 @@
 #include <Eigen/Core>
 
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 
 namespace nlid::detail {
-
-/// "%.6g": covariance entries and deviations in messages.
-inline std::string format_g6(double v) {
-  char b[32];
-  std::snprintf(b, sizeof b, "%.6g", v);
-  return b;
-}
 
 /// Throws `nlid::Error` (message prefixed by `who`, located at the parameter) unless `c` is
 /// finite, symmetric to 1e-9 of its largest entry and has a non-negative diagonal. `names`
@@ -38,11 +32,12 @@ inline void check_covariance(const std::string& who, const std::vector<std::stri
   const double scale = n > 0 ? c.cwiseAbs().maxCoeff() : 0.0;
   for (Eigen::Index i = 0; i < n; ++i) {
     const std::string& q = names[static_cast<std::size_t>(i)];
-    require(c(i, i) >= 0.0, who + "the variance of " + q + " must be >= 0, got " + format_g6(c(i, i)), at_parameter(q));
+    require(c(i, i) >= 0.0, who + "the variance of " + q + " must be >= 0, got " + detail::format_g(c(i, i)),
+            at_parameter(q));
     for (Eigen::Index j = 0; j < i; ++j) {
       require(std::abs(c(i, j) - c(j, i)) <= 1e-9 * scale,
               who + "the covariance is not symmetric (" + q + " with " + names[static_cast<std::size_t>(j)] + ": " +
-                  format_g6(c(i, j)) + " and " + format_g6(c(j, i)) + ")",
+                  detail::format_g(c(i, j)) + " and " + detail::format_g(c(j, i)) + ")",
               at_parameter(q));
     }
   }

@@ -16,6 +16,7 @@
 
 #include "nlid/ad/dual.hpp"
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/core/initial_condition.hpp"
 #include "nlid/data/experiment.hpp"
 
@@ -218,23 +219,16 @@ auto as_const_span(const V& v) {
   return std::span<const typename V::Scalar>(v.data(), static_cast<std::size_t>(v.size()));
 }
 
-/// Formats a number for reports (4 significant digits in fixed or scientific form).
-inline std::string format_value(double v, int digits = 4) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.*g", digits, v);
-  return buf;
-}
-
 /// The estimation part of a model's `describe()`.
 inline std::string describe_report(const EstimationReport& r) {
   if (!r.estimated) return "  not estimated (parameters set by hand or at their initial values)\n";
   std::string s = "  estimated with " + r.focus + " focus, initial condition " + r.initial_condition + ": " +
-                  std::to_string(r.iterations) + " iterations, " + format_value(r.seconds, 3) + " s, cost " +
-                  format_value(r.initial_cost) + " -> " + format_value(r.final_cost) + "\n";
+                  std::to_string(r.iterations) + " iterations, " + detail::format_g(r.seconds, 3) + " s, cost " +
+                  detail::format_g(r.initial_cost, 4) + " -> " + detail::format_g(r.final_cost, 4) + "\n";
   if (!r.status.empty()) s += "    solver: " + r.status + "\n";
   if (!r.start_costs.empty()) {
     s += "    " + std::to_string(r.start_costs.size()) + " data-driven starts, cost after the pilot iterations:";
-    for (double c : r.start_costs) s += " " + format_value(c);
+    for (double c : r.start_costs) s += " " + detail::format_g(c, 4);
     s += "; continued start " + std::to_string(r.chosen_start) + "\n";
   }
   for (std::size_t i = 0; i < r.fit_percent.size(); ++i) {
@@ -242,7 +236,7 @@ inline std::string describe_report(const EstimationReport& r) {
                                                                                   : "experiment " + std::to_string(i);
     s += "    fit to " + name + " (simulation): " +
          (std::isnan(r.fit_percent[i]) ? std::string("undefined (constant measured output)")
-                                       : format_value(r.fit_percent[i], 4) + " %") +
+                                       : detail::format_g(r.fit_percent[i], 4) + " %") +
          "\n";
   }
   return s;

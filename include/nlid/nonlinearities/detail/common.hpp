@@ -18,6 +18,7 @@
 #include "nlid/ad/dual.hpp"
 #include "nlid/core/batch.hpp"
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 
 namespace nlid::detail {
 
@@ -61,16 +62,9 @@ inline T logistic(const T& s) {
   }
 }
 
-/// Short fixed-precision text of a number for `describe` (6 significant digits).
-inline std::string fmt_num(double v) {
-  char buf[48];
-  std::snprintf(buf, sizeof buf, "%.6g", v);
-  return buf;
-}
-
 /// " + 1.5" / " - 1.5" for a term appended to an equation.
 inline std::string fmt_signed(double v) {
-  return v < 0 ? " - " + fmt_num(-v) : " + " + fmt_num(v);
+  return v < 0 ? " - " + detail::format_g(-v) : " + " + detail::format_g(v);
 }
 
 /// Throws unless `n` equals the expected count; names what was passed.
