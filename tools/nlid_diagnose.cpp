@@ -51,7 +51,7 @@ const char* const usage =
     "  --starts N        multi-start runs of the baseline fit (default 6)\n"
     "  --max-effects N   largest number of effects added (default 3)\n"
     "  --effects LIST    comma-separated effect names to try (default: the whole catalogue)\n"
-    "  --threads N       worker threads (default: all cores)\n"
+    "  --threads N       worker threads (default: all cores, at most 8)\n"
     "  --json FILE       write the diagnosis as JSON\n"
     "  --html FILE       write a self-contained HTML report\n"
     "  --save FILE       write the repaired model (baseline + effects found) as a model file, for\n"

@@ -136,6 +136,8 @@ struct Diagnosis {
   std::vector<FoundEffect> effects;     ///< effects added, in order
   std::vector<std::string> not_applicable;  ///< catalogue effects that cannot apply, with reason
   std::string stop_reason;              ///< why the search ended
+  SearchStop stop = SearchStop::none_significant;  ///< the same as a value
+  int max_effects = 0;                  ///< the search's limit (DiagnoseOptions::max_effects)
   DataScales scales;                    ///< data scales of the repaired model
   std::string baseline_report;          ///< multi-start summary of the baseline fit
   std::string explanation;              ///< what was missing, where, how large, fit gain
@@ -335,6 +337,8 @@ Diagnosis<P> diagnose(GreyBox<P> baseline, const Dataset& est_in, const Dataset&
   d.rounds = sr.rounds;
   d.not_applicable = sr.not_applicable;
   d.stop_reason = sr.stop_reason;
+  d.stop = sr.stop;
+  d.max_effects = options.max_effects;
   for (const SearchRound& r : d.rounds) {
     if (r.accepted < 0) continue;
     const CandidateResult& c = r.candidates[static_cast<std::size_t>(r.accepted)];

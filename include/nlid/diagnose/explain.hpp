@@ -214,6 +214,21 @@ std::string explain(const Diagnosis<P>& d) {
            detail::fits_text(d.final_val.fit) + "): nothing is missing, and no effect was added.";
       return s;
     }
+    const std::string kept = refits > 0 ? "no effect was added" : "the baseline is kept unchanged";
+    switch (d.stop) {
+      case SearchStop::effect_limit:
+        s += " No catalogue effect was tried (max_effects = " + std::to_string(d.max_effects) + "), so " + kept + ".";
+        return s;
+      case SearchStop::catalogue_exhausted:
+        s += " No catalogue effect applies to this baseline (see not_applicable), so " + kept + ".";
+        return s;
+      case SearchStop::repeated_refits:
+        s += " The search stopped after repeated re-fits of the baseline without a new effect, so " + kept +
+             "; the residual is still above the noise floor.";
+        return s;
+      default:
+        break;
+    }
     s += " None of the catalogue effects explains a significant part of it";
     if (!d.rounds.empty() && !d.rounds.back().candidates.empty()) {
       const CandidateResult& c = d.rounds.back().candidates.front();
@@ -221,8 +236,7 @@ std::string explain(const Diagnosis<P>& d) {
         s += " (best candidate " + c.effect.label() + " removes " + detail::pct(std::max(0.0, c.stats.relevance)) +
              " of the excess)";
     }
-    s += ", so the baseline is kept unchanged; what is missing lies outside the catalogue "
-         "(or is a disturbance rather than physics).";
+    s += ", so " + kept + "; what is missing lies outside the catalogue (or is a disturbance rather than physics).";
     return s;
   }
   s += " The missing physics is ";
@@ -238,8 +252,22 @@ std::string explain(const Diagnosis<P>& d) {
   if (d.floor_after.consistent) {
     s += " The remaining residual is consistent with the noise floor.";
   } else {
-    s += " No further catalogue effect improved the validation fit significantly; the remaining residual RMS is " +
-         g3(ratio1) + " times the noise floor.";
+    switch (d.stop) {
+      case SearchStop::effect_limit:
+        s += " The search stopped at its limit of " + std::to_string(d.max_effects) +
+             " effect(s) (max_effects), so more may be missing";
+        break;
+      case SearchStop::catalogue_exhausted:
+        s += " Every applicable catalogue effect is now in the model";
+        break;
+      case SearchStop::repeated_refits:
+        s += " The search stopped after repeated re-fits without a new effect";
+        break;
+      default:
+        s += " No further catalogue effect improved the validation fit significantly";
+        break;
+    }
+    s += "; the remaining residual RMS is " + g3(ratio1) + " times the noise floor.";
   }
   return s;
 }

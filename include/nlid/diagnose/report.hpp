@@ -13,11 +13,14 @@
 ///                                        "energy_share"*, "excess_share", "sample_share" }],
 ///                       "residual_rms", "excess_share", "floor_ratio", "consistent_with_noise" },
 ///       "candidates"*: [{ "name"*, "variant", "round", "fit_val"*: [..], "fit_est", "score"*,
-///                         "z", "relevance", "significant", "accepted", "params" }],
+///                         "z", "relevance", "significant", "accepted", "params",
+///                         "error" (a candidate that could not be fitted or simulated) }],
 ///       "effects"*:    [{ "name"*, "variant", "params"*: {..}, "units", "fit_val_before"*: [..],
-///                         "fit_val_after"*: [..] }],
-///       "final"*:      { "fit_est", "fit_val"*: [..], "parameters": {..} },
-///       "not_applicable": [..], "stop_reason", "explanation"*, "seconds" }
+///                         "fit_val_after"*: [..], "round", "description" }],
+///       "final"*:      { "fit_est", "fit_val"*: [..], "parameters": {..}, "floor_ratio",
+///                        "consistent_with_noise" },
+///       "not_applicable": [..], "records": { "estimation": [..], "validation": [..] },
+///       "sample_time", "stop" (SearchStop's name), "stop_reason", "explanation"*, "seconds" }
 ///
 /// Fit values are percent per experiment (estimation or validation records, in the order
 /// given). `energy_share` is the share of the residual energy Σε² of the validation records
@@ -228,6 +231,7 @@ Json diagnosis_json(const Diagnosis<P>& d) {
   names["validation"] = std::move(vn);
   j["records"] = std::move(names);
   j["sample_time"] = json_number(d.estimation.size() > 0 ? d.estimation.ts() : 0.0);
+  j["stop"] = search_stop_name(d.stop);
   j["stop_reason"] = d.stop_reason;
   j["explanation"] = d.explanation;
   j["seconds"] = json_number(d.seconds);

@@ -12,12 +12,13 @@
 ///     trajectory (effects.hpp). Effects that cannot apply (mechanical effects on a baseline
 ///     without a position/velocity pair) are listed with the reason.
 ///  2. Screening. Each candidate's starts are refitted briefly (`screen_iterations`
-///     Levenberg–Marquardt steps on *all* parameters and initial states, from M's optimum plus
-///     the effect's start); the best start per candidate is kept. This is where the search is
+///     Levenberg–Marquardt steps on *all* parameters, from M's optimum plus the effect's start;
+///     the records' initial states held at M's, so the Jacobian has the model's columns only);
+///     the best start per candidate is kept. This is where the search is
 ///     fast: a wrong effect gains little in a few steps.
 ///  3. Verdict by refit. The `refine_top` candidates with the lowest estimation cost are refitted
-///     to convergence (`refine_iterations`). Every candidate is then simulated on the validation
-///     records and scored (significance.hpp): noise test, relevance to the excess above the floor,
+///     to convergence (`refine_iterations`, initial states estimated again); only these can win.
+///     Every candidate is then simulated on the validation records and scored (significance.hpp): noise test, relevance to the excess above the floor,
 ///     and the validation BIC score, which ranks the table.
 ///  4. Decision. The refined candidate with the best score among the significant ones joins M,
 ///     with all its re-estimated parameters. If none is significant, the search stops: a model
@@ -25,9 +26,13 @@
 ///  5. Ablation check. A refit of M + effect also moves M's own parameters, and the extra
 ///     dimension can lead the optimiser out of a local minimum of M: then the gain belongs to
 ///     a better-fitted M, not to the effect. So M alone is re-fitted from the winner's values of
-///     its parameters (the control), and the winner must pass the same tests against the control.
-///     If it does not, the control replaces M (an improved fit of the same structure, reported
-///     in the round's `note`) and the search goes on without the effect.
+///     its parameters (the control). If the control validates better than M, the winner must
+///     pass the same tests against the control; if it does not, the control replaces M (an
+///     improved fit of the same structure, reported in the round's `note`) and the search goes
+///     on without the effect. This choice between two fits of one structure is the one place
+///     where the validation records choose parameters (docs/diagnosis.md).
+///  Stops (`SearchStop`): the gate, `max_effects` reached, no applicable effect left, no
+///  significant candidate, or more than `max_effects` + 2 rounds ending in a re-fit.
 ///
 /// Candidates of a round run in parallel on `threads` std::threads (each refit is independent;
 /// results are placed by index, so they do not depend on scheduling).
@@ -44,6 +49,7 @@
 
 #include <Eigen/Core>
 
+#include "nlid/core/format.hpp"
 #include "nlid/data/dataset.hpp"
 #include "nlid/diagnose/augmented.hpp"
 #include "nlid/diagnose/effects.hpp"
@@ -111,6 +117,27 @@ struct SearchRound {
   std::string note;
 };
 
+/// Why the greedy search ended (`SearchResult::stop`; `stop_reason` says it in words).
+enum class SearchStop {
+  noise_floor,          ///< the model's validation residual is consistent with the noise floor
+  effect_limit,         ///< `max_effects` effects are in the model
+  catalogue_exhausted,  ///< no applicable catalogue effect is left to try
+  none_significant,     ///< no candidate passed the verdict
+  repeated_refits,      ///< the ablation check kept re-fitting the model without adding an effect
+};
+
+/// "noise_floor", "effect_limit", …: the enumerator's name, as the diagnosis JSON writes it.
+inline const char* search_stop_name(SearchStop s) {
+  switch (s) {
+    case SearchStop::noise_floor: return "noise_floor";
+    case SearchStop::effect_limit: return "effect_limit";
+    case SearchStop::catalogue_exhausted: return "catalogue_exhausted";
+    case SearchStop::none_significant: return "none_significant";
+    case SearchStop::repeated_refits: return "repeated_refits";
+  }
+  return "unknown";
+}
+
 /// Result of the search.
 template <Physics P>
 struct SearchResult {
@@ -119,6 +146,7 @@ struct SearchResult {
   std::vector<SearchRound> rounds;         ///< every round, in order
   std::vector<std::string> not_applicable; ///< "name: reason" for effects that cannot apply
   std::string stop_reason;                 ///< why the search ended
+  SearchStop stop = SearchStop::none_significant;  ///< the same as a value
   int refits_without_effect = 0;           ///< rounds whose winner failed the ablation check
 };
 
@@ -280,7 +308,7 @@ SearchResult<P> search_effects(const AugmentedModel<P>& start, std::vector<Eigen
   auto say = [&](const std::string& s) {
     if (options.progress) options.progress(s);
   };
-  SearchResult<P> out{start, std::move(x0_est), {}, {}, {}, 0};
+  SearchResult<P> out{start, std::move(x0_est), {}, {}, {}, SearchStop::none_significant, 0};
   const std::vector<EffectKind> kinds = options.kinds.empty() ? all_effect_kinds() : options.kinds;
   for (EffectKind k : kinds) {
     const std::string why = effect_not_applicable_reason(k, start.roles().mechanical);
@@ -308,6 +336,7 @@ SearchResult<P> search_effects(const AugmentedModel<P>& start, std::vector<Eigen
     rr.fit_val_before = base_val.fit;
     rr.gate = floor_consistency(rr.sse_val_before, n_val, noise.sigma, noise.inflation, options.significance);
     if (static_cast<int>(cur.effects().size()) >= options.max_effects) {
+      out.stop = SearchStop::effect_limit;
       out.stop_reason = "reached the limit of " + std::to_string(options.max_effects) + " effect(s)";
       break;
     }
@@ -316,6 +345,7 @@ SearchResult<P> search_effects(const AugmentedModel<P>& start, std::vector<Eigen
       std::snprintf(b, sizeof b,
                     "the validation residual is consistent with the noise floor (energy ratio %.3f <= %.3f)",
                     rr.gate.ratio, rr.gate.bound);
+      out.stop = SearchStop::noise_floor;
       out.stop_reason = b;
       out.rounds.push_back(rr);
       break;
@@ -332,6 +362,7 @@ SearchResult<P> search_effects(const AugmentedModel<P>& start, std::vector<Eigen
       }
     }
     if (cands.empty()) {
+      out.stop = SearchStop::catalogue_exhausted;
       out.stop_reason = "no catalogue effect left to try";
       out.rounds.push_back(rr);
       break;
@@ -380,7 +411,10 @@ SearchResult<P> search_effects(const AugmentedModel<P>& start, std::vector<Eigen
       if (!best[c].ok) return;
       try {
         RefitResult r = refit(models[c], est, best[c].theta, zero_x0 ? std::vector<Eigen::VectorXd>{} : best[c].x0, refine);
-        if (r.ok && r.sse <= best[c].sse) best[c] = std::move(r);
+        // Refined means the converging refit ran; its result replaces the screening fit unless it
+        // ended higher (a run that stops at its iteration limit after a detour).
+        if (!r.ok) return;  // not refined, so it cannot be accepted; its screening fit is still scored
+        if (r.sse <= best[c].sse) best[c] = std::move(r);
         refined[c] = 1;
       } catch (const std::exception& ex) {
         best[c].error = ex.what();
@@ -448,6 +482,7 @@ SearchResult<P> search_effects(const AugmentedModel<P>& start, std::vector<Eigen
       say(b);
     }
     if (rr.accepted < 0) {
+      out.stop = SearchStop::none_significant;
       out.stop_reason = "no candidate improved the validation fit significantly";
       out.rounds.push_back(std::move(rr));
       break;
@@ -462,6 +497,13 @@ SearchResult<P> search_effects(const AugmentedModel<P>& start, std::vector<Eigen
       for (Eigen::Index i = 0; i < th_ctrl.size(); ++i)
         th_ctrl(i) = std::clamp(th_ctrl(i), info[static_cast<std::size_t>(i)].lower, info[static_cast<std::size_t>(i)].upper);
       const RefitResult ctrl = refit(cur, est, th_ctrl, zero_x0 ? std::vector<Eigen::VectorXd>{} : w.x0_est, refine);
+      // The control is M's own structure re-fitted on the estimation records from another start.
+      // If it validates better than M and the winner is not significantly better than it, the
+      // gain belongs to the structure M already has: the effect is rejected and the control
+      // continues. (Tried 2026-11-27: keeping the control only when its *estimation* cost is
+      // lower, so that validation records never choose between two fits of one structure; the
+      // throttle null case of the concealed suite then added cubic_stiffness, a false effect —
+      // the control there validates better at no lower estimation cost.)
       if (ctrl.ok) {
         AugmentedModel<P> cm = cur;
         cm.set_parameters(ctrl.theta);
@@ -484,6 +526,7 @@ SearchResult<P> search_effects(const AugmentedModel<P>& start, std::vector<Eigen
             out.model = std::move(cm);
             ++out.refits_without_effect;
             if (out.refits_without_effect > options.max_effects + 2) {
+              out.stop = SearchStop::repeated_refits;
               out.stop_reason = "stopped after repeated re-fits without a new effect";
               break;
             }
