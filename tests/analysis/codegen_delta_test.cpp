@@ -340,6 +340,10 @@ TEST_CASE("float code of a slow ARX model in delta form starts from nlid's equil
   INFO("equilibrium start: first outputs " << y_eq(0) << " vs nlid " << ref_eq(0) << ", max rel. error "
                                            << rel_error(y_eq, ref_eq));
   CHECK(std::abs(ref_eq(0) - 4.5) < 1e-9);
+  // A start finite in double but beyond float's range would be written as HUGE_VALF and refused
+  // by every step: generation refuses it instead.
+  CHECK_THROWS_WITH(single_code(m, "slowarx_huge", LinearForm::direct, Eigen::Vector2d(1e300, 0.0)),
+                    Catch::Contains("initial state x0[") && Catch::Contains("beyond float's range"));
   for (int t = 0; t < 300; ++t) CHECK(std::abs(y_eq(t) - ref_eq(t)) <= 4e-7 * std::abs(ref_eq(t)));
   CHECK(rel_error(y_eq, ref_eq) <= 1e-5);
 

@@ -210,6 +210,14 @@ TEST_CASE("generated C of a Hammerstein-Wiener with pwlinear input and saturated
   // pwlinear: 4 paths (3 segments; the C++ tests x < x_end before "|| last segment", so the last
   // segment is reached by both outcomes of that test), saturation: 3 regions.
   CHECK(g.paths == 4 * 3);
+  // The coefficients belong to the model's sample time: relabelling them is refused, repeating it
+  // is not.
+  nlid::CodegenOptions relabelled = o;
+  relabelled.ts = 2 * e3.ts();
+  CHECK_THROWS_WITH(nlid::generate_c(m, relabelled), Catch::Contains("estimated at sample time 0.01 s") &&
+                                                         Catch::Contains("cannot run at CodegenOptions::ts = 0.02"));
+  relabelled.ts = e3.ts();
+  CHECK(nlid::generate_c(m, relabelled).source == g.source);
   const Eigen::VectorXd yc = run_generated_c(g, e3.u(), "hw");
   REQUIRE(yc.size() == ref.size());
   CHECK(max_relative_error(yc, ref) <= 1e-12);
@@ -299,8 +307,12 @@ TEST_CASE("codegen rejects bad names, missing sample times and the adaptive inte
   o.ts = 100.0;
   CHECK_THROWS_WITH(nlid::generate_c(g, o), Catch::Contains("needs 1") && Catch::Contains("more than the ceiling of 2000") &&
                                                 Catch::Contains("CodegenOptions::substeps"));
-  o.substeps = 20000;  // the user's explicit choice stands
+  o.substeps = 20000;  // the user's explicit choice stands when it is stable
   CHECK_NOTHROW(nlid::generate_c(g, o));
+  o.substeps = 1000;  // h·ρ/n ≈ 10 > 2.78: an explicit count RK4 cannot keep stable is refused too
+  CHECK_THROWS_WITH(nlid::generate_c(g, o), Catch::Contains("CodegenOptions::substeps = 1000 gives an unstable") &&
+                                                Catch::Contains("needs at least 3"));
+  o.substeps = 0;
   // The library's own simulation names the same cause when it diverges there.
   // (a command that drives the valve onto its upper stop, where the contact stiffness acts)
   const nlid::Experiment slow(Eigen::MatrixXd::Constant(5, 1, 2.0), Eigen::MatrixXd::Zero(5, 1), 100.0);
@@ -438,4 +450,12 @@ TEST_CASE("generated step refuses a non-finite input and keeps its state so that
       CHECK(refused == 3);
     }
   }
+}
+
+TEST_CASE("codegen: user text in C comments cannot close them", "[codegen]") {
+  // Channel names, parameter names and equations come from users' files into /* ... */.
+  CHECK(nlid::codegen::comment_text("valve */ angle") == "valve * / angle");
+  CHECK(nlid::codegen::comment_text("a*/*/b") == "a* /* /b");
+  CHECK(nlid::codegen::comment_text("no terminator / * here") == "no terminator / * here");
+  CHECK(nlid::codegen::comment_block("x */ y").find("x * / y") != std::string::npos);
 }

@@ -61,7 +61,7 @@ inline void add_data_range(GeneratedCode& g, const std::vector<ChannelRange>& in
   auto add = [&](const char* what, const std::vector<ChannelRange>& r, const std::vector<std::string>& names) {
     for (std::size_t i = 0; i < r.size(); ++i) {
       const std::string base = "#define " + M + "_" + what + std::to_string(i);
-      const std::string note = i < names.size() && !names[i].empty() ? " /* " + names[i] + " */" : "";
+      const std::string note = i < names.size() && !names[i].empty() ? " /* " + comment_text(names[i]) + " */" : "";
       block += base + "_MIN " + c_literal(r[i].lower) + note + "\n";
       block += base + "_MAX " + c_literal(r[i].upper) + note + "\n";
     }

@@ -24,7 +24,8 @@
 /// equilibrium for `CodegenOptions::equilibrium_input`, found as `simulate(e, equilibrium)`
 /// finds it) and the flag to 1; the effect states start from the first sample as in nlid.
 /// The sub-step count is nlid's rule at that state and input (`AugmentedModel::substeps`), or
-/// `CodegenOptions::substeps`. Unlike `simulate`, the C step does not stop on a non-finite state.
+/// `CodegenOptions::substeps`; a count that leaves RK4 unstable at the start state is refused. Like
+/// `simulate`, the C step refuses a sample whose state would become non-finite (return 1).
 
 #include <algorithm>
 #include <cmath>
@@ -40,6 +41,7 @@
 #include "nlid/diagnose/augmented.hpp"
 #include "nlid/models/detail/model_common.hpp"
 #include "nlid/models/greybox_simulate.hpp"
+#include "nlid/models/integrators.hpp"
 
 namespace nlid {
 
@@ -121,7 +123,18 @@ GeneratedCode generate_c(const AugmentedModel<P>& model, const CodegenOptions& o
   m.x0 = Eigen::VectorXd::Zero(m.nx);
   m.x0.head(nx) = xb;
   m.x0(i_first) = 1.0;
-  const int sub = options.substeps > 0 ? options.substeps : std::max(1, model.substeps(theta.data(), xb.data(), u0.data()));
+  const double rho = model.stiffness(theta.data(), xb.data(), u0.data());
+  const int sub = options.substeps > 0 ? options.substeps : std::max(1, substeps_for(model.ts(), rho, model.integrator()));
+  // As for grey boxes (codegen/greybox.hpp): a count that leaves RK4 unstable at the start state,
+  // given or from the rule at its ceiling, is refused rather than written.
+  if (const double need = unstable_fixed_substeps(model.ts(), rho, sub, IntegratorMethod::rk4); need > 0.0) {
+    throw Error("codegen: " + std::string(options.substeps > 0 ? "CodegenOptions::substeps = " : "the sub-step ceiling of ") +
+                    std::to_string(sub) + " per sample gives an unstable RK4 step for this augmented model at the start "
+                    "state (stiffness " + detail::format_g(rho) + " 1/s, sample time " + detail::format_g(model.ts()) +
+                    " s); it needs at least " + detail::format_g(need) +
+                    (options.substeps > 0 ? std::string(" sub-steps") : std::string(" sub-steps: use a shorter sample time")),
+                at_parameter(options.substeps > 0 ? "substeps" : "ts"));
+  }
 
   const std::string name = m.name, M = codegen::macro(name);
   // Traced pieces. Inputs of each C function are its parameters' names; outputs go to out[].

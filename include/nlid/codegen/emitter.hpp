@@ -31,6 +31,7 @@
 /// the step function; nothing of a model's math is written twice.
 
 #include <cctype>
+#include <cmath>
 #include <cstdio>
 #include <ctime>
 #include <filesystem>
@@ -46,6 +47,7 @@
 #include "nlid/codegen/trace_scalar.hpp"
 #include "nlid/core/atomic_file.hpp"
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 
 namespace nlid {
 
@@ -56,7 +58,9 @@ struct CodegenOptions {
   /// If set, `NAME_init` starts at the equilibrium for this constant input (one value per
   /// input); otherwise at the zero state.
   std::optional<Eigen::VectorXd> equilibrium_input;
-  /// Sample time of the generated step (grey box: required; black-box models: 0 = the model's).
+  /// Sample time of the generated step (grey box: required; sampled models: 0 = the model's,
+  /// and a value that differs from a model's known sample time is refused — the coefficients
+  /// belong to that sample time, only a model without one takes it from here).
   double ts = 0.0;
   /// Grey box: sub-steps per sample (0 = the model's rule at generation time).
   int substeps = 0;
@@ -65,10 +69,11 @@ struct CodegenOptions {
   /// double (default: nlid's numbers to the last bit) or float throughout (FPUs without double;
   /// see codegen::Precision).
   codegen::Precision precision = codegen::Precision::double_precision;
-  /// Form of the linear blocks of Hammerstein–Wiener, series and output-error models (codegen::LinearForm,
-  /// delta_form.hpp): `automatic` is the delta-operator form in single precision and nlid's
-  /// direct form in double; `direct` keeps the polynomial form in single precision too (for
-  /// comparison); `delta` with double precision is an error. Other model kinds ignore it.
+  /// Form of the linear blocks of Hammerstein–Wiener, series, ARX and output-error models
+  /// (codegen::LinearForm, delta_form.hpp): `automatic` is the delta-operator form in single
+  /// precision and nlid's direct form in double; `direct` keeps the polynomial form in single
+  /// precision too (for comparison); `delta` with double precision is an error for those kinds.
+  /// Other model kinds (nlarx, grey box, augmented) have no linear block and ignore it.
   codegen::LinearForm linear_form = codegen::LinearForm::automatic;
 };
 
@@ -79,8 +84,10 @@ struct GeneratedCode {
   std::string source;  ///< NAME.c
   int paths = 1;       ///< branches of the traced step (leaves of its decision tree)
 
-  /// Writes DIR/NAME.h and DIR/NAME.c atomically and as a pair (the directory must exist): if
-  /// either cannot be written, neither file changes. Returns the paths.
+  /// Writes DIR/NAME.h and DIR/NAME.c atomically and as a pair (the directory must exist): both
+  /// are written to temporaries first, so if either cannot be written neither file changes
+  /// (only a file-system failure between the two final renames can leave the header replaced
+  /// alone, and the error says so). Returns the paths.
   std::vector<std::string> write(const std::string& dir) const {
     require(std::filesystem::is_directory(dir), "codegen: output directory '" + dir + "' does not exist",
             at_parameter("dir"));
@@ -283,14 +290,32 @@ inline std::string ascii_text(const std::string& text) {
   return out;
 }
 
+/// The sample time of a sampled (discrete-time) model's code: the model's own, or `option` when
+/// the model has none; a different `option` is refused (it would relabel, not resample).
+inline double sampled_model_ts(double model_ts, double option) {
+  if (!(option > 0)) return model_ts;
+  require(std::isfinite(option), "codegen: CodegenOptions::ts must be finite", at_parameter("ts"));
+  require(!(model_ts > 0) || std::abs(option - model_ts) <= 1e-9 * model_ts,
+          "codegen: the model was estimated at sample time " + nlid::detail::format_g(model_ts, 10) +
+              " s; its code cannot run at CodegenOptions::ts = " + nlid::detail::format_g(option, 10) +
+              " s (its coefficients belong to its own sample time)",
+          at_parameter("ts"));
+  return option;
+}
+
+/// Text that can stand inside a C block comment: every "*/" (which would end it) becomes "* /".
+/// Channel names and equations come from users' files.
+inline std::string comment_text(std::string text) {
+  for (std::size_t p = 0; (p = text.find("*/", p)) != std::string::npos;) text.replace(p, 2, "* /");
+  return text;
+}
+
 /// Text as a C block comment ("*/" defused).
 inline std::string comment_block(const std::string& text, const std::string& indent = "") {
   std::string s = indent + "/*\n";
   std::string line;
   auto flush = [&]() {
-    std::string l = line;
-    for (std::size_t p = 0; (p = l.find("*/", p)) != std::string::npos;) l.replace(p, 2, "* /");
-    s += indent + " * " + l + "\n";
+    s += indent + " * " + comment_text(line) + "\n";
     line.clear();
   };
   for (char c : text) {
@@ -351,12 +376,21 @@ inline std::string make_source_prelude(const ModelShape& m, const std::set<std::
   for (Eigen::Index i = 0; i < np; ++i) {
     const std::string pn = static_cast<std::size_t>(i) < m.parameter_names.size() ? m.parameter_names[static_cast<std::size_t>(i)]
                                                                                 : "p" + std::to_string(i);
-    std::string safe = pn;
-    for (std::size_t p = 0; (p = safe.find("*/", p)) != std::string::npos;) safe.replace(p, 2, "* /");
-    s += "    " + c_literal(m.parameters(i)) + (i + 1 < np ? "," : " ") + " /* [" + std::to_string(i) + "] " + safe + " */\n";
+    s += "    " + c_literal(m.parameters(i)) + (i + 1 < np ? "," : " ") + " /* [" + std::to_string(i) + "] " +
+         comment_text(pn) + " */\n";
   }
   s += "};\n\n";
   const int nxs = m.nx > 0 ? m.nx : 1;
+  // A start the generated step would refuse at every sample (non-finite, or beyond float's range
+  // in single precision, where it is written as HUGE_VALF) is an error here, not on the target.
+  for (Eigen::Index i = 0; i < m.x0.size(); ++i) {
+    const double v = m.x0(i);
+    require(std::isfinite(v) && !(single_precision() && std::abs(v) >= 0x1.ffffffp127),
+            "codegen: the initial state x0[" + std::to_string(i) + "] = " + nlid::detail::format_g(v) + " (" + m.x0_doc +
+                ") is " + (std::isfinite(v) ? "beyond float's range" : "not finite") +
+                ": every step would refuse it; choose another equilibrium input or the zero start",
+            at_parameter("equilibrium_input"));
+  }
   s += "/* Initial state: " + m.x0_doc + ". */\nstatic const " + c_real() + " " + m.name + "_x0[" + std::to_string(nxs) + "] = {";
   for (int i = 0; i < nxs; ++i) s += std::string(i ? ", " : "") + c_literal(i < m.x0.size() ? m.x0(i) : 0.0);
   s += "};\n\n";

@@ -95,8 +95,18 @@ GeneratedCode generate_c(const GreyBox<P>& model, const CodegenOptions& options)
     // The sub-step count GreyBox::simulate would use when started from x0 with input u_sub.
     const double rho = physics_spectral_radius(model.physics(), pv.data(), m.x0.data(), u_sub.data());
     const int sub = options.substeps > 0 ? options.substeps : substeps_for(m.ts, rho, io);
-    // The automatic rule at its ceiling would emit a step the method cannot keep stable: the
-    // generated code would blow up on the target, far from any message. Say it here.
+    // A step the method cannot keep stable, from the automatic rule at its ceiling or from a
+    // count the caller gave, would blow up on the target, far from any message. Say it here.
+    if (options.substeps > 0) {
+      const double need = unstable_fixed_substeps(m.ts, rho, sub, io.method);
+      if (need > 0.0) {
+        throw Error("grey-box code generation: CodegenOptions::substeps = " + std::to_string(sub) +
+                        " gives an unstable integrator step at the start state (spectral radius " +
+                        detail::format_g(rho) + " 1/s, sample time " + detail::format_g(m.ts) + " s); it needs at least " +
+                        detail::format_g(need) + " sub-steps per sample",
+                    at_parameter("substeps"));
+      }
+    }
     const double need = options.substeps == 0 ? unstable_capped_substeps(m.ts, rho, sub, io) : 0.0;
     if (need > 0.0) {
       throw Error("grey-box code generation: at the sample time " + detail::format_g(m.ts) +
@@ -135,7 +145,7 @@ GeneratedCode generate_c(const GreyBox<P>& model, const CodegenOptions& options)
     src += "#define " + M + "_SUBSTEPS " + std::to_string(sub) + " /* integrator sub-steps per sample */\n\n";
     std::string equation = "the physics";
     if constexpr (detail::HasEquation<P>) equation = phys.equation();
-    src += "/* dx = f(x, u, p): " + equation +
+    src += "/* dx = f(x, u, p): " + codegen::comment_text(equation) +
            " */\nstatic void " + name + "_derivative(const " + R + "* x, const " + R + "* u, " + R + "* dx) {\n  (void)x;\n  (void)u;\n" +
            codegen::emit_c(fd, codegen::targets("dx", nx), "  ") + "}\n\n";
     src += "/* y = g(x, u, p) */\nstatic void " + name + "_output(const " + R + "* x, const " + R + "* u, " + R + "* y) {\n  (void)x;\n  (void)u;\n" +

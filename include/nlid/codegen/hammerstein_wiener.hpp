@@ -64,7 +64,7 @@ GeneratedCode generate_c(const HammersteinWiener<In, L, Out>& model, const Codeg
   m.nx = model.state_dimension();
   m.nu = 1;
   m.ny = 1;
-  m.ts = options.ts > 0 ? options.ts : model.ts();
+  m.ts = codegen::sampled_model_ts(model.ts(), options.ts);
   require(m.ts > 0, "codegen: the model has no sample time; set it (set_ts) or CodegenOptions::ts", at_parameter("ts"));
   m.parameters = model.parameters();
   m.parameter_names = model.parameter_names();

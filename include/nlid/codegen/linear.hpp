@@ -138,7 +138,7 @@ inline GeneratedCode generate_c(const Arx& model, const CodegenOptions& options 
   m.description = model.describe();
   m.nu = nu;
   m.ny = 1;
-  m.ts = options.ts > 0 ? options.ts : model.ts();
+  m.ts = codegen::sampled_model_ts(model.ts(), options.ts);
   require(m.ts > 0, "codegen: the model has no sample time; set CodegenOptions::ts", at_parameter("ts"));
   m.parameters = model.parameters();
   m.parameter_names = model.parameter_names();
@@ -248,7 +248,7 @@ inline GeneratedCode generate_c(const OutputError& model, const CodegenOptions& 
   m.description = model.describe();
   m.nu = nu;
   m.ny = 1;
-  m.ts = options.ts > 0 ? options.ts : model.ts();
+  m.ts = codegen::sampled_model_ts(model.ts(), options.ts);
   require(m.ts > 0, "codegen: the model has no sample time; set CodegenOptions::ts", at_parameter("ts"));
   m.parameters = model.parameters();
   m.parameter_names = model.parameter_names();

@@ -26,7 +26,7 @@
 /// tracer *explores both outcomes*: `trace_paths` re-runs the function with every sequence of
 /// outcomes (depth-first), and the recorded paths form a decision tree that is emitted as nested
 /// `if (…) { … } else { … }` with the same conditions as the C++ (saturation: 3 paths, smoothed
-/// stop: 3 per stop, piecewise-linear map with n breakpoints: n − 1). A limit on the number of
+/// stop: 3 per stop, piecewise-linear map with n breakpoints: n). A limit on the number of
 /// paths (`TraceLimits`) turns a combinatorial explosion into an `nlid::Error`.
 ///
 /// Exactness. The generated code performs the same IEEE operations in the same order as nlid's

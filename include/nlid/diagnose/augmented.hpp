@@ -165,7 +165,12 @@ class AugmentedModel {
   }
 
   /// Sub-steps per sample at parameter values `theta` (see the file comment).
-  [[nodiscard]] int substeps(const double* theta, const double* x0, const double* u0) const;
+  [[nodiscard]] int substeps(const double* theta, const double* x0, const double* u0) const {
+    return substeps_for(ts_, stiffness(theta, x0, u0), integ_);
+  }
+  /// The stiffness estimate ρ [1/s] behind `substeps`: the physics' spectral radius at (x0, u0)
+  /// (or a Gershgorin bound of its Jacobian) plus each effect's own rate.
+  [[nodiscard]] double stiffness(const double* theta, const double* x0, const double* u0) const;
 
   // ---- one sample, piece by piece ----------------------------------------------------------
   // `simulate` is built from these members; the C generator (codegen/augmented.hpp) traces
@@ -448,7 +453,7 @@ void AugmentedModel<P>::set_parameters(const Eigen::Ref<const Eigen::VectorXd>& 
 }
 
 template <Physics P>
-int AugmentedModel<P>::substeps(const double* theta, const double* x0, const double* u0) const {
+double AugmentedModel<P>::stiffness(const double* theta, const double* x0, const double* u0) const {
   double rho = physics_spectral_radius(phys_, theta, x0, u0);
   if (!std::isfinite(rho) || rho < 0.0) {
     // The physics does not know its stiffness: Gershgorin bound of ∂f/∂x at the start.
@@ -469,7 +474,7 @@ int AugmentedModel<P>::substeps(const double* theta, const double* x0, const dou
       default: break;
     }
   }
-  return substeps_for(ts_, rho, integ_);
+  return rho;
 }
 
 template <Physics P>

@@ -132,16 +132,26 @@ inline int substeps_for(double h, double spectral_radius, const IntegratorOption
   return std::max(o.min_substeps, static_cast<int>(need));
 }
 
+/// The least number of sub-steps per sample of length h whose fixed step keeps the method stable
+/// (h·ρ/n ≤ 2.78 for RK4, 2 for Euler: the real-axis limits) when `substeps` does not; 0 when it
+/// does, the method is adaptive or ρ is unknown. ρ is the stiffness at one state: stiffer states
+/// elsewhere need more.
+inline double unstable_fixed_substeps(double h, double spectral_radius, int substeps, IntegratorMethod method) {
+  if (method == IntegratorMethod::dormand_prince || !(spectral_radius > 0.0) || !std::isfinite(spectral_radius) ||
+      substeps <= 0)
+    return 0.0;
+  const double limit = method == IntegratorMethod::euler ? 2.0 : 2.78;
+  if (h * spectral_radius / substeps <= limit) return 0.0;
+  return std::ceil(h * spectral_radius / limit);
+}
+
 /// Sub-steps a stable step would need when the automatic rule stopped at its ceiling with a
 /// step beyond the fixed-step method's stability limit (h·ρ ≈ 2.78 for RK4, 2 for Euler) —
 /// what a diverging simulation or refused code generation should name; 0 otherwise (a fixed
 /// count, the adaptive method, an unknown ρ, or a capped step that is still stable).
 inline double unstable_capped_substeps(double h, double spectral_radius, int substeps, const IntegratorOptions& o) {
-  if (o.substeps > 0 || o.method == IntegratorMethod::dormand_prince || !(spectral_radius > 0.0) ||
-      !std::isfinite(spectral_radius) || substeps < o.max_substeps)
-    return 0.0;
-  const double limit = o.method == IntegratorMethod::euler ? 2.0 : 2.78;
-  if (h * spectral_radius / substeps <= limit) return 0.0;
+  if (o.substeps > 0 || substeps < o.max_substeps) return 0.0;
+  if (unstable_fixed_substeps(h, spectral_radius, substeps, o.method) == 0.0) return 0.0;
   return std::ceil(h * spectral_radius / o.stability_target);
 }
 
