@@ -119,3 +119,15 @@ TEST_CASE("augmented model: simulate, rebuilt from its per-sample pieces, is unc
     CHECK(y(1999) == before[variant]);
   }
 }
+
+TEST_CASE("codegen: an augmented model's sub-step count must keep RK4 stable", "[diagnose][codegen]") {
+  auto m = msd_with(2);
+  // A stiff end stop (K = 1e6 1/s^2): rho >= 1000 1/s, h*rho >= 10 at ts = 0.01 s.
+  m.add_effect(diag_test::effect(EffectKind::hard_stop, {1.0, 1e6}, diag_test::unit_scales(0.01, 1.1), "upper"));
+  CodegenOptions o;
+  o.substeps = 1;
+  CHECK_THROWS_WITH(generate_c(m, o), Catch::Contains("CodegenOptions::substeps = 1 per sample gives an unstable RK4 step") &&
+                                          Catch::Contains("needs at least"));
+  o.substeps = 0;  // nlid's rule picks a stable count
+  CHECK_NOTHROW(generate_c(m, o));
+}

@@ -128,7 +128,7 @@ GeneratedCode generate_c(const AugmentedModel<P>& model, const CodegenOptions& o
   // As for grey boxes (codegen/greybox.hpp): a count that leaves RK4 unstable at the start state,
   // given or from the rule at its ceiling, is refused rather than written.
   if (const double need = unstable_fixed_substeps(model.ts(), rho, sub, IntegratorMethod::rk4); need > 0.0) {
-    throw Error("codegen: " + std::string(options.substeps > 0 ? "CodegenOptions::substeps = " : "the sub-step ceiling of ") +
+    throw Error("codegen: " + std::string(options.substeps > 0 ? "CodegenOptions::substeps = " : "the model's sub-step count ") +
                     std::to_string(sub) + " per sample gives an unstable RK4 step for this augmented model at the start "
                     "state (stiffness " + detail::format_g(rho) + " 1/s, sample time " + detail::format_g(model.ts()) +
                     " s); it needs at least " + detail::format_g(need) +

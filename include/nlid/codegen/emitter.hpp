@@ -385,7 +385,7 @@ inline std::string make_source_prelude(const ModelShape& m, const std::set<std::
   // in single precision, where it is written as HUGE_VALF) is an error here, not on the target.
   for (Eigen::Index i = 0; i < m.x0.size(); ++i) {
     const double v = m.x0(i);
-    require(std::isfinite(v) && !(single_precision() && std::abs(v) >= 0x1.ffffffp127),
+    require(std::isfinite(v) && !(single_precision() && beyond_float_range(v)),
             "codegen: the initial state x0[" + std::to_string(i) + "] = " + nlid::detail::format_g(v) + " (" + m.x0_doc +
                 ") is " + (std::isfinite(v) ? "beyond float's range" : "not finite") +
                 ": every step would refuse it; choose another equilibrium input or the zero start",

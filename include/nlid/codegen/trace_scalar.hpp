@@ -92,6 +92,10 @@ inline std::string c_real() { return single_precision() ? "float" : "double"; }
 /// The <math.h> function `fn` for the current precision ("exp" or "expf").
 inline std::string c_math(const std::string& fn) { return single_precision() ? fn + "f" : fn; }
 
+/// True if `v` rounds to infinity as a float: at or past the midpoint between FLT_MAX and 2^128
+/// (the conversion of such a double is undefined behaviour in C++).
+inline bool beyond_float_range(double v) { return std::abs(v) >= 0x1.ffffffp127; }
+
 /// A C99 literal of the current precision. Double: reads back to exactly `v` (17 significant
 /// digits). Single: `v` rounded to the nearest float, 9 significant digits and an `f` suffix
 /// (reads back to that float). HUGE_VAL(F)/NAN for the non-finite values (and for doubles
@@ -99,9 +103,8 @@ inline std::string c_math(const std::string& fn) { return single_precision() ? f
 inline std::string c_literal(double v) {
   const bool single = single_precision();
   if (std::isnan(v)) return "NAN";
-  // Beyond float's range (at or past the midpoint between FLT_MAX and 2^128, where rounding gives
-  // infinity) the conversion is undefined behaviour in C++: such values are spelt as infinities.
-  const bool overflow = single && std::abs(v) >= 0x1.ffffffp127;
+  // Beyond float's range the literal is spelt as an infinity.
+  const bool overflow = single && beyond_float_range(v);
   const double shown = overflow ? std::copysign(std::numeric_limits<double>::infinity(), v)
                        : single ? static_cast<double>(static_cast<float>(v))
                                 : v;
