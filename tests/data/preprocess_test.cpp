@@ -143,6 +143,12 @@ TEST_CASE("resampling and decimation refuse requests that leave no record", "[da
   CHECK_THROWS_WITH(nlid::decimate(e, 1000), Contains("needs more than 1000 samples"));
   CHECK_THROWS_WITH(nlid::decimate(e, 100), Contains("the record has 100"));
   CHECK(nlid::decimate(e, 50).size() == 2);
+  // A non-integer ratio that leaves one sample is refused like the integer one (it returned a
+  // 1-sample record).
+  const nlid::Error short_out = error_of([&] { (void)nlid::resample(e, 100.5 * e.ts()); });
+  CHECK_THAT(short_out.what(), Contains("would leave 1 sample") && Contains("at least two out"));
+  CHECK(short_out.where().parameter == "new_ts");
+  CHECK(nlid::resample(e, 49.5 * e.ts()).size() == 3);
   // Absurd counts: the message names them without overflowing.
   CHECK_THROWS_WITH(nlid::select_samples(e, 1, std::numeric_limits<Eigen::Index>::max()),
                     Contains("from index 1 is empty or outside the record of 100 samples"));

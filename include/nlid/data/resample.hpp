@@ -144,6 +144,14 @@ inline Experiment resample(const Experiment& e, double new_ts,
   const double span = static_cast<double>(e.size() - 1) * e.ts();
   // The last new sample may coincide with the last old one; 1e-12 keeps rounding from dropping it.
   const double count = std::floor(span / new_ts * (1.0 + 1e-12)) + 1.0;
+  // As `decimate`: one sample out is no record (and with a ratio above N - 1 nothing but the
+  // first sample would be kept, silently).
+  if (count < 2.0) {
+    throw Error("resampling " + std::to_string(e.size()) + " samples from ts " + detail::format_g(e.ts(), 10) +
+                    " to " + detail::format_g(new_ts, 10) + " would leave " + detail::format_g(count, 10) +
+                    " sample (at least two out are needed); choose a shorter sample time or a longer record",
+                at_parameter("new_ts"));
+  }
   // A sample time far below the record's would ask for more samples than memory holds (or an
   // index type does): say so instead of overflowing the count.
   if (!(count <= 2147483647.0)) {
