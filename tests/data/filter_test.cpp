@@ -93,6 +93,32 @@ TEST_CASE("filter design rejects invalid arguments", "[data][filter]") {
   CHECK_THROWS_WITH(nlid::chebyshev1_lowpass(8, 0.05, 1.0), Contains("cutoff must lie strictly"));
   CHECK_THROWS_WITH(nlid::chebyshev1_lowpass(8, 0.0, 0.5), Contains("ripple"));
   CHECK_THROWS_WITH(nlid::butterworth_lowpass(4, -0.1), Contains("cutoff"));
+  // Below 1e-6 the poles round onto the unit circle: the cut-off is named, not "section 0".
+  try {
+    (void)nlid::butterworth_lowpass(8, 1e-17);
+    FAIL("a cut-off of 1e-17 was accepted");
+  } catch (const nlid::Error& e) {
+    CHECK(e.where().parameter == "cutoff");
+    CHECK_THAT(e.what(), Contains("cutoff 1e-17") && Contains("below 1e-06"));
+  }
+  CHECK_THROWS_WITH(nlid::chebyshev1_lowpass(8, 0.05, 5e-7), Contains("below 1e-06"));
+  CHECK(nlid::chebyshev1_lowpass(8, 0.05, 1e-6).order() == 8);
+  // decimate and resample name their own argument.
+  const nlid::Experiment long_rec(Eigen::MatrixXd::Zero(1000002, 1), Eigen::MatrixXd::Zero(1000002, 1), 1.0);
+  try {
+    (void)nlid::decimate(long_rec, 1000001);
+    FAIL("decimation by 1000001 in one step was accepted");
+  } catch (const nlid::Error& e) {
+    CHECK(e.where().parameter == "factor");
+    CHECK_THAT(e.what(), Contains("decimate in stages"));
+  }
+  try {
+    (void)nlid::resample(long_rec, 1000000.5);
+    FAIL("resampling by 1000000.5 in one step was accepted");
+  } catch (const nlid::Error& e) {
+    CHECK(e.where().parameter == "new_ts");
+    CHECK_THAT(e.what(), Contains("in stages"));
+  }
   nlid::Biquad unstable;
   unstable.a1 = -2.5;
   unstable.a2 = 1.2;

@@ -40,6 +40,7 @@
 #include <vector>
 
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/data/concepts.hpp"
 
 namespace nlid {
@@ -155,6 +156,13 @@ class SosFilter {
 };
 
 // ---- Implementation details below (until the end of namespace detail) ------------------
+/// Smallest low-pass edge (fraction of the Nyquist frequency) the designs accept. A section's
+/// pole pair is stored as a1 = −2 Re z, a2 = |z|², both near 1 for a narrow band, and (Im z)² is
+/// what is left of a1²/4 − a2: about (π·cutoff/2)² against rounding of 2^−52. At 1e-6 the poles
+/// are still right to about 1e-4; well below, they fall onto the unit circle and the filter is
+/// unstable or meaningless (a section "unstable" at 1e-16).
+inline constexpr double min_lowpass_cutoff = 1e-6;
+
 namespace detail {
 
 inline void check_lowpass_args(int order, double cutoff) {
@@ -168,6 +176,13 @@ inline void check_lowpass_args(int order, double cutoff) {
         "got " +
             std::to_string(cutoff),
         at_parameter("cutoff"));
+  }
+  if (cutoff < min_lowpass_cutoff) {
+    throw Error("cutoff " + format_g(cutoff, 6) +
+                    " (fraction of the Nyquist frequency) is below 1e-06: the poles of so narrow a "
+                    "low-pass round onto the unit circle in double precision; filter in stages "
+                    "(e.g. decimate twice) instead",
+                at_parameter("cutoff"));
   }
 }
 

@@ -120,12 +120,23 @@ inline double standard_normal(std::mt19937_64& g) {
 
 // White Gaussian noise limited to `band` (see the file comment).
 inline Eigen::VectorXd band_noise(Eigen::Index n, const InputBand& band, std::uint64_t seed) {
+  constexpr int order = 8;
+  // The caller chose a band, not a filter: a too narrow edge is reported as the band's, and
+  // before any noise is drawn.
+  const auto lowpass = [&](double edge) {
+    if (edge <= 0.0 || edge >= 1.0) return SosFilter();  // that side of the band is open
+    try {
+      return butterworth_lowpass(order, edge);
+    } catch (const Error& err) {
+      throw Error("input design: band edge " + format_g(edge, 6) + ": " + err.message(), at_parameter("band"));
+    }
+  };
+  const SosFilter upper = lowpass(band.high), lower = lowpass(band.low);
   std::mt19937_64 g(seed);
   Eigen::VectorXd e(n);
   for (Eigen::Index k = 0; k < n; ++k) e[k] = standard_normal(g);
-  constexpr int order = 8;
-  if (band.high < 1.0) e = filtfilt(butterworth_lowpass(order, band.high), e);
-  if (band.low > 0.0) e -= filtfilt(butterworth_lowpass(order, band.low), e);
+  if (band.high < 1.0) e = filtfilt(upper, e);
+  if (band.low > 0.0) e -= filtfilt(lower, e);
   return e;
 }
 

@@ -92,8 +92,17 @@ inline Experiment decimate(const Experiment& e, int factor, const DecimateOption
             detail::format_g(options.cutoff, 10),
         at_parameter("cutoff"));
   }
-  const SosFilter lp = chebyshev1_lowpass(options.order, options.ripple_db,
-                                          options.cutoff / static_cast<double>(factor));
+  const double edge = options.cutoff / static_cast<double>(factor);
+  const bool filtered = options.filter_inputs || options.filter_outputs;
+  // Named here rather than left to the filter design, which could only blame its 'cutoff'.
+  if (filtered && edge < min_lowpass_cutoff) {
+    throw Error("decimation by " + std::to_string(factor) + " in one step needs an anti-alias low-pass at " +
+                    detail::format_g(edge, 6) +
+                    " of the Nyquist frequency, narrower than double precision can realise (1e-06); "
+                    "decimate in stages",
+                at_parameter("factor"));
+  }
+  const SosFilter lp = filtered ? chebyshev1_lowpass(options.order, options.ripple_db, edge) : SosFilter();
   const Eigen::Index m = e.size() == 0 ? 0 : (e.size() - 1) / factor + 1;
   auto pick = [&](const Eigen::MatrixXd& x, bool filter) {
     const Eigen::MatrixXd f = filter ? Eigen::MatrixXd(filtfilt(lp, x)) : x;
@@ -168,7 +177,17 @@ inline Experiment resample(const Experiment& e, double new_ts,
   // filter there would only remove information the record has.
   SosFilter lp;
   const bool down = ratio > 1.0;
-  if (down) lp = chebyshev1_lowpass(options.order, options.ripple_db, options.cutoff / ratio);
+  const bool filtered = options.inputs != Interpolation::hold || options.outputs != Interpolation::hold;
+  if (down && filtered) {
+    if (options.cutoff > 0.0 && options.cutoff / ratio < min_lowpass_cutoff) {
+      throw Error("resampling from ts " + detail::format_g(e.ts(), 10) + " to " + detail::format_g(new_ts, 10) +
+                      " in one step needs an anti-alias low-pass at " + detail::format_g(options.cutoff / ratio, 6) +
+                      " of the Nyquist frequency, narrower than double precision can realise (1e-06); "
+                      "decimate or resample in stages",
+                  at_parameter("new_ts"));
+    }
+    lp = chebyshev1_lowpass(options.order, options.ripple_db, options.cutoff / ratio);
+  }
   auto convert = [&](const Eigen::MatrixXd& x, Interpolation how) {
     Eigen::MatrixXd src = x;
     if (down && how != Interpolation::hold) src = filtfilt(lp, x);
