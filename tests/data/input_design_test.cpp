@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <numbers>
 #include <random>
+#include <string>
 #include <vector>
 
 #include "nlid/data/input_design.hpp"
@@ -232,7 +233,41 @@ TEST_CASE("Input design refuses bad arguments, naming them", "[data][input_desig
   CHECK_THROWS_WITH(nlid::random_steps(100, 6, 5), Contains("max_hold (5) must be >= min_hold (6)"));
   try {
     (void)nlid::random_steps(100, 6, 5);
+    FAIL("random_steps accepted max_hold < min_hold");
   } catch (const nlid::Error& e) {
     CHECK(e.where().parameter == "max_hold");
   }
+}
+
+TEST_CASE("Input design refuses signals longer than 2^31 samples before allocating them",
+          "[data][input_design][errors]") {
+  using Catch::Contains;
+  const auto parameter_of = [](auto&& make) {
+    try {
+      (void)make();
+    } catch (const nlid::Error& e) {
+      return e.where().parameter;
+    }
+    FAIL("expected nlid::Error");
+    return std::string();
+  };
+  // (2^24 - 1) * 2^20 * 2^20 wraps around in 64 bits; the wrapped product passed the old check.
+  CHECK_THROWS_WITH(nlid::prbs(24, 1 << 20, {}, 1 << 20), Contains("more than 2^31 samples"));
+  CHECK(parameter_of([] { return nlid::prbs(24, 1 << 20, {}, 1 << 20); }) == "periods");
+  CHECK(parameter_of([] { return nlid::prbs(20, 1000, {}, 1000); }) == "hold");
+  CHECK(parameter_of([] { return nlid::prbs(2, 2147483647, {}, 2147483647); }) == "periods");
+  CHECK(nlid::prbs(10, 3, {}, 2).size() == 1023 * 3 * 2);
+  nlid::MultisineOptions o;
+  CHECK_THROWS_WITH(nlid::multisine(Eigen::Index{1} << 40, o), Contains("more than 2^31"));
+  CHECK(parameter_of([&] { return nlid::multisine(Eigen::Index{1} << 40, o); }) == "period");
+  CHECK(parameter_of([&] { return nlid::multisine_lines(Eigen::Index{1} << 40, o); }) == "period");
+  o.periods = 1 << 30;
+  CHECK_THROWS_WITH(nlid::multisine(1024, o), Contains("more than 2^31 samples"));
+  CHECK(parameter_of([&] { return nlid::multisine(1024, o); }) == "periods");
+  CHECK(parameter_of([] { return nlid::random_steps(Eigen::Index{1} << 40, 1, 5); }) == "n");
+  CHECK(parameter_of([] { return nlid::random_binary(Eigen::Index{1} << 40); }) == "n");
+  // A band edge too narrow for the band-limiting filter is the band's fault, not a filter section's.
+  CHECK(parameter_of([] { return nlid::random_binary(1000, {1e-17, 1.0}); }) == "band");
+  CHECK_THROWS_WITH(nlid::random_binary(1000, {1e-17, 1.0}), Contains("band edge 1e-17"));
+  CHECK(parameter_of([] { return nlid::random_gaussian(1000, {0.0, 1e-9}); }) == "band");
 }

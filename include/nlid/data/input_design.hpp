@@ -103,8 +103,15 @@ inline void check_band(const InputBand& b) {
           at_parameter("band"));
 }
 
+// Largest signal the generators produce (16 GiB of doubles). Without a cap a mistyped length
+// ends in std::bad_alloc, or in an index that wraps, instead of an error naming the argument.
+inline constexpr long long input_max_samples = 1ll << 31;
+
 inline void check_length(Eigen::Index n) {
   require(n >= 1, "input design: the signal needs at least 1 sample, got " + std::to_string(n), at_parameter("n"));
+  require(n <= input_max_samples,
+          "input design: " + std::to_string(n) + " samples is more than 2^31; generate a shorter signal",
+          at_parameter("n"));
 }
 
 // Uniform in [0, 1) with 53 random bits (the standard's uniform_real_distribution is not
@@ -184,9 +191,17 @@ inline std::uint32_t prbs_next_state(int bits, std::uint32_t state) {
   require(hold >= 1, "prbs: hold must be >= 1 sample, got " + std::to_string(hold), at_parameter("hold"));
   detail::check_levels(levels);
   const long long chips = (1ll << bits) - 1;
+  // Each factor is checked against what is left of the cap before it is multiplied in: the
+  // plain product of three large arguments wraps around and would pass a check made afterwards.
+  const long long cap = detail::input_max_samples;
+  const auto too_long = [&](const char* parameter) {
+    return Error("prbs: " + std::to_string(chips) + " chips x " + std::to_string(periods) + " periods x " +
+                     std::to_string(hold) + " samples per chip is more than 2^31 samples; use fewer bits, periods or hold",
+                 at_parameter(parameter));
+  };
+  if (periods > cap / chips) throw too_long("periods");
+  if (hold > cap / (chips * periods)) throw too_long("hold");
   const long long n = chips * periods * hold;
-  require(n <= (1ll << 31), "prbs: " + std::to_string(n) + " samples is more than 2^31; use fewer bits, periods or hold",
-          at_parameter("periods"));
   Eigen::VectorXd u(static_cast<Eigen::Index>(n));
   std::uint32_t s = (std::uint32_t{1} << bits) - 1u;
   Eigen::Index k = 0;
@@ -236,6 +251,9 @@ inline std::uint32_t prbs_next_state(int bits, std::uint32_t state) {
 [[nodiscard]] inline std::vector<Eigen::Index> multisine_lines(Eigen::Index period, const MultisineOptions& o) {
   require(period >= 4, "multisine: the period must be >= 4 samples, got " + std::to_string(period),
           at_parameter("period"));
+  require(period <= detail::input_max_samples,
+          "multisine: the period of " + std::to_string(period) + " samples is more than 2^31; use a shorter period",
+          at_parameter("period"));
   detail::check_band(o.band);
   const double half = 0.5 * static_cast<double>(period);
   Eigen::Index lo = static_cast<Eigen::Index>(std::ceil(o.band.low * half - 1e-9));
@@ -274,7 +292,11 @@ inline std::uint32_t prbs_next_state(int bits, std::uint32_t state) {
 [[nodiscard]] inline Eigen::VectorXd multisine(Eigen::Index period, const MultisineOptions& o = {}) {
   detail::check_levels(o.levels);
   require(o.periods >= 1, "multisine: periods must be >= 1, got " + std::to_string(o.periods), at_parameter("periods"));
-  const std::vector<Eigen::Index> k = multisine_lines(period, o);
+  const std::vector<Eigen::Index> k = multisine_lines(period, o);  // also caps the period
+  require(o.periods <= detail::input_max_samples / period,
+          "multisine: " + std::to_string(o.periods) + " periods of " + std::to_string(period) +
+              " samples is more than 2^31 samples; use fewer periods or a shorter period",
+          at_parameter("periods"));
   const auto nl = static_cast<double>(k.size());
   std::vector<double> phi(k.size());
   std::mt19937_64 g(o.seed);
