@@ -551,3 +551,138 @@ TEST_CASE("read_csv: control bytes are shown escaped, underflow reads as the nea
   to.decimal_point = ':';
   CHECK_THROWS_WITH(nlid::read_csv_table(tiny, to), Contains("decimal_point must be '.' or ','"));
 }
+
+TEST_CASE("read_csv: Unix-time stamps with a short step round-trip, and a dropped sample is still caught",
+          "[data][csv]") {
+  TempDir dir;
+  // One ulp of 1.7e9 is 2.4e-7 s, 2.4 % of the step: the steps of the written column jitter by
+  // that much, beyond the 1 % tolerance, though every stamp is as exact as a double can be.
+  Eigen::MatrixXd u(200, 1), y(200, 1);
+  for (Eigen::Index k = 0; k < 200; ++k) u(k, 0) = std::sin(0.1 * static_cast<double>(k)), y(k, 0) = 0.5 * u(k, 0);
+  nlid::Experiment e(u, y, 1e-5, "unix");
+  e.set_t0(1.7e9);
+  const std::string path = dir.file("unix.csv");
+  nlid::write_csv(path, e);
+  const nlid::Experiment back = nlid::read_csv(path);
+  CHECK(back.ts() == 1e-5);
+  CHECK(back.t0() == e.t0());
+  CHECK(back.u() == e.u());
+  CHECK(back.y() == e.y());
+
+  // The same column with row 100 left out.
+  std::string text = "t,u,y\n";
+  for (Eigen::Index k = 0; k < 200; ++k) {
+    if (k == 100) continue;
+    text += nlid::detail::format_double(e.time()(k)) + ",0,0\n";
+  }
+  const nlid::Error err = error_of([&] { (void)nlid::read_csv(dir.write("gap.csv", text)); });
+  CHECK_THAT(err.what(), Contains("non-uniform time column") && Contains("from row 101"));
+  CHECK(err.where().row == 102);
+  nlid::CsvReadOptions o;
+  o.ts = 1e-5;
+  CHECK_THROWS_WITH(nlid::read_csv(dir.file("gap.csv"), o), Contains("non-uniform time column"));
+}
+
+TEST_CASE("read_csv: time stamps too far apart for a double are named, not passed on", "[data][csv][errors]") {
+  TempDir dir;
+  const std::string p = dir.write("far.csv", "t,u,y\n-1e308,0,0\n1e308,0,0\n");
+  const nlid::Error err = error_of([&] { (void)nlid::read_csv(p); });
+  CHECK_THAT(err.what(), Contains("spans more than the largest double"));
+  CHECK(err.where().file == p);
+  CHECK(err.where().row == 3);
+  CHECK(err.where().column_name == "t");
+  const std::string q = dir.write("far3.csv", "t,u,y\n-1e308,0,0\n0,0,0\n1e308,0,0\n");
+  CHECK(error_of([&] { (void)nlid::read_csv(q); }).where().file == q);
+}
+
+TEST_CASE("read_csv_table refuses a file whose first row is numbers: it has no header", "[data][csv][errors]") {
+  TempDir dir;
+  const std::string p = dir.write("bare.csv", "1,2\n3,4\n");
+  nlid::Error err = error_of([&] { (void)nlid::read_csv_table(p); });
+  CHECK_THAT(err.what(), Contains("seems to have no header row") && Contains("'1', '2'"));
+  CHECK(err.where().file == p);
+  CHECK(err.where().row == 1);
+  nlid::CsvTableOptions numeric;
+  numeric.numeric_header = true;
+  const nlid::CsvTable t = nlid::read_csv_table(p, numeric);
+  CHECK(t.header == std::vector<std::string>{"1", "2"});
+  CHECK(t.data.rows() == 1);
+
+  // numpy.savetxt(header="t u y") writes "# t u y": the header is a comment.
+  const std::string np = dir.write("np.txt", "# t u y\n0.0 1.5 2.5\n1.0e-03 1.5 2.5\n");
+  nlid::CsvTableOptions blank;
+  blank.delimiter = ' ';
+  err = error_of([&] { (void)nlid::read_csv_table(np, blank); });
+  CHECK_THAT(err.what(), Contains("no header row") && Contains("numpy.savetxt"));
+  CHECK(err.where().row == 2);
+  nlid::CsvReadOptions ro;
+  ro.delimiter = ' ';
+  CHECK_THROWS_WITH(nlid::read_csv(np, ro), Contains("no header row"));
+  // Names that are partly numbers are names.
+  CHECK(nlid::read_csv_table(dir.write("mixed.csv", "t,1\n0,2\n")).data.rows() == 1);
+}
+
+TEST_CASE("write_csv_table refuses names its reader would refuse or misread, before writing", "[data][csv][errors]") {
+  TempDir dir;
+  const Eigen::MatrixXd m = Eigen::MatrixXd::Ones(2, 2);
+  const std::string path = dir.file("w.csv");
+  nlid::Error err = error_of([&] { nlid::write_csv_table(path, {"a", "a"}, m); });
+  CHECK_THAT(err.what(), Contains("duplicate column name 'a' (also column 1)"));
+  CHECK(err.where().column == 2);
+  CHECK(err.where().file == path);
+  err = error_of([&] { nlid::write_csv_table(path, {"a", ""}, m); });
+  CHECK_THAT(err.what(), Contains("column 2 has an empty name"));
+  CHECK_THROWS_WITH(nlid::write_csv_table(path, {"a", "b\nc"}, m), Contains("line break"));
+  CHECK_THROWS_WITH(nlid::write_csv_table(path, {"a", "b"}, m, '"'), Contains("delimiter must be"));
+  CHECK_FALSE(fs::exists(path));
+
+  // With blank runs as the separator, names with a blank or a tab inside are quoted.
+  nlid::write_csv_table(path, {"a b", "c\td"}, m, ' ');
+  nlid::CsvTableOptions o;
+  o.delimiter = ' ';
+  const nlid::CsvTable t = nlid::read_csv_table(path, o);
+  CHECK(t.header == std::vector<std::string>{"a b", "c\td"});
+  CHECK(t.data == m);
+}
+
+TEST_CASE("header names with control bytes are shown escaped in every message", "[data][csv][errors]") {
+  TempDir dir;
+  const std::string nul(1, '\0');
+  // A C-string view of what() ends at a raw NUL; the location comes last, so it must survive.
+  const auto whole = [](const nlid::Error& e) {
+    return std::string(e.what()).size() == std::char_traits<char>::length(e.what());
+  };
+  const std::string dup = dir.write("dup.csv", "t,a" + nul + "b,a" + nul + "b\n0,1,2\n1,1,2\n");
+  nlid::Error err = error_of([&] { (void)nlid::read_csv_table(dup); });
+  CHECK(whole(err));
+  CHECK_THAT(err.what(), Contains("duplicate column name 'a\\x00b'") && Contains("dup.csv"));
+
+  const std::string two = dir.write("two.csv", "t,a" + nul + "b,y\n0,1,2\n1,1,2\n");
+  nlid::CsvReadOptions o;
+  o.inputs = {"a" + nul + "b"};
+  o.outputs = {"a" + nul + "b"};
+  err = error_of([&] { (void)nlid::read_csv(two, o); });
+  CHECK(whole(err));
+  CHECK_THAT(err.what(), Contains("'a\\x00b' is requested twice") && Contains("two.csv"));
+
+  err = error_of([&] { (void)nlid::read_csv(two); });  // no column 'u': the list shows the NUL name
+  CHECK(whole(err));
+  CHECK_THAT(err.what(), Contains("'t', 'a\\x00b', 'y'") && Contains("two.csv"));
+
+  const nlid::CsvTable t = nlid::read_csv_table(two);
+  err = error_of([&] { (void)t.column("q" + nul + "r"); });
+  CHECK(whole(err));
+  CHECK_THAT(err.what(), Contains("no column named 'q\\x00r'") && Contains("two.csv"));
+}
+
+TEST_CASE("read_csv_dataset names the file whose record does not fit", "[data][csv][errors]") {
+  TempDir dir;
+  fs::create_directories(dir.path / "a");
+  fs::create_directories(dir.path / "b");
+  const std::string first = dir.write("a/run.csv", "t,u,y\n0,0,0\n0.01,0,0\n0.02,0,0\n");
+  const std::string second = dir.write("b/run.csv", "t,u,y\n0,0,0\n0.02,0,0\n0.04,0,0\n");
+  const nlid::Error err = error_of([&] { (void)nlid::read_csv_dataset({first, second}); });
+  CHECK_THAT(err.what(), Contains("sample time"));
+  CHECK(err.where().file == second);
+  CHECK(err.where().experiment == 1);
+}

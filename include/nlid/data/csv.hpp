@@ -14,12 +14,15 @@
 ///     0.000,0,14.9
 ///     0.001,0,15.1
 ///
-/// Sample time. Unless `CsvReadOptions::ts` overrides it, T_s is inferred from the time column
-/// as (t_{N−1} − t_0)/(N−1), then nudged by a few units in the last place to the value whose grid
-/// t_0 + k·T_s reproduces the column best, so `write_csv` → `read_csv` returns the same `ts`
-/// bit for bit. Every step must be increasing and lie within `time_tolerance`·T_s of T_s; a
-/// dropped sample (a step of 2·T_s) is therefore reported, not smoothed over. The uniform grid is
-/// what every discrete-time model assumes (Ljung 1999, sec. 2.1).
+/// Sample time. Every step of the time column must be increasing and lie within
+/// `time_tolerance` of the median step (plus a few units in the last place of |t|, which a large
+/// t_0 such as Unix time needs); a dropped sample (a step of 2·T_s) is therefore reported, not
+/// smoothed over, with or without an override. Unless `CsvReadOptions::ts` overrides it, T_s is
+/// then the shortest decimal whose grid t_0 + k·T_s reproduces the column exactly (so
+/// `write_csv` → `read_csv` returns the same `ts` bit for bit), else the shortest decimal or rate
+/// that reproduces stamps printed with fixed decimals to their resolution, else
+/// (t_{N−1} − t_0)/(N−1) (`detail::snap_sample_time`). The uniform grid is what every
+/// discrete-time model assumes (Ljung 1999, sec. 2.1).
 ///
 /// Errors. Every problem throws `nlid::Error` whose message says what is wrong and whose
 /// location names the file, the 1-based line number ("row", as an editor shows it) and the
@@ -96,6 +99,9 @@ struct CsvTableOptions {
   char decimal_point = '.';                             ///< decimal separator of the numbers
   NonFinitePolicy non_finite = NonFinitePolicy::error;  ///< NaN/Inf/empty cells, all columns
   int max_gap = default_max_gap;  ///< longest gap `interpolate` fills (per column)
+  /// Accept a header whose every name is a number (pandas' default names 0, 1, …). Off, such a
+  /// first row is refused: it is far more often the first sample of a file without a header.
+  bool numeric_header = false;
 };
 
 /// Options of `write_csv`.
@@ -117,8 +123,8 @@ struct CsvTable {
     }
     Location l;
     l.file = file;
-    l.column_name = std::string(name);
-    throw Error("no column named '" + std::string(name) +
+    l.column_name = detail::printable(std::string(name), std::string::npos);
+    throw Error("no column named '" + detail::printable(std::string(name)) +
                     "'; available columns: " + detail::quoted_list(header),
                 l);
   }
@@ -149,7 +155,10 @@ inline void check_csv_format(char delimiter, char decimal_point, int max_gap) {
 /// `options.non_finite`). For tools that handle arbitrary tables; experiments use `read_csv`.
 inline CsvTable read_csv_table(const std::string& path, const CsvTableOptions& options = {}) {
   detail::check_csv_format(options.delimiter, options.decimal_point, options.max_gap);
-  const detail::CsvText t = detail::tokenize_csv(path, options.delimiter);
+  const detail::CsvText t = detail::tokenize_csv(path, options.delimiter, options.decimal_point);
+  if (!options.numeric_header && detail::header_is_numeric(t, options.decimal_point)) {
+    throw detail::no_header_error(t, "; or set CsvTableOptions::numeric_header if these are the names");
+  }
   CsvTable table;
   table.file = path;
   table.header = t.header;
@@ -167,7 +176,10 @@ inline CsvTable read_csv_table(const std::string& path, const CsvTableOptions& o
 }
 
 /// Writes `header` and the rows of `data` atomically, numbers in shortest round-trip form.
-/// Throws if the header width differs from the column count.
+/// Throws, before writing anything, if the header width differs from the column count, a name is
+/// empty, repeated or holds a line break, or the delimiter is one `read_csv_table` refuses.
+/// Names holding the delimiter, quotes or edge blanks are quoted. A header of numbers only reads
+/// back with `CsvTableOptions::numeric_header`.
 inline void write_csv_table(const std::string& path, const std::vector<std::string>& header,
                             const Eigen::MatrixXd& data, char delimiter = ',') {
   if (header.size() != static_cast<std::size_t>(data.cols())) {
@@ -182,6 +194,37 @@ inline void write_csv_table(const std::string& path, const std::vector<std::stri
     Location l;
     l.file = path;
     throw Error("cannot write a table without columns", l);
+  }
+  {
+    Location l;
+    l.file = path;
+    l.parameter = "delimiter";
+    try {
+      detail::check_csv_format(delimiter, '.', 0);
+    } catch (const Error& err) {
+      throw Error(err.message(), l);
+    }
+  }
+  // Everything read_csv_table would refuse or misread is refused before the file is touched.
+  for (std::size_t j = 0; j < header.size(); ++j) {
+    Location l;
+    l.file = path;
+    l.column = static_cast<long>(j) + 1;
+    l.column_name = detail::printable(header[j], std::string::npos);
+    l.parameter = "header";
+    if (header[j].empty()) {
+      throw Error("column " + std::to_string(j + 1) + " has an empty name; it could not be read back by name", l);
+    }
+    if (header[j].find_first_of("\n\r") != std::string::npos) {
+      throw Error("column name contains a line break: '" + detail::printable(header[j]) + "'", l);
+    }
+    for (std::size_t i = 0; i < j; ++i) {
+      if (header[i] == header[j]) {
+        throw Error("duplicate column name '" + detail::printable(header[j]) + "' (also column " +
+                        std::to_string(i + 1) + ")",
+                    l);
+      }
+    }
   }
   std::string out;
   out.reserve(static_cast<std::size_t>(data.size()) * 12 + 64);
@@ -219,7 +262,7 @@ inline Experiment read_csv(const std::string& path, const CsvReadOptions& option
     throw Error("time_tolerance must be >= 0", at_parameter("time_tolerance"));
   }
   detail::check_csv_format(options.delimiter, options.decimal_point, options.max_gap);
-  const detail::CsvText t = detail::tokenize_csv(path, options.delimiter);
+  const detail::CsvText t = detail::tokenize_csv(path, options.delimiter, options.decimal_point);
   const auto n = static_cast<Eigen::Index>(t.rows.size());
 
   // Resolve the columns first: a misspelt name is reported before any cell is parsed.
@@ -288,12 +331,23 @@ inline Experiment read_csv(const std::string& path, const CsvReadOptions& option
   return read_csv(path, options, info);
 }
 
-/// Reads several files into one multi-experiment `Dataset` (same options for all). Errors from a
-/// file name that file; mismatched sample times or channel counts name the experiment index.
+/// Reads several files into one multi-experiment `Dataset` (same options for all). Every error
+/// names the file; one that does not fit the files before it (sample time, channel counts) also
+/// names its experiment index.
 inline Dataset read_csv_dataset(const std::vector<std::string>& paths,
                                 const CsvReadOptions& options = {}) {
   Dataset d;
-  for (const auto& p : paths) d.add(read_csv(p, options));
+  for (const auto& p : paths) {
+    Experiment e = read_csv(p, options);
+    try {
+      d.add(std::move(e));
+    } catch (const Error& err) {
+      // The experiment's name is only the stem: two directories can hold a "run1.csv".
+      Location l = err.where();
+      l.file = p;
+      throw Error(err.message(), l);
+    }
+  }
   return d;
 }
 

@@ -23,16 +23,17 @@
 #include "nlid/core/error.hpp"
 #include "nlid/core/format.hpp"
 #include "nlid/data/detail/missing.hpp"
+#include "nlid/data/detail/printable.hpp"
 #include "nlid/data/experiment.hpp"
 
 namespace nlid {
 
 namespace detail {
 
-/// "'t', 'u', 'y'" for error messages ("(none)" if empty).
+/// "'t', 'u', 'y'" for error messages ("(none)" if empty); names are shown `printable`.
 inline std::string quoted_list(const std::vector<std::string>& names) {
   std::string s;
-  for (const auto& n : names) s += (s.empty() ? "'" : ", '") + n + "'";
+  for (const auto& n : names) s += (s.empty() ? "'" : ", '") + printable(n) + "'";
   return s.empty() ? "(none)" : s;
 }
 
@@ -40,10 +41,12 @@ inline std::string quoted_list(const std::vector<std::string>& names) {
 /// so only the columns a caller asks for must be numeric (a file may carry a comment column).
 struct CsvText {
   std::string file;
+  char decimal_point = '.';
   std::vector<std::string> header;
   long header_line = 0;
   std::vector<std::vector<std::string>> rows;
   std::vector<long> lines;  // 1-based line number of each row
+  bool comment_before_header = false;  // a '#' line came first (numpy.savetxt's "# t u y")
 };
 
 inline Location csv_at(const std::string& file, long row = -1, long col = -1,
@@ -52,7 +55,9 @@ inline Location csv_at(const std::string& file, long row = -1, long col = -1,
   l.file = file;
   l.row = row;
   l.column = col;
-  l.column_name = name;
+  // Escaped but not shortened: what() must not end at a NUL byte of a header, and a program
+  // matching where().column_name against its own names still finds a long one.
+  l.column_name = printable(name, std::string::npos);
   return l;
 }
 
@@ -150,12 +155,13 @@ inline std::string separator_hint(const std::vector<std::string>& header, const 
 }
 
 /// Reads and tokenises `path`; checks header sanity and that every row has the header's width.
-inline CsvText tokenize_csv(const std::string& path, char delimiter) {
+inline CsvText tokenize_csv(const std::string& path, char delimiter, char decimal_point) {
   if (delimiter == '"' || delimiter == '\n' || delimiter == '\r' || delimiter == '#') {
     throw Error(std::string("invalid delimiter '") + delimiter + "'", at_parameter("delimiter"));
   }
   CsvText t;
   t.file = path;
+  t.decimal_point = decimal_point;
   std::string text = read_file(path);  // names the file if missing / a directory
   std::string_view s(text);
   if (s.size() >= 3 && s.substr(0, 3) == "\xEF\xBB\xBF") s.remove_prefix(3);  // UTF-8 BOM
@@ -174,7 +180,10 @@ inline CsvText tokenize_csv(const std::string& path, char delimiter) {
     ++line_no;
     if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
     const std::string_view content = trim_blanks(line, true);
-    if (content.empty() || content.front() == '#') continue;
+    if (content.empty() || content.front() == '#') {
+      if (!have_header && !content.empty()) t.comment_before_header = true;
+      continue;
+    }
     split_csv_line(line, delimiter, fields, path, line_no);
     if (!have_header) {
       have_header = true;
@@ -184,7 +193,7 @@ inline CsvText tokenize_csv(const std::string& path, char delimiter) {
         if (t.header[j].empty()) continue;  // unnamed (e.g. a pandas index) – cannot be requested
         for (std::size_t i = 0; i < j; ++i) {
           if (t.header[i] == t.header[j]) {
-            throw Error("duplicate column name '" + t.header[j] + "' (also column " +
+            throw Error("duplicate column name '" + printable(t.header[j]) + "' (also column " +
                             std::to_string(i + 1) + ")",
                         csv_at(path, line_no, static_cast<long>(j) + 1, t.header[j]));
           }
@@ -206,27 +215,6 @@ inline CsvText tokenize_csv(const std::string& path, char delimiter) {
     throw Error("file has a header but no data rows", csv_at(path, t.header_line));
   }
   return t;
-}
-
-/// The cell as it can be shown in a message: control characters (a NUL byte would end the
-/// message early) as \xNN, and at most 80 characters.
-inline std::string printable(const std::string& cell) {
-  std::string out;
-  for (const char ch : cell) {
-    const auto c = static_cast<unsigned char>(ch);
-    if (c < 0x20 || c == 0x7f) {
-      char buf[8];
-      std::snprintf(buf, sizeof buf, "\\x%02x", c);
-      out += buf;
-    } else {
-      out += ch;
-    }
-    if (out.size() >= 80) {
-      out += "...";
-      break;
-    }
-  }
-  return out;
 }
 
 /// Parses one cell. Empty → NaN (a missing value). Throws quoting the cell if it is not a number.
@@ -258,6 +246,45 @@ inline double parse_cell(const std::string& cell, char decimal_point, const CsvT
     throw Error("non-numeric cell '" + printable(cell) + "'", where());
   }
   return v;
+}
+
+/// True if `cell` reads as a number the way `parse_cell` reads it.
+inline bool is_number(const std::string& cell, char decimal_point) {
+  std::string s = cell;
+  if (decimal_point != '.') std::replace(s.begin(), s.end(), decimal_point, '.');
+  std::string_view v(s);
+  if (v.size() > 1 && v.front() == '+' && v[1] != '-' && v[1] != '+') v.remove_prefix(1);
+  double x = 0.0;
+  const auto [ptr, ec] = std::from_chars(v.data(), v.data() + v.size(), x);
+  return !v.empty() && ptr == v.data() + v.size() && (ec == std::errc() || ec == std::errc::result_out_of_range);
+}
+
+/// True if every named field of the header is a number: then the "header" is almost surely the
+/// first data row of a file without one, and taking it as names would drop that sample.
+inline bool header_is_numeric(const CsvText& t, char decimal_point) {
+  bool any = false;
+  for (const auto& h : t.header) {
+    if (h.empty()) continue;  // an unnamed index column (pandas) or a missing cell
+    if (!is_number(h, decimal_point)) return false;
+    any = true;
+  }
+  return any;
+}
+
+/// The error for a file whose first row is numbers (`header_is_numeric`); `escape` says how to
+/// accept such names anyway, if the reader has a way.
+inline Error no_header_error(const CsvText& t, const std::string& escape) {
+  std::vector<std::string> shown(t.header.begin(), t.header.begin() + static_cast<std::ptrdiff_t>(
+                                                                          std::min<std::size_t>(t.header.size(), 4)));
+  std::string list = quoted_list(shown) + (t.header.size() > shown.size() ? ", ..." : "");
+  return Error("the file seems to have no header row: its first row (" + list +
+                   ") is all numbers, and read as column names it would be lost as a sample; add a line "
+                   "with the column names" +
+                   (t.comment_before_header
+                        ? " (a header behind '#', as numpy.savetxt writes it, is skipped as a comment)"
+                        : std::string()) +
+                   escape,
+               csv_at(t.file, t.header_line));
 }
 
 /// Column `col` of the table as numbers.
@@ -325,12 +352,13 @@ inline std::size_t find_column(const CsvText& t, const std::string& name, const 
   for (std::size_t j = 0; j < t.header.size(); ++j) {
     if (t.header[j] == name) return j;
   }
+  if (header_is_numeric(t, t.decimal_point)) throw no_header_error(t, {});
   Location l = csv_at(t.file, t.header_line, -1, name);
   std::string hint = separator_hint(t.header, name);
   if (hint.empty() && std::string(role) == "time")
     hint = "; a file without a time column needs the sample time (CsvReadOptions::ts with time_column \"\"; "
            "--ts in the tools)";
-  throw Error(std::string(role) + " column '" + name +
+  throw Error(std::string(role) + " column '" + printable(name) +
                   "' not found; available columns: " + quoted_list(t.header) + hint,
               l);
 }
@@ -342,7 +370,9 @@ inline std::string format_double(double x) {
 }
 
 inline std::string quote_if_needed(const std::string& s, char delim) {
+  // With delim ' ' the reader splits at runs of blanks, tabs included.
   const bool needs = s.find(delim) != std::string::npos || s.find('"') != std::string::npos ||
+                     (delim == ' ' && s.find('\t') != std::string::npos) ||
                      s.find('\n') != std::string::npos || s.find('\r') != std::string::npos ||
                      (!s.empty() && (s.front() == ' ' || s.front() == '\t' || s.front() == '#' ||
                                      s.back() == ' ' || s.back() == '\t'));
@@ -398,7 +428,12 @@ inline double exact_sample_time(const Eigen::VectorXd& t) {
   auto grid_last = [&](double ts) { return t0 + last * ts; };
   auto bits = [](double x) { return std::bit_cast<std::uint64_t>(x); };
   auto from = [](std::uint64_t b) { return std::bit_cast<double>(b); };
-  std::uint64_t lo = bits(est * (1.0 - 1e-9)), hi = bits(est * (1.0 + 1e-9));
+  // The endpoint estimate is off by the rounding of t_0 and t_{N−1} spread over the record: with
+  // a large t_0 (Unix time 1.7e9, ulp 2.4e-7) and a short record that is far more than 1e-9.
+  const double spread = 4.0 * std::numeric_limits<double>::epsilon() *
+                        std::max(std::abs(t0), std::abs(tl)) / last;
+  const double reach = std::min(1e-9 * est + spread, 0.5 * est);
+  std::uint64_t lo = bits(est - reach), hi = bits(est + reach);
   if (!(grid_last(from(lo)) < tl && grid_last(from(hi)) > tl)) return none;
   // L = first double with grid_last >= tl.
   std::uint64_t a = lo, b = hi;
@@ -487,7 +522,7 @@ inline void check_distinct_columns(const CsvText& t, bool has_time, std::size_t 
   for (std::size_t a = 0; a < used.size(); ++a) {
     for (std::size_t b = 0; b < a; ++b) {
       if (used[a].first == used[b].first) {
-        throw Error("column '" + t.header[used[a].first] + "' is requested twice (" +
+        throw Error("column '" + printable(t.header[used[a].first]) + "' is requested twice (" +
                         used[b].second + " and " + used[a].second + ")",
                     csv_at(t.file, t.header_line, static_cast<long>(used[a].first) + 1,
                            t.header[used[a].first]));
@@ -552,14 +587,33 @@ inline std::pair<double, double> time_axis(const CsvText& t, std::size_t time_co
   // a sample-time override: it sets the rate, but a gap in the column is still a lost sample
   // that evenly spaced samples would hide.
   const Eigen::VectorXd steps = time.tail(n - 1) - time.head(n - 1);
+  // Finite stamps can still be too far apart for a double (-1e308 then 1e308): the step, and
+  // every sample time derived from it, would be infinite.
+  if (!std::isfinite(time(n - 1) - time(0))) {
+    Eigen::Index k = 1;
+    while (k < n - 1 && std::isfinite(steps(k - 1))) ++k;
+    throw Error("time column spans more than the largest double: t = " + num(time(0)) + " to " +
+                    num(time(n - 1)) + " (step from row " +
+                    std::to_string(t.lines[static_cast<std::size_t>(k - 1)]) + " is " + num(steps(k - 1)) + ")",
+                at_row(k));
+  }
   std::vector<double> sorted(steps.data(), steps.data() + steps.size());
   const auto mid = sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2);
   std::nth_element(sorted.begin(), mid, sorted.end());
   const double typical = *mid;
   *column_step = typical;
+  // Each stamp is a double, off its ideal time by up to half an ulp of |t| (and write_csv's
+  // t0 + k·ts by as much again), so with a large t0 and a short step (Unix time 1.7e9 in steps
+  // of 1e-5: one ulp is 2.4e-7) steps jitter by a few ulps of |t| that no tolerance relative
+  // to the step absorbs. A step and the median step both carry that error, hence 8 ulps. The
+  // allowance stays below a quarter of the step, so a dropped sample (a whole step more) is
+  // still caught; stamps too coarse for that are reported as non-uniform, as before.
+  const double t_abs = std::max(std::abs(time(0)), std::abs(time(n - 1)));
+  double rounding = 8.0 * std::numeric_limits<double>::epsilon() * t_abs;
+  if (tolerance < 1.0) rounding = std::min(rounding, 0.25 * (1.0 - tolerance) * typical);
   for (Eigen::Index k = 1; k < n; ++k) {
     const double dev = std::abs(steps(k - 1) - typical) / typical;
-    if (dev > tolerance) {
+    if (!(std::abs(steps(k - 1) - typical) <= tolerance * typical + rounding)) {
       throw Error("non-uniform time column: step " + num(steps(k - 1)) + " from row " +
                       std::to_string(t.lines[static_cast<std::size_t>(k - 1)]) + " deviates by " +
                       percent(dev) + " from the typical step " + num(typical) + " (tolerance " +
@@ -576,7 +630,14 @@ inline std::pair<double, double> time_axis(const CsvText& t, std::size_t time_co
     }
     return {ts_override, t0};
   }
-  return {snap_sample_time(time, time_quantum(t, time_col, decimal_point)), t0};
+  const double ts = snap_sample_time(time, time_quantum(t, time_col, decimal_point));
+  // The checks above leave a finite positive step; this keeps a failure of that reasoning
+  // from reaching Experiment::set_ts, whose error could not name the file.
+  if (!(ts > 0.0) || !std::isfinite(ts)) {
+    throw Error("cannot derive a sample time from the time column (got " + num(ts) + "); set CsvReadOptions::ts",
+                at_row(n - 1));
+  }
+  return {ts, t0};
 }
 
 }  // namespace detail
