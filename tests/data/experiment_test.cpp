@@ -218,3 +218,27 @@ TEST_CASE("merge concatenates data sets and validates the result", "[data]") {
   CHECK(err.where().experiment == 2);
   CHECK_THAT(err.what(), Contains("'fast' has sample time 0.001"));
 }
+
+TEST_CASE("Dataset refuses records whose channels carry different names at one position", "[data][errors]") {
+  nlid::Experiment a = ramp(10, 0.01, 2, 1, "a");
+  a.set_input_names({"cmd", "load"});
+  nlid::Experiment b = ramp(10, 0.01, 2, 1, "b");
+  b.set_input_names({"load", "cmd"});
+  auto err = error_of([&] { (void)nlid::Dataset{a, b}; });
+  CHECK_THAT(err.what(), Contains("experiment 'b' has input 1 named 'load' but the data set's input 1 is 'cmd'"));
+  CHECK(err.where().experiment == 1);
+  CHECK(err.where().column == 1);
+  CHECK(err.where().column_name == "load");
+  err = error_of([&] { (void)nlid::merge(nlid::Dataset{a}, nlid::Dataset{b}); });
+  CHECK(err.where().experiment == 1);
+  nlid::Experiment c = ramp(10, 0.01, 2, 1, "c");
+  c.set_output_names({"angle"});
+  nlid::Experiment d = ramp(10, 0.01, 2, 1, "d");
+  d.set_output_names({"rate"});
+  CHECK_THROWS_WITH(nlid::Dataset({c, d}), Contains("output 1 named 'rate'"));
+  // Default names (u1, u2; y) and empty ones name nothing in particular: they merge with any.
+  nlid::Experiment e = ramp(10, 0.01, 2, 1, "e");
+  e.set_input_names({"", "load"});
+  const nlid::Dataset ok{a, ramp(10, 0.01, 2, 1, "plain"), e, a};
+  CHECK(ok.size() == 4);
+}

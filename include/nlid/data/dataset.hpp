@@ -27,6 +27,7 @@
 
 #include "nlid/core/error.hpp"
 #include "nlid/core/format.hpp"
+#include "nlid/data/detail/printable.hpp"
 #include "nlid/data/experiment.hpp"
 
 namespace nlid {
@@ -83,6 +84,8 @@ class Dataset {
                         std::to_string(first.num_outputs()) + " outputs",
                     at_experiment(index));
       }
+      check_names(e, first, index, "input", e.input_names(), first.input_names());
+      check_names(e, first, index, "output", e.output_names(), first.output_names());
     }
     experiments_.push_back(std::move(e));
   }
@@ -141,6 +144,32 @@ class Dataset {
   static std::string number(double x) { return detail::format_g(x, 17); }
   static std::string label(const Experiment& e) {
     return e.name().empty() ? std::string("experiment ") : "experiment '" + e.name() + "' ";
+  }
+  // The default names (u, y; u1, u2, …) say nothing about what a channel is, and neither does an
+  // empty one: only two chosen names can disagree.
+  static bool chosen(const std::string& name, const char* stem, std::size_t i, std::size_t n) {
+    if (name.empty()) return false;
+    return name != (n == 1 ? std::string(stem) : stem + std::to_string(i + 1));
+  }
+  // Channels are matched by position when criteria add up over records, so two records whose
+  // channels carry different names (inputs {cmd, load} and {load, cmd}) would be fitted as one
+  // system with the signals swapped.
+  static void check_names(const Experiment& e, const Experiment& first, long index, const char* kind,
+                          const std::vector<std::string>& names, const std::vector<std::string>& have) {
+    const char* stem = kind[0] == 'i' ? "u" : "y";
+    for (std::size_t i = 0; i < names.size() && i < have.size(); ++i) {
+      if (chosen(names[i], stem, i, names.size()) && chosen(have[i], stem, i, have.size()) && names[i] != have[i]) {
+        Location l = at_experiment(index);
+        l.column = static_cast<long>(i) + 1;
+        l.column_name = detail::printable(names[i], std::string::npos);
+        throw Error(label(e) + "has " + kind + " " + std::to_string(i + 1) + " named '" + detail::printable(names[i]) +
+                        "' but the data set's " + kind + " " + std::to_string(i + 1) + " is '" +
+                        detail::printable(have[i]) + "' (" + label(first) +
+                        "at index 0); channels are matched by position: reorder them (select_channels) or, if "
+                        "they are the same signal, rename them (set_" + kind + "_names)",
+                    l);
+      }
+    }
   }
   void check_index(std::size_t i) const {
     if (i >= experiments_.size()) {
