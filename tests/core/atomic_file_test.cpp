@@ -73,3 +73,15 @@ TEST_CASE("a long file name still gets a temporary within the name limit") {
   CHECK(nlid::read_file(path) == "{}");
   fs::remove_all(dir);
 }
+
+TEST_CASE("read_file reports a failing read instead of returning what came before it") {
+  // Reading /proc/self/mem from offset 0 fails with EIO (that page is never mapped): a file that
+  // opens but cannot be read, as a disk error would leave it.
+  const std::string mem = "/proc/self/mem";
+  if (!fs::exists(mem)) {
+    SUCCEED("no /proc/self/mem on this system");
+    return;
+  }
+  CHECK_THROWS_AS(nlid::read_file(mem), nlid::Error);
+  CHECK_THROWS_WITH(nlid::read_file(mem), Catch::Contains("read error") && Catch::Contains("/proc/self/mem"));
+}

@@ -165,7 +165,18 @@ inline std::string read_file(const std::string& path) {
   if (std::filesystem::is_directory(path, ec)) throw Error("path is a directory, not a file", where);
   std::ifstream in(path, std::ios::binary);
   if (!in) throw Error("cannot open file for reading", where);
-  std::string s((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  // Read in blocks through istream::read, which turns a failing read (an I/O error, a file that
+  // vanished underneath) into badbit; istreambuf_iterator just stops, as at the end of the file,
+  // and the caller would parse the truncated text as if it were all.
+  std::string s;
+  char block[1 << 16];
+  while (in.read(block, sizeof block) || in.gcount() > 0) {
+    s.append(block, static_cast<std::size_t>(in.gcount()));
+    if (!in) break;
+  }
+  if (in.bad() || !in.eof()) {
+    throw Error("read error after " + std::to_string(s.size()) + " bytes; the file is incomplete or unreadable", where);
+  }
   return s;
 }
 
