@@ -259,6 +259,8 @@ TEST_CASE("select_channels picks channels by name, in the order given", "[data][
   CHECK(s.y().col(1) == e.y().col(0));
   CHECK(s.output_units() == std::vector<std::string>{"A", "deg"});
   CHECK(s.t0() == 1.0);
+  CHECK(s.notes().size() == e.notes().size() + 1);
+  CHECK_THAT(s.notes().back(), Contains("selected channels: inputs 'load'; outputs 'current', 'angle'"));
   CHECK(nlid::select_channels(e, {}, {"rate"}).num_inputs() == 0);
   CHECK_THROWS_WITH(
       nlid::select_channels(e, {"volt"}, {"speed"}),

@@ -13,8 +13,9 @@
 ///
 /// For the sum to mean one model, all experiments must share the sample time (delays are counted
 /// in samples) and the channel counts. `Dataset` enforces both when an experiment is added: equal
-/// `ts` within a relative 1e-9, equal n_u and n_y. Errors name the experiment index (0-based, as
-/// `operator[]` takes it) and the record's name.
+/// `ts` within a relative 1e-9, equal n_u and n_y, and no channel that two records name
+/// differently. Errors name the experiment index (0-based, as `operator[]` takes it) and the
+/// record's name.
 
 #include <Eigen/Core>
 #include <cmath>
@@ -58,7 +59,8 @@ class Dataset {
   }
 
   /// Appends an experiment. Throws `nlid::Error` (naming the index it would get) if its sample
-  /// time differs from the others by more than a relative 1e-9, or its channel counts differ.
+  /// time differs from the others by more than a relative 1e-9, its channel counts differ, or a
+  /// channel that both it and the first record name (not a default or empty name) has another name.
   void add(Experiment e) {
     const long index = static_cast<long>(experiments_.size());
     try {

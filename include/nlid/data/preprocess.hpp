@@ -1,9 +1,10 @@
 #pragma once
 /// @file
 /// Preprocessing of experiments: offsets, means, linear trends, time windows; plus (through
-/// resample.hpp) decimation and resampling, and channel selection. Every function returns a new
-/// experiment and leaves a note in its history; every one has a `Dataset` overload applied per
-/// experiment whose errors name the experiment index.
+/// resample.hpp) decimation and resampling, and channel selection. Every function that returns an
+/// experiment returns a new one with a note added to its history (channel selection included);
+/// all but `linear_trend` have a `Dataset` overload, applied per experiment (`mean_trend` pools),
+/// whose errors name the experiment index.
 ///
 /// Offsets and trends (Ljung 1999, sec. 14.1, "Slow disturbances: offsets, trends and drift").
 /// A linear model describes deviations from an operating point, so levels that the model cannot
@@ -277,6 +278,13 @@ inline Experiment select_channels(const Experiment& e, const std::vector<std::st
   out.set_input_units(std::move(iu));
   out.set_output_units(std::move(ou));
   for (const auto& n : e.notes()) out.add_note(n);
+  // Which columns of the original record these are is part of its history, as for a window.
+  const auto list = [](const std::vector<std::string>& names) {
+    std::string s;
+    for (const auto& n : names) s += (s.empty() ? "'" : ", '") + n + "'";
+    return s.empty() ? std::string("none") : s;
+  };
+  out.add_note("selected channels: inputs " + list(inputs) + "; outputs " + list(outputs));
   return out;
 }
 
