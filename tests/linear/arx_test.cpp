@@ -10,6 +10,7 @@
 #include "linear_test_util.hpp"
 #include "nlid/analysis/fit.hpp"
 #include "nlid/linear/arx.hpp"
+#include "nlid/linear/output_error.hpp"
 
 using nlid::Arx;
 using nlid::Experiment;
@@ -117,6 +118,30 @@ TEST_CASE("ARX parameter standard deviations: set, and refused when malformed", 
   bad(0) = -1e-3;
   CHECK_THROWS_WITH(a.set_parameter_stddev(bad), Catch::Contains("of " + names[0] + " (entry 0)"));
   CHECK(a.parameter_stddev() == sd);  // a refused vector leaves the old one
+  bad = sd;
+  bad(2) = std::numeric_limits<double>::infinity();  // "not identifiable": accepted and said so
+  a.set_parameter_stddev(bad);
+  CHECK(a.describe().find("(not identifiable)") != std::string::npos);
+}
+
+TEST_CASE("Least squares marks undetermined parameters, keeps the determined ones' variance", "[linear][arx]") {
+  // Columns 1 and 2 are equal: only their sum is determined. Column 0 is orthogonal to both, so
+  // its variance must be what a fit without the duplicate gives, not 0 and not +inf.
+  const Eigen::MatrixXd x = nlid_test::white_noise(50, 2, 81);
+  Eigen::MatrixXd phi(50, 3);
+  phi << x.col(0), x.col(1), x.col(1);
+  Eigen::MatrixXd reduced(50, 2);
+  reduced << x.col(0), x.col(1);
+  const Eigen::VectorXd y = nlid_test::white_noise(50, 1, 82).col(0);
+  const nlid::detail::LeastSquaresSolution full = nlid::detail::solve_least_squares_qr(reduced, y);
+  const nlid::detail::LeastSquaresSolution dup = nlid::detail::solve_least_squares_qr(phi, y);
+  CHECK(dup.rank == 2);
+  CHECK(dup.unscaled_variance(0) == Approx(full.unscaled_variance(0)).epsilon(1e-10));
+  CHECK(std::isinf(dup.unscaled_variance(1)));
+  CHECK(std::isinf(dup.unscaled_variance(2)));
+  const Eigen::VectorXd sd = nlid::detail::stddev_from_variance(0.0, dup.unscaled_variance);
+  CHECK(sd(0) == 0.0);
+  CHECK(std::isinf(sd(1)));  // not NaN from 0 * inf
 }
 
 TEST_CASE("ARX one-step prediction of noise-free data equals the measurement", "[linear][arx]") {
@@ -173,6 +198,22 @@ TEST_CASE("ARX simulation initial conditions", "[linear][arx]") {
   const double yss = (2.0 * 1.5 + 0.3) / (1 - 1.5 + 0.7);
   CHECK((eq.array() - yss).abs().maxCoeff() < 1e-9);
   CHECK(truth.dc_gain() == Approx(1.5 / 0.2));
+}
+
+TEST_CASE("ARX and OE refuse an estimated initial state whose free response overflows", "[linear][arx][errors]") {
+  // A pole at 1.5: 1/A's impulse response passes 1e150 after about 850 samples, and the fitted
+  // initial state, then the whole simulation, came back NaN without a word.
+  const Arx unstable(vec({-1.5}), {vec({1.0})}, {0}, 0.1);
+  const Experiment e(nlid_test::white_noise(2000, 1, 95), nlid_test::white_noise(2000, 1, 96), 0.1);
+  CHECK_THROWS_WITH(unstable.simulate(e, InitialCondition::estimate),
+                    Catch::Contains("Arx::simulate: InitialCondition::estimate needs the free response of 1/A(q)") &&
+                        Catch::Contains("A(q) is unstable (a pole at |z| = 1.5)"));
+  const Experiment s(e.u().topRows(100), e.y().topRows(100), 0.1);
+  CHECK(unstable.simulate(s, InitialCondition::estimate).allFinite());
+  const nlid::OutputError oe({vec({1.0}), vec({0.5})}, {vec({-0.5}), vec({-1.5})}, {0, 0}, 0.1);
+  const Experiment two(nlid_test::white_noise(2000, 2, 97), nlid_test::white_noise(2000, 1, 98), 0.1);
+  CHECK_THROWS_WITH(oe.simulate(two, InitialCondition::estimate),
+                    Catch::Contains("free response of 1/F2(q)") && Catch::Contains("|z| = 1.5"));
 }
 
 TEST_CASE("ARX converts to state space with the same input-output behaviour", "[linear][arx]") {
@@ -246,6 +287,15 @@ TEST_CASE("ARX rejects bad orders and data with located messages", "[linear][arx
     CHECK_THROWS_WITH(siso_truth().predict(e, 0), Catch::Contains("k must be >= 1"));
     const Experiment other(e.u(), e.y(), 0.01, "fast");
     CHECK_THROWS_WITH(siso_truth().simulate(other), Catch::Contains("sample time"));
+  }
+  SECTION("as many regression rows as parameters") {
+    // [1 2 1]: 3 parameters, largest lag 2, so N samples give N - 2 rows.
+    const Experiment s(e.u().topRows(4), e.y().topRows(4), 0.1, "four");
+    CHECK_THROWS_WITH(nlid::arx(s, {1, 2, 1}), Catch::Contains("2 regression rows for 3 parameters"));
+    // Exactly as many rows as parameters would fit exactly: refused too, not 100 % and sd 0.
+    const Experiment t(e.u().topRows(5), e.y().topRows(5), 0.1, "five");
+    CHECK_THROWS_WITH(nlid::arx(t, {1, 2, 1}), Catch::Contains("3 regression rows for 3 parameters"));
+    CHECK(nlid::arx(Experiment(e.u().topRows(6), e.y().topRows(6), 0.1), {1, 2, 1}).report().num_samples == 4);
   }
   SECTION("empty data set") { CHECK_THROWS_WITH(nlid::arx(nlid::Dataset{}, {2, 2, 1}), Catch::Contains("empty")); }
 }

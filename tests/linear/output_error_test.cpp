@@ -139,6 +139,44 @@ TEST_CASE("OE with two inputs, each with its own F", "[linear][oe]") {
   CHECK((ss.simulate(e, InitialCondition::zero) - m.simulate(e, InitialCondition::zero)).cwiseAbs().maxCoeff() < 1e-10);
 }
 
+TEST_CASE("OE standard deviations survive collinear initial-condition terms", "[linear][oe]") {
+  // Two FIR blocks with estimated initial conditions: both blocks' free responses are the same
+  // unit impulses, so their γ columns coincide and the full Jacobian is rank deficient. That
+  // must not wipe out the B standard deviations (they were all 0, printed without +/-).
+  Eigen::MatrixXd u(600, 2);
+  u << nlid_test::white_noise(600, 1, 31), nlid_test::white_noise(600, 1, 32);
+  const OutputError truth({vec({0.5, 0.3}), vec({-0.4, 0.2})}, {vec({}), vec({})}, {1, 1}, 0.01);
+  Experiment e = oe_data(truth, u, 0.1, 33);
+  nlid::OeOptions opt;
+  opt.initial_state = InitialCondition::estimate;
+  const OutputError m = nlid::oe(e, nlid::OeOrders({2, 2}, {0, 0}, {1, 1}), opt);
+  const Eigen::VectorXd sd = m.parameter_stddev();
+  REQUIRE(sd.size() == 4);
+  for (Eigen::Index k = 0; k < sd.size(); ++k) {
+    CHECK(std::isfinite(sd(k)));
+    CHECK(sd(k) > 0.0);
+    CHECK(std::abs(m.parameters()(k) - truth.parameters()(k)) < 5.0 * sd(k));
+  }
+  CHECK(m.describe().find("B1(q) = 0.") != std::string::npos);
+  CHECK(m.describe().find(" (+/- ") != std::string::npos);
+}
+
+TEST_CASE("OE counts the initial-condition terms among the parameters", "[linear][oe][errors]") {
+  // [2 2 2] with estimated initial conditions: 4 B/F + 3 γ per experiment. Three experiments of
+  // 4 samples are 12 residuals for 13 parameters: an exact "100 %" fit if accepted.
+  nlid::Dataset d, longer;
+  for (unsigned k = 0; k < 3; ++k) {
+    const Experiment x = oe_data(truth_220(), nlid_test::white_noise(6, 1, 40 + k), 0.1, 50 + k);
+    d.add(Experiment(x.u().topRows(4), x.y().topRows(4), x.ts()));
+    longer.add(x);
+  }
+  nlid::OeOptions opt;
+  opt.initial_state = InitialCondition::estimate;
+  CHECK_THROWS_WITH(nlid::oe(d, {2, 2, 2}, opt),
+                    Catch::Contains("12 samples for 13 parameters (4 model + 9 initial-condition)"));
+  CHECK(nlid::oe(longer, {2, 2, 2}, opt).report().num_parameters == 13);
+}
+
 TEST_CASE("OE describe and conversions", "[linear][oe]") {
   const OutputError m = truth_220(2.0);
   const std::string d = m.describe();
@@ -180,8 +218,14 @@ TEST_CASE("OE parameter standard deviations: set, and refused when malformed", "
   o.set_parameter_stddev(sdo);
   CHECK(o.parameter_stddev() == sdo);
   Eigen::VectorXd bado = sdo;
-  bado(3) = std::numeric_limits<double>::infinity();
+  bado(3) = std::numeric_limits<double>::quiet_NaN();
   CHECK_THROWS_WITH(o.set_parameter_stddev(bado),
                     Catch::Contains("OutputError: the standard deviation of " + o.parameter_names()[3] + " (entry 3)"));
+  // +inf is how an estimate says "the data do not determine this parameter".
+  Eigen::VectorXd inf = sdo;
+  inf(3) = std::numeric_limits<double>::infinity();
+  o.set_parameter_stddev(inf);
+  CHECK(o.describe().find("(not identifiable)") != std::string::npos);
+  CHECK(o.describe().find("inf") == std::string::npos);
   CHECK_THROWS_WITH(o.set_parameter_stddev(Eigen::VectorXd::Zero(1)), Catch::Contains("OutputError: 1 standard deviations"));
 }

@@ -222,14 +222,15 @@ class Arx {
     if (has_offset_) names.push_back("c");
     return names;
   }
-  /// One-sigma standard deviations of `parameters()` (zeros for a hand-made model).
+  /// One-sigma standard deviations of `parameters()` (zeros for a hand-made model; +∞ for a
+  /// parameter the estimation data do not determine, printed "not identifiable").
   [[nodiscard]] const Eigen::VectorXd& parameter_stddev() const { return stddev_; }
   /// How the model was estimated.
   [[nodiscard]] const LinearEstimationReport& report() const { return report_; }
   /// Replaces the estimation report (a model file restores it: `describe()` prints it).
   void set_report(LinearEstimationReport r) { report_ = std::move(r); }
-  /// Replaces the parameter standard deviations (a model file restores them); one finite,
-  /// non-negative value per entry of `parameters()`.
+  /// Replaces the parameter standard deviations (a model file restores them); one value per
+  /// entry of `parameters()`, finite and non-negative, or +∞ for "not identifiable".
   void set_parameter_stddev(Eigen::VectorXd sd) {
     detail::check_parameter_stddev(sd, parameter_names(), "Arx");
     stddev_ = std::move(sd);
@@ -375,7 +376,7 @@ class Arx {
     }
     if (has_offset_) {
       os << "  c = " << format_number(offset_, 4);
-      if (sd(k) > 0) os << " (+/- " << format_number(sd(k), 2) << ")";
+      os << format_stddev(sd(k));
       os << "\n";
     }
     os << "Poles: " << format_roots(poles()) << "\n";
@@ -461,6 +462,7 @@ class Arx {
     Eigen::VectorXd impulse = Eigen::VectorXd::Zero(N);
     impulse(0) = 1.0;
     const Eigen::VectorXd h = filter(Eigen::VectorXd::Ones(1), a_polynomial(), impulse);
+    detail::check_free_response(h, "Arx::simulate", "A(q)", [this] { return poles(); });
     Eigen::MatrixXd G = Eigen::MatrixXd::Zero(N, n);
     for (Eigen::Index j = 0; j < n; ++j) G.col(j).tail(N - j) = h.head(N - j);
     const Eigen::VectorXd gamma = detail::solve_least_squares_qr(G, e.y().col(0) - y0).theta;
@@ -579,9 +581,12 @@ inline Arx arx_estimate(const Dataset& data, const ArxOrders& o, const ArxOption
   require(d > 0, who + ": orders " + o.str() + " leave no parameter to estimate",
           at_parameter("na"));
   const ArxRegression reg = arx_regression(data, o, opt.offset, min_start, who);
-  require(reg.phi.rows() >= d,
+  // rows == d would fit exactly: σ² = 0/0, zero standard deviations and a 100 % fit that says
+  // nothing about the system.
+  require(reg.phi.rows() > d,
           who + ": " + std::to_string(reg.phi.rows()) + " regression rows for " +
-              std::to_string(d) + " parameters; more data or lower orders needed",
+              std::to_string(d) + " parameters; more rows than parameters are needed (more data "
+              "or lower orders)",
           at_parameter("data"));
   const LeastSquaresSolution sol = solve_least_squares_qr(reg.phi, reg.y);
   if (sol.rank < d && rank_deficient) {
@@ -607,8 +612,8 @@ inline Arx arx_estimate(const Dataset& data, const ArxOrders& o, const ArxOption
   m.offset_ = opt.offset ? sol.theta(k) : 0.0;
   const Eigen::Index N = reg.phi.rows();
   const double ssr = sol.residual_norm * sol.residual_norm;
-  const double sigma2 = N > d ? ssr / static_cast<double>(N - d) : 0.0;
-  m.stddev_ = (sigma2 * sol.unscaled_variance.array()).sqrt().matrix();
+  const double sigma2 = ssr / static_cast<double>(N - d);
+  m.stddev_ = stddev_from_variance(sigma2, sol.unscaled_variance);
   m.input_names_ = data[0].input_names();
   if (data[0].output_names().size() == 1) m.output_names_ = data[0].output_names();
   LinearEstimationReport& r = m.report_;
@@ -618,8 +623,7 @@ inline Arx arx_estimate(const Dataset& data, const ArxOrders& o, const ArxOption
   r.num_samples = N;
   r.num_parameters = d;
   r.loss = ssr / static_cast<double>(N);
-  const double spread = (reg.y.array() - reg.y.mean()).matrix().norm();
-  r.fit_percent = spread > 0 ? 100.0 * (1.0 - sol.residual_norm / spread) : 100.0;
+  r.set_fit(fit_percent_per_output(reg.y, reg.phi * sol.theta - reg.y, 1));
   return m;
 }
 

@@ -218,14 +218,15 @@ class OutputError {
     if (has_offset_) n.push_back("c");
     return n;
   }
-  /// One-sigma standard deviations of `parameters()` (zeros for a hand-made model).
+  /// One-sigma standard deviations of `parameters()` (zeros for a hand-made model; +∞ for a
+  /// parameter the estimation data do not determine, printed "not identifiable").
   [[nodiscard]] const Eigen::VectorXd& parameter_stddev() const { return stddev_; }
   /// How the model was estimated.
   [[nodiscard]] const LinearEstimationReport& report() const { return report_; }
   /// Replaces the estimation report (a model file restores it: `describe()` prints it).
   void set_report(LinearEstimationReport r) { report_ = std::move(r); }
-  /// Replaces the parameter standard deviations (a model file restores them); one finite,
-  /// non-negative value per entry of `parameters()`.
+  /// Replaces the parameter standard deviations (a model file restores them); one value per
+  /// entry of `parameters()`, finite and non-negative, or +∞ for "not identifiable".
   void set_parameter_stddev(Eigen::VectorXd sd) {
     detail::check_parameter_stddev(sd, parameter_names(), "OutputError");
     stddev_ = std::move(sd);
@@ -371,7 +372,7 @@ class OutputError {
     }
     if (has_offset_) {
       os << "  c = " << format_number(offset_, 4);
-      if (sd(kf) > 0) os << " (+/- " << format_number(sd(kf), 2) << ")";
+      os << format_stddev(sd(kf));
       os << "\n";
     }
     os << "Poles: " << format_roots(poles()) << "\n";
@@ -451,6 +452,8 @@ class OutputError {
       Eigen::VectorXd impulse = Eigen::VectorXd::Zero(N);
       impulse(0) = 1.0;
       const Eigen::VectorXd h = filter(Eigen::VectorXd::Ones(1), f_polynomial(i), impulse);
+      detail::check_free_response(h, "OutputError::simulate", num_inputs() == 1 ? "F(q)" : "F" + std::to_string(i + 1) + "(q)",
+                                  [&] { return roots(f_polynomial(i)); });
       for (Eigen::Index j = 0; j < n; ++j, ++c) g.col(c).tail(N - j) = h.head(N - j);
     }
     return g;
@@ -650,9 +653,17 @@ inline OutputError oe_estimate(const Dataset& data, const OeOrders& o, const OeO
                       " need more than " + std::to_string(max_lag),
                   at_experiment(static_cast<long>(e)));
   }
-  require(data.total_samples() > d,
-          who + ": " + std::to_string(data.total_samples()) + " samples for " + std::to_string(d) +
-              " parameters; more data or lower orders needed",
+  // The initial-condition terms are parameters of the fit too: with them counted, N ≤ d would
+  // leave no residual degree of freedom (an exact, meaningless fit and σ² = 0/0).
+  int d_ic = 0;
+  if (opt.initial_state == InitialCondition::estimate)
+    for (std::size_t i = 0; i < o.nb.size(); ++i)
+      d_ic += o.block_order(i) * static_cast<int>(data.size());
+  require(data.total_samples() > d + d_ic,
+          who + ": " + std::to_string(data.total_samples()) + " samples for " +
+              std::to_string(d + d_ic) + " parameters (" + std::to_string(d) + " model" +
+              (d_ic > 0 ? " + " + std::to_string(d_ic) + " initial-condition" : std::string()) +
+              "); more samples than parameters are needed (more data or lower orders)",
           at_parameter("data"));
 
   const int m = o.num_inputs();
@@ -782,10 +793,11 @@ inline OutputError oe_estimate(const Dataset& data, const OeOrders& o, const OeO
   const int dall = problem.num_parameters();
   const double ssr = r.squaredNorm();
   const LeastSquaresSolution cov = solve_least_squares_qr(jac, r);
-  const double sigma2 = N > dall ? ssr / static_cast<double>(N - dall) : 0.0;
-  model.stddev_ = (sigma2 * cov.unscaled_variance.head(problem.num_model_parameters()).array())
-                      .sqrt()
-                      .matrix();
+  const double sigma2 = ssr / static_cast<double>(N - dall);
+  // The γ columns take part (B/F's uncertainty includes not knowing the initial state); when
+  // they are collinear among themselves (two FIR blocks) only the γ become "not identifiable".
+  model.stddev_ = stddev_from_variance(
+      sigma2, cov.unscaled_variance.head(problem.num_model_parameters()));
   Eigen::VectorXd yall(N);
   Eigen::Index row = 0;
   for (const auto& ex : data) {
@@ -801,8 +813,7 @@ inline OutputError oe_estimate(const Dataset& data, const OeOrders& o, const OeO
   rep.num_samples = N;
   rep.num_parameters = dall;
   rep.loss = ssr / static_cast<double>(N);
-  const double spread = (yall.array() - yall.mean()).matrix().norm();
-  rep.fit_percent = spread > 0 ? 100.0 * (1.0 - std::sqrt(ssr) / spread) : 100.0;
+  rep.set_fit(fit_percent_per_output(yall, r, 1));
   rep.iterations = refined ? summary.iterations : 0;
   rep.solver_message = refined ? summary.message() : std::string();
   return model;

@@ -166,6 +166,14 @@ inline Eigen::VectorXcd frequency_response(const Eigen::VectorXd& b, const Eigen
 /// A number with `digits` significant digits, as the toolbox prints coefficients.
 inline std::string format_number(double v, int digits = 4) { return detail::format_g(v, digits); }
 
+/// The toolbox's ` (+/- s)` after an estimate; ` (not identifiable)` for s = +∞ (the data do
+/// not determine the parameter); nothing for s = 0 (not estimated, e.g. a hand-made model).
+inline std::string format_stddev(double s) {
+  if (std::isinf(s) && s > 0) return " (not identifiable)";
+  if (s > 0.0) return " (+/- " + format_number(s, 2) + ")";
+  return "";
+}
+
 /// Human-readable polynomial, e.g. `1 - 1.523 q^-1 + 0.5891 q^-2` (zero terms skipped).
 /// `stddev`, if given (same length), appends ` (+/- s)` after each coefficient, as the
 /// toolbox's `present` does.
@@ -183,8 +191,7 @@ inline std::string format_polynomial(const Eigen::VectorXd& p, int digits = 4,
     }
     const bool unit = mag == 1.0 && k > 0 && stddev == nullptr;
     if (!unit) s += format_number(mag, digits);
-    if (stddev != nullptr && k < stddev->size() && (*stddev)(k) > 0.0)
-      s += " (+/- " + format_number((*stddev)(k), 2) + ")";
+    if (stddev != nullptr && k < stddev->size()) s += format_stddev((*stddev)(k));
     if (k > 0) {
       if (!unit) s += " ";
       s += variable + "^-" + std::to_string(k);

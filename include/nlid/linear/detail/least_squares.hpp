@@ -5,8 +5,13 @@
 /// min ‖Φθ − y‖ by Householder QR with column pivoting on Φ·diag(1/s), s = column norms, so the
 /// rank decision does not depend on the units of the regressors (degrees vs. normalised input).
 
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
 #include <Eigen/Core>
 #include <Eigen/QR>
+#include <Eigen/SVD>
 
 namespace nlid::detail {
 
@@ -14,8 +19,15 @@ struct LeastSquaresSolution {
   Eigen::VectorXd theta;              // solution (basic solution if rank deficient)
   int rank = 0;                       // numerical rank (pivots above 1e-10 of the largest)
   double residual_norm = 0.0;         // ‖Φθ − y‖
-  Eigen::VectorXd unscaled_variance;  // diag((ΦᵀΦ)⁻¹); zeros if rank deficient
+  // diag((ΦᵀΦ)⁻¹). Rank deficient: +∞ for a parameter the data do not determine (it has a
+  // component along the null space of Φ), and for the others diag((ΦᵀΦ)⁺), their variance given
+  // any choice of the undetermined ones. Never 0 for a parameter that is not known exactly.
+  Eigen::VectorXd unscaled_variance;
 };
+
+// Tolerance on a parameter's share of the null space of Φ (unit basis vectors, column-scaled
+// coordinates) below which it still counts as determined by the data.
+inline constexpr double identifiable_tolerance = 1e-8;
 
 inline LeastSquaresSolution solve_least_squares_qr(const Eigen::MatrixXd& phi,
                                                    const Eigen::VectorXd& y,
@@ -38,17 +50,46 @@ inline LeastSquaresSolution solve_least_squares_qr(const Eigen::MatrixXd& phi,
   s.theta = qr.solve(y).cwiseQuotient(scale);
   s.residual_norm = (phi * s.theta - y).norm();
   s.unscaled_variance = Eigen::VectorXd::Zero(d);
+  const auto& perm = qr.colsPermutation().indices();
   if (s.rank == d && phi.rows() >= d) {
     const Eigen::MatrixXd r = qr.matrixR().topLeftCorner(d, d).triangularView<Eigen::Upper>();
     const Eigen::MatrixXd rinv =
         r.triangularView<Eigen::Upper>().solve(Eigen::MatrixXd::Identity(d, d));
-    const auto& perm = qr.colsPermutation().indices();
     for (Eigen::Index k = 0; k < d; ++k) {
       const Eigen::Index j = perm(k);
       s.unscaled_variance(j) = rinv.row(k).squaredNorm() / (scale(j) * scale(j));
     }
+    return s;
+  }
+  // ΦᵀΦ = P RᵀR Pᵀ, so the SVD of the small factor R (not of Φ) gives the null space and the
+  // pseudo-inverse; its first `rank` singular values are the ones the QR kept.
+  const Eigen::Index k = std::min<Eigen::Index>(phi.rows(), d);
+  Eigen::MatrixXd r = Eigen::MatrixXd::Zero(k, d);
+  for (Eigen::Index i = 0; i < k; ++i) r.row(i).tail(d - i) = qr.matrixR().row(i).tail(d - i);
+  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(r, Eigen::ComputeFullV);
+  const Eigen::MatrixXd& v = svd.matrixV();
+  const Eigen::VectorXd& sv = svd.singularValues();
+  const Eigen::Index rank = std::min<Eigen::Index>(s.rank, sv.size());
+  for (Eigen::Index row = 0; row < d; ++row) {
+    const Eigen::Index j = perm(row);
+    if (v.row(row).tail(d - rank).norm() > identifiable_tolerance) {
+      s.unscaled_variance(j) = std::numeric_limits<double>::infinity();
+      continue;
+    }
+    double acc = 0.0;
+    for (Eigen::Index i = 0; i < rank; ++i) acc += v(row, i) * v(row, i) / (sv(i) * sv(i));
+    s.unscaled_variance(j) = acc / (scale(j) * scale(j));
   }
   return s;
+}
+
+// Standard deviations √(σ² vᵢ) from unscaled variances v: +∞ (not identifiable) stays +∞ even
+// when σ² = 0, where the product would be NaN.
+inline Eigen::VectorXd stddev_from_variance(double sigma2, const Eigen::VectorXd& v) {
+  Eigen::VectorXd sd(v.size());
+  for (Eigen::Index i = 0; i < v.size(); ++i)
+    sd(i) = std::isinf(v(i)) ? v(i) : std::sqrt(sigma2 * v(i));
+  return sd;
 }
 
 }  // namespace nlid::detail
