@@ -2,6 +2,7 @@
 // start, noise-free exactness, known-answer poles/frequency response on noisy data.
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <cmath>
 
 #include "linear_test_util.hpp"
@@ -79,11 +80,96 @@ TEST_CASE("ssest on noisy data: refinement improves the simulation fit", "[linea
   opt.refine = false;
   const StateSpace start = nlid::ssest(e, 2, opt);
   const StateSpace m = nlid::ssest(e, 2);
-  CHECK(m.report().loss <= start.report().loss * (1 + 1e-12));
+  // A refinement that did nothing would keep the start's loss: require a real decrease, and a
+  // solver that says it converged (not stalled at the start, not out of iterations).
+  INFO("start loss " << start.report().loss << ", refined " << m.report().loss << "; "
+                     << m.report().solver_message);
+  // Measured: 0.41442 -> 0.41411 (the start is already close; the frequency response below shows
+  // what the refinement fixes).
+  CHECK(m.report().loss < start.report().loss * (1 - 1e-4));
+  CHECK(m.report().iterations > 0);
+  CHECK(m.report().solver_message.find("Levenberg-Marquardt: ") == 0);
+  CHECK(m.report().solver_message.find(" (converged)") != std::string::npos);
   CHECK(m.is_stable());
-  CHECK(m.report().solver_message.find("Levenberg-Marquardt") != std::string::npos);
   const Eigen::VectorXd w = Eigen::VectorXd::LinSpaced(30, 0.5, 0.5 * M_PI / 0.01);
   const Eigen::VectorXcd g = truth.frequency_response(w), gh = m.frequency_response(w);
   CHECK(((gh - g).cwiseAbs().array() / g.cwiseAbs().array()).maxCoeff() < 0.05);
   CHECK(m.dc_gain()(0, 0) == Approx(truth.dc_gain()(0, 0)).epsilon(0.03));
+}
+
+TEST_CASE("ssest reports the fit of each output against that output's own mean", "[linear][ssest]") {
+  // Two outputs, y1 near 100 and y2 near 0, noise as large as the dynamics on both: each fit is
+  // near 29 %; one mean over both outputs stacked would have made it about 99 %.
+  Eigen::MatrixXd a(2, 2), b(2, 1), c(2, 2);
+  a << 0.7, 0.2, -0.2, 0.7;
+  b << 1.0, 0.5;
+  c << 1.0, 0.0, 0.0, 1.0;
+  StateSpace truth(a, b, c, Eigen::MatrixXd::Zero(2, 1), 1.0);
+  truth.set_offset(Eigen::Vector2d(100.0, 0.0));
+  const Eigen::MatrixXd u = nlid_test::white_noise(1500, 1, 61);
+  Eigen::MatrixXd y = truth.simulate(u, Eigen::VectorXd::Zero(2));
+  for (int i = 0; i < 2; ++i) {
+    const double sd = std::sqrt((y.col(i).array() - y.col(i).mean()).square().mean());
+    y.col(i) += nlid_test::white_noise(1500, 1, 62 + static_cast<unsigned>(i), sd).col(0);
+  }
+  nlid::SsestOptions opt;
+  opt.subspace.offset = true;
+  const StateSpace m = nlid::ssest(Experiment(u, y, 1.0), 2, opt);
+  const nlid::LinearEstimationReport& r = m.report();
+  REQUIRE(r.fit_per_output.size() == 2);
+  for (double f : r.fit_per_output) {
+    CHECK(f > 15.0);
+    CHECK(f < 45.0);
+  }
+  CHECK(r.fit_percent == std::min(r.fit_per_output[0], r.fit_per_output[1]));
+}
+
+TEST_CASE("ssest rejects bad orders, options and data with located messages", "[linear][ssest][errors]") {
+  const StateSpace truth = siso2();
+  const Eigen::MatrixXd u = nlid_test::random_steps(300, 1, 71, 4);
+  const Experiment e(u, truth.simulate(u, Eigen::VectorXd::Zero(2)), 0.01, "good");
+  CHECK_THROWS_WITH(nlid::ssest(e, 0), Catch::Contains("order must be >= 1, got 0"));
+  CHECK_THROWS_WITH(nlid::ssest(nlid::Dataset{}, 2), Catch::Contains("the data set is empty"));
+  nlid::SsestOptions opt;
+  opt.subspace.initial_state = InitialCondition::equilibrium;
+  CHECK_THROWS_WITH(nlid::ssest(e, 2, opt), Catch::Contains("initial_state"));
+  opt = {};
+  opt.subspace.horizon = 1;
+  CHECK_THROWS_WITH(nlid::ssest(e, 2, opt), Catch::Contains("horizon s = 1 too small for order 2"));
+  // A short second experiment is named, with its index in the location.
+  const Experiment s(u.topRows(8), truth.simulate(u.topRows(8), Eigen::VectorXd::Zero(2)), 0.01, "stub");
+  try {
+    (void)nlid::ssest(nlid::Dataset{e, s}, 2);
+    FAIL("short experiment accepted");
+  } catch (const nlid::Error& err) {
+    CHECK(std::string(err.what()).find("experiment 1 ('stub') has 8 samples") != std::string::npos);
+    CHECK(err.where().experiment == 1);
+  }
+  Eigen::MatrixXd y = e.y();
+  y(57, 0) = std::nan("");
+  const Experiment gap(u, y, 0.01, "gappy", nlid::NonFinitePolicy::keep);
+  CHECK_THROWS_WITH(nlid::ssest(gap, 2), Catch::Contains("experiment 0 ('gappy') has a missing (non-finite) output sample at index 57"));
+}
+
+TEST_CASE("ssest honours enforce_stability = false", "[linear][ssest][errors]") {
+  // Noise-free data of an unstable first-order system: MOESP recovers the pole at 1.05. With
+  // enforce_stability off the start stays unstable; ssest used to reflect it anyway.
+  Eigen::MatrixXd a(1, 1), b(1, 1), c(1, 1);
+  a << 1.05;
+  b << 1.0;
+  c << 1.0;
+  const StateSpace truth(a, b, c, Eigen::MatrixXd::Zero(1, 1), 1.0);
+  const Eigen::MatrixXd u = nlid_test::white_noise(200, 1, 81);
+  const Experiment e(u, truth.simulate(u, Eigen::VectorXd::Zero(1)), 1.0);
+  nlid::SsestOptions opt;
+  opt.subspace.enforce_stability = false;
+  opt.refine = false;
+  const StateSpace start = nlid::ssest(e, 1, opt);
+  CHECK_FALSE(start.is_stable());
+  CHECK(start.a()(0, 0) == Approx(1.05).epsilon(1e-8));
+  opt.refine = true;
+  CHECK_THROWS_WITH(nlid::ssest(e, 1, opt), Catch::Contains("enforce_stability is off; the refinement needs a stable start"));
+  // With the option on, the start is reflected (1/1.05) and refined within the stable models.
+  opt.subspace.enforce_stability = true;
+  CHECK(nlid::ssest(e, 1, opt).is_stable());
 }

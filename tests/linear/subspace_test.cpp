@@ -4,6 +4,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <complex>
+#include <vector>
 
 #include "linear_test_util.hpp"
 #include "nlid/linear/subspace.hpp"
@@ -108,6 +110,31 @@ TEST_CASE("MOESP offset option", "[linear][subspace]") {
   CHECK(m.report().fit_percent > 99.0);
 }
 
+TEST_CASE("MOESP reports the fit of each output against that output's own mean", "[linear][subspace]") {
+  // y1 sits near 100, y2 near 0, and both carry noise as large as their dynamic part. A fit that
+  // measured the errors against the mean of both outputs stacked would read about 99 %.
+  StateSpace truth = three_state();
+  truth.set_offset(Eigen::Vector2d(100.0, 0.0));
+  const Eigen::MatrixXd u = nlid_test::white_noise(2000, 2, 21);
+  Eigen::MatrixXd y = truth.simulate(u, Eigen::VectorXd::Zero(3));
+  for (int i = 0; i < 2; ++i) {
+    const double sd = std::sqrt((y.col(i).array() - y.col(i).mean()).square().mean());
+    y.col(i) += nlid_test::white_noise(2000, 1, 22 + static_cast<unsigned>(i), sd).col(0);
+  }
+  nlid::SubspaceOptions opt;
+  opt.offset = true;
+  const StateSpace m = nlid::moesp(Experiment(u, y, 1.0), 3, opt);
+  const nlid::LinearEstimationReport& r = m.report();
+  REQUIRE(r.fit_per_output.size() == 2);
+  // Noise of the signal's size: ‖e‖/‖y − ȳ‖ ≈ 1/√2, so each fit is near 29 %.
+  for (double f : r.fit_per_output) {
+    CHECK(f > 15.0);
+    CHECK(f < 45.0);
+  }
+  CHECK(r.fit_percent == std::min(r.fit_per_output[0], r.fit_per_output[1]));
+  CHECK(r.str().find("per output: y1 ") != std::string::npos);
+}
+
 TEST_CASE("MOESP rejects bad orders and short data", "[linear][subspace]") {
   const StateSpace truth = three_state();
   const Eigen::MatrixXd u = nlid_test::white_noise(200, 2, 4);
@@ -119,12 +146,59 @@ TEST_CASE("MOESP rejects bad orders and short data", "[linear][subspace]") {
     FAIL("short experiment accepted");
   } catch (const nlid::Error& err) {
     CHECK(std::string(err.what()).find("experiment 1 ('tiny') has 12 samples") != std::string::npos);
+    // The user never set the horizon the message names: say where it came from and what fits.
+    CHECK(std::string(err.what()).find("horizon 10 was chosen automatically for order 3; "
+                                       "SubspaceOptions::horizon <= 6 would let this experiment in") !=
+          std::string::npos);
     CHECK(err.where().experiment == 1);
   }
+  // 2n + 2 must not overflow int before a check sees it.
+  CHECK_THROWS_WITH(nlid::moesp(e, 2000000000), Catch::Contains("order 2000000000 is beyond the largest order"));
   nlid::SubspaceOptions opt;
   opt.horizon = 2;
   CHECK_THROWS_WITH(nlid::moesp(e, 5, opt), Catch::Contains("horizon"));
   opt.horizon = 0;
   opt.initial_state = InitialCondition::measured;
   CHECK_THROWS_WITH(nlid::moesp(e, 3, opt), Catch::Contains("initial_state"));
+}
+
+TEST_CASE("MOESP refuses an unstable A whose response overflows, instead of NaN", "[linear][subspace][errors]") {
+  // The B columns of the B, D fit are A's responses to unit inputs; with |λ| = 1.5 they pass
+  // 1e150 after about 850 samples and the fit would return NaN for B.
+  Eigen::MatrixXd a(1, 1), c(1, 1);
+  a << 1.5;
+  c << 1.0;
+  const Eigen::MatrixXd u = nlid_test::white_noise(1000, 1, 91);
+  const Experiment e(u, nlid_test::white_noise(1000, 1, 92), 1.0, "long");
+  nlid::SubspaceOptions opt;
+  opt.initial_state = InitialCondition::zero;
+  CHECK_THROWS_WITH(nlid::detail::fit_b_d(e, a, c, opt, "moesp"),
+                    Catch::Contains("moesp: the estimated A is unstable (an eigenvalue at |z| = 1.5)") &&
+                        Catch::Contains("1000 samples of experiment 0 ('long')"));
+  // A short record stays finite and is fitted.
+  const Experiment s(u.topRows(100), e.y().topRows(100), 1.0);
+  CHECK(nlid::detail::fit_b_d(s, a, c, opt, "moesp").b.allFinite());
+}
+
+TEST_CASE("stabilize_matrix also stabilises a defective A", "[linear][subspace]") {
+  // A Jordan block at 1.1 has one eigenvector: the eigenvector reflection cannot be used, and the
+  // unstable A used to come back unchanged.
+  Eigen::MatrixXd a(3, 3);
+  a << 1.1, 1.0, 0.0, 0.0, 1.1, 0.0, 0.0, 0.0, 0.5;
+  const Eigen::MatrixXd s = nlid::detail::stabilize_matrix(a);
+  const Eigen::VectorXd mag = Eigen::EigenSolver<Eigen::MatrixXd>(s, false).eigenvalues().cwiseAbs();
+  std::vector<double> m(mag.data(), mag.data() + mag.size());
+  std::sort(m.begin(), m.end());
+  CHECK(m[0] == Approx(0.5).epsilon(1e-6));
+  CHECK(m[1] == Approx(1.0 / 1.1).epsilon(1e-6));
+  CHECK(m[2] == Approx(1.0 / 1.1).epsilon(1e-6));
+  // A complex unstable pair in a defective-free matrix: reflected to 1/conj(λ), the stable one kept.
+  Eigen::MatrixXd b(3, 3);
+  b << 1.0, -0.6, 0.0, 0.6, 1.0, 0.0, 0.0, 0.0, -0.3;  // 1 +/- 0.6i (|λ| = 1.166), -0.3
+  const Eigen::VectorXcd ev = Eigen::EigenSolver<Eigen::MatrixXd>(nlid::detail::stabilize_matrix(b), false).eigenvalues();
+  const double r = std::abs(std::complex<double>(1.0, 0.6));
+  int reflected = 0;
+  for (Eigen::Index k = 0; k < ev.size(); ++k)
+    if (std::abs(std::abs(ev(k)) - 1.0 / r) < 1e-9) ++reflected;
+  CHECK(reflected == 2);
 }

@@ -167,12 +167,22 @@ class StateSpacePemProblem {
 /// the simulation error (see file comment). Throws like `moesp`.
 inline StateSpace ssest(const Dataset& data, int order, const SsestOptions& options = {}) {
   StateSpace start = moesp(data, order, options.subspace);
-  if (!start.is_stable()) {
+  if (!start.is_stable() && options.subspace.enforce_stability) {
+    // moesp reflected the unstable eigenvalues already; this catches one left on the circle by
+    // rounding.
     StateSpace s(detail::stabilize_matrix(start.a()), start.b(), start.c(), start.d(), start.ts());
     s.set_offset(start.offset());
+    s.set_report(start.report());
     start = s;
   }
   if (!options.refine) return start;
+  // The refinement searches the stable models only (every evaluation rejects an unstable A), so
+  // it cannot start from an unstable one; stabilising it here would silently undo the option.
+  require(start.is_stable(),
+          "ssest: the subspace start has an unstable A and SubspaceOptions::enforce_stability is "
+          "off; the refinement needs a stable start (turn enforce_stability on, or set refine = "
+          "false to keep the unstable subspace model)",
+          at_parameter("enforce_stability"));
   const SubspaceOptions& so = options.subspace;
   const bool est_x0 = so.initial_state == InitialCondition::estimate;
   detail::StateSpacePemProblem problem(data, order, so.feedthrough, so.offset, est_x0);
@@ -187,15 +197,12 @@ inline StateSpace ssest(const Dataset& data, int order, const SsestOptions& opti
   require(problem.evaluate(theta, r, nullptr),
           "ssest: the refined model cannot be simulated (unstable A)", at_parameter("order"));
   const int p = data.num_outputs(), m = data.num_inputs();
-  double sum = 0;
-  Eigen::Index cnt = 0;
+  Eigen::VectorXd yall(r.size());
+  Eigen::Index row = 0;
   for (const auto& e : data) {
-    sum += e.y().sum();
-    cnt += e.y().size();
+    yall.segment(row, e.y().size()) = e.y().transpose().reshaped();  // sample by sample, as r
+    row += e.y().size();
   }
-  const double mean = sum / static_cast<double>(cnt);
-  double spread2 = 0;
-  for (const auto& e : data) spread2 += (e.y().array() - mean).square().sum();
   LinearEstimationReport rep;
   rep.method = "PO-MOESP start + prediction-error minimisation (Levenberg-Marquardt), " +
                std::string(est_x0 ? "initial states estimated" : "zero initial states");
@@ -205,7 +212,7 @@ inline StateSpace ssest(const Dataset& data, int order, const SsestOptions& opti
   rep.num_parameters = order * (m + p) + (so.feedthrough ? p * m : 0) + (so.offset ? p : 0) +
                        (est_x0 ? order * static_cast<int>(data.size()) : 0);
   rep.loss = r.squaredNorm() / static_cast<double>(r.size());
-  rep.fit_percent = spread2 > 0 ? 100.0 * (1.0 - r.norm() / std::sqrt(spread2)) : 100.0;
+  rep.set_fit(fit_percent_per_output(yall, r, p));
   rep.iterations = summary.iterations;
   rep.solver_message = summary.message();
   model.set_report(rep);

@@ -37,6 +37,7 @@
 #include <algorithm>
 #include <cmath>
 #include <complex>
+#include <cstdio>
 #include <string>
 #include <vector>
 
@@ -47,10 +48,12 @@
 #include <Eigen/SVD>
 
 #include "nlid/core/error.hpp"
+#include "nlid/core/sizes.hpp"
 #include "nlid/core/initial_condition.hpp"
 #include "nlid/data/dataset.hpp"
 #include "nlid/linear/detail/checks.hpp"
 #include "nlid/linear/detail/least_squares.hpp"
+#include "nlid/linear/report.hpp"
 #include "nlid/linear/state_space.hpp"
 
 namespace nlid {
@@ -102,7 +105,10 @@ inline int choose_horizon(const Dataset& data, int n, int requested, const std::
   return s;
 }
 
-inline MoespSvd moesp_svd(const Dataset& data, int s, bool remove_means, const std::string& who) {
+// `automatic_for_order` > 0: s was chosen by `choose_horizon` for that order, not by the user,
+// which a refusal must say (the user never set the number it names).
+inline MoespSvd moesp_svd(const Dataset& data, int s, bool remove_means, const std::string& who,
+                          int automatic_for_order = 0) {
   const int m = data.num_inputs(), p = data.num_outputs();
   // Channel scales: pooled RMS over all experiments (after per-experiment means if removed).
   auto centre = [&](const Eigen::MatrixXd& x) -> Eigen::MatrixXd {
@@ -117,11 +123,17 @@ inline MoespSvd moesp_svd(const Dataset& data, int s, bool remove_means, const s
   Eigen::VectorXd su = Eigen::VectorXd::Zero(m), sy = Eigen::VectorXd::Zero(p);
   for (std::size_t e = 0; e < data.size(); ++e) {
     const Experiment& ex = data[e];
-    if (ex.size() < 2 * s)
+    if (ex.size() < 2 * s) {
+      std::string why;
+      if (automatic_for_order > 0)
+        why = " (horizon " + std::to_string(s) + " was chosen automatically for order " +
+              std::to_string(automatic_for_order) + "; SubspaceOptions::horizon <= " +
+              std::to_string(ex.size() / 2) + " would let this experiment in, or leave it out)";
       throw Error(who + ": " + linear_experiment_label(ex, static_cast<long>(e)) + " has " +
                       std::to_string(ex.size()) + " samples, fewer than 2 x horizon = " +
-                      std::to_string(2 * s) + " needed for the Hankel matrices",
+                      std::to_string(2 * s) + " needed for the Hankel matrices" + why,
                   at_experiment(static_cast<long>(e)));
+    }
     su += centre(ex.u()).colwise().squaredNorm().transpose();
     sy += centre(ex.y()).colwise().squaredNorm().transpose();
     total += ex.size();
@@ -164,7 +176,11 @@ inline MoespSvd moesp_svd(const Dataset& data, int s, bool remove_means, const s
   return out;
 }
 
-// Reflects eigenvalues of A outside the unit circle to 1/λ̄ (A assumed diagonalisable).
+// Reflects eigenvalues of A outside the unit circle to 1/λ̄ (and pulls any on it to 0.999),
+// leaving the others. A diagonalisable A keeps its eigenvectors. A defective one (or one whose
+// eigenvectors are numerically singular) goes through its real Schur form A = U T Uᵀ instead:
+// scaling a diagonal block of the quasi-triangular T scales just that block's eigenvalues, so
+// the result is stable in every case rather than the unstable A handed back.
 inline Eigen::MatrixXd stabilize_matrix(const Eigen::MatrixXd& a) {
   if (a.rows() == 0) return a;
   Eigen::EigenSolver<Eigen::MatrixXd> es(a);
@@ -178,8 +194,19 @@ inline Eigen::MatrixXd stabilize_matrix(const Eigen::MatrixXd& a) {
   if (!changed) return a;
   const Eigen::MatrixXcd v = es.eigenvectors();
   Eigen::FullPivLU<Eigen::MatrixXcd> lu(v);
-  if (!lu.isInvertible()) return a;
-  return (v * lambda.asDiagonal() * lu.inverse()).real();
+  if (lu.isInvertible() && lu.rcond() > 1e-8) return (v * lambda.asDiagonal() * lu.inverse()).real();
+  const Eigen::RealSchur<Eigen::MatrixXd> schur(a);
+  Eigen::MatrixXd t = schur.matrixT();
+  const Eigen::Index n = t.rows();
+  for (Eigen::Index k = 0; k < n;) {
+    const Eigen::Index size = k + 1 < n && t(k + 1, k) != 0.0 ? 2 : 1;
+    const double r = size == 1 ? std::abs(t(k, k))
+                               : std::sqrt(std::abs(t.block(k, k, 2, 2).determinant()));
+    // Scaling the block by c scales its eigenvalues by c: 1/r² maps λ to λ/|λ|² = 1/λ̄.
+    if (r >= 1.0) t.block(k, k, size, size) *= r > 1.0 ? 1.0 / (r * r) : 0.999 / r;
+    k += size;
+  }
+  return schur.matrixU() * t * schur.matrixU().transpose();
 }
 
 // Response columns of the output to each free linear parameter of the model (B, D, y₀, x(0) per
@@ -188,13 +215,14 @@ struct BdFit {
   Eigen::MatrixXd b, d;
   Eigen::VectorXd offset;
   std::vector<Eigen::VectorXd> x0;
-  double ssr = 0, spread = 0;
+  double ssr = 0;
+  std::vector<double> fit;  // per output
   Eigen::Index rows = 0;
   int params = 0;
 };
 
 inline BdFit fit_b_d(const Dataset& data, const Eigen::MatrixXd& a, const Eigen::MatrixXd& c,
-                     const SubspaceOptions& opt) {
+                     const SubspaceOptions& opt, const std::string& who) {
   const int n = static_cast<int>(a.rows());
   const int m = data.num_inputs(), p = data.num_outputs();
   const int ne = static_cast<int>(data.size());
@@ -219,6 +247,18 @@ inline BdFit fit_b_d(const Dataset& data, const Eigen::MatrixXd& a, const Eigen:
         xn.noalias() = a * x;
         xn.diagonal().array() += ex.u()(t, j);
         x.swap(xn);
+        // Unlike an x(0) column, a B column cannot be cut short (every later output depends on
+        // it): past 1e150 its squares overflow and B, then the whole model, would come out NaN.
+        if (!(x.cwiseAbs().maxCoeff() <= 1e150)) {
+          const double radius = Eigen::EigenSolver<Eigen::MatrixXd>(a, false).eigenvalues().cwiseAbs().maxCoeff();
+          char buf[64];
+          std::snprintf(buf, sizeof buf, "%.6g", radius);
+          throw Error(who + ": the estimated A is unstable (an eigenvalue at |z| = " + buf +
+                          ") and its response overflows within the " + std::to_string(N) +
+                          " samples of " + linear_experiment_label(ex, e) +
+                          "; set SubspaceOptions::enforce_stability or choose a lower order",
+                      at_parameter("enforce_stability"));
+        }
       }
     }
     for (Eigen::Index t = 0; t < N; ++t) {
@@ -248,7 +288,7 @@ inline BdFit fit_b_d(const Dataset& data, const Eigen::MatrixXd& a, const Eigen:
     f.x0.push_back(est_x0 ? Eigen::VectorXd(sol.theta.segment(nb + nd + no + e * n, n))
                           : Eigen::VectorXd::Zero(n));
   f.ssr = sol.residual_norm * sol.residual_norm;
-  f.spread = (y.array() - y.mean()).matrix().norm();
+  f.fit = fit_percent_per_output(y, phi * sol.theta - y, p);
   f.rows = rows;
   f.params = params;
   return f;
@@ -275,13 +315,22 @@ inline StateSpace moesp(const Dataset& data, int order, const SubspaceOptions& o
   detail::check_subspace_data(data, who);
   require(order >= 1, who + ": order must be >= 1, got " + std::to_string(order),
           at_parameter("order"));
+  require(order <= max_model_order,
+          who + ": order " + std::to_string(order) + " is beyond the largest order " +
+              std::to_string(max_model_order),
+          at_parameter("order"));
+  require(options.horizon >= 0 && options.horizon <= max_model_order,
+          who + ": horizon must be 0 (automatic) or 1 ... " + std::to_string(max_model_order) +
+              ", got " + std::to_string(options.horizon),
+          at_parameter("horizon"));
   require(options.initial_state == InitialCondition::zero ||
               options.initial_state == InitialCondition::estimate,
           who + ": initial_state must be InitialCondition::zero or ::estimate",
           at_parameter("initial_state"));
   const int p = data.num_outputs();
   const int s = detail::choose_horizon(data, order, options.horizon, who);
-  const detail::MoespSvd svd = detail::moesp_svd(data, s, options.offset, who);
+  const detail::MoespSvd svd =
+      detail::moesp_svd(data, s, options.offset, who, options.horizon > 0 ? 0 : order);
   require(order < s * p && order <= svd.sigma.size(),
           who + ": order " + std::to_string(order) + " too large for horizon " +
               std::to_string(s) + " (need order < horizon x outputs)",
@@ -292,7 +341,7 @@ inline StateSpace moesp(const Dataset& data, int order, const SubspaceOptions& o
   const Eigen::Index sh = (s - 1) * p;
   Eigen::MatrixXd a = gamma.topRows(sh).colPivHouseholderQr().solve(gamma.bottomRows(sh));
   if (options.enforce_stability) a = detail::stabilize_matrix(a);
-  const detail::BdFit fit = detail::fit_b_d(data, a, c, options);
+  const detail::BdFit fit = detail::fit_b_d(data, a, c, options, who);
   StateSpace model(a, fit.b, c, fit.d, data.ts());
   model.set_offset(fit.offset);
   LinearEstimationReport r;
@@ -303,7 +352,7 @@ inline StateSpace moesp(const Dataset& data, int order, const SubspaceOptions& o
   r.num_samples = fit.rows;
   r.num_parameters = order * p + fit.params;  // identifiable: C (n p, A up to similarity) + B, D, y0, x0
   r.loss = fit.ssr / static_cast<double>(fit.rows);
-  r.fit_percent = fit.spread > 0 ? 100.0 * (1.0 - std::sqrt(fit.ssr) / fit.spread) : 100.0;
+  r.set_fit(fit.fit);
   model.set_report(r);
   return model;
 }
