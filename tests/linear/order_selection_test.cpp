@@ -100,3 +100,39 @@ TEST_CASE("Order selection rejects bad grids and data", "[linear][order]") {
   const nlid::Experiment two(Eigen::MatrixXd::Random(100, 2), e.y(), 0.1);
   CHECK_THROWS_WITH(nlid::arx_order_selection(e, two), Catch::Contains("validation data have 2 inputs"));
 }
+
+TEST_CASE("Order selection checks validation data like estimation data", "[linear][order][errors]") {
+  const nlid::Experiment e = nlid_test::arx_data(truth(), nlid_test::white_noise(300, 1, 11), 0.1, 12, "est");
+  const nlid::Experiment v = nlid_test::arx_data(truth(), nlid_test::white_noise(200, 1, 13), 0.1, 14, "val");
+  nlid::ArxOrderGrid grid;
+  grid.na = {1, 2};
+  grid.nb = {1, 2};
+  grid.nk = {1};
+  // A NaN in validation experiment 2: named as such, with its index, before any model sees it.
+  Eigen::MatrixXd y = v.y();
+  y(17, 0) = std::nan("");
+  const nlid::Experiment gap(v.u(), y, 0.1, "gappy", nlid::NonFinitePolicy::keep);
+  try {
+    (void)nlid::arx_order_selection(e, nlid::Dataset{v, v, gap}, grid);
+    FAIL("NaN in the validation data accepted");
+  } catch (const nlid::Error& err) {
+    CHECK_THAT(err.what(), Catch::Contains("validation experiment 2 ('gappy') has a missing (non-finite) output "
+                                           "sample at index 17"));
+    CHECK(err.where().experiment == 2);
+  }
+  // Another sample time: delays in samples would mean other times.
+  const nlid::Experiment fast(v.u(), v.y(), 0.05, "fast");
+  CHECK_THROWS_WITH(nlid::arx_order_selection(e, fast, grid),
+                    Catch::Contains("differs from the sample time 0.05 s of validation experiment 0 ('fast')"));
+  // Validation records no longer than the largest lag (2) leave the validation loss no samples;
+  // every candidate would score 0 and best() would return the first.
+  const nlid::Experiment s1(v.u().topRows(2), v.y().topRows(2), 0.1, "s1");
+  const nlid::Experiment s2(v.u().topRows(1), v.y().topRows(1), 0.1, "s2");
+  CHECK_THROWS_WITH(nlid::arx_order_selection(e, nlid::Dataset{s1, s2}, grid),
+                    Catch::Contains("no validation experiment is longer than the grid's largest lag 2 "
+                                    "(the longest has 2 samples)"));
+  // One long enough record suffices.
+  const nlid::Experiment s3(v.u().topRows(40), v.y().topRows(40), 0.1, "s3");
+  const nlid::OrderSelection sel = nlid::arx_order_selection(e, nlid::Dataset{s1, s3}, grid);
+  CHECK(sel.best(nlid::OrderCriterion::validation_loss).orders.na == 2);
+}

@@ -233,6 +233,18 @@ inline OrderSelection arx_order_selection_impl(const Dataset& est, const Dataset
                 std::to_string(val->num_outputs()) + " outputs, estimation data " +
                 std::to_string(m) + " and " + std::to_string(est.num_outputs()),
             at_parameter("validation"));
+    // Checked here, where the message can say which data set and experiment: the model's own
+    // checks later would name neither.
+    Eigen::Index longest = 0;
+    for (std::size_t e = 0; e < val->size(); ++e) {
+      check_linear_experiment((*val)[e], m, est.num_outputs(), est.ts(), static_cast<long>(e), who, true, "validation");
+      longest = std::max(longest, (*val)[e].size());
+    }
+    require(longest > start,
+            who + ": no validation experiment is longer than the grid's largest lag " +
+                std::to_string(start) + " (the longest has " + std::to_string(longest) +
+                " samples), so the validation loss would have no samples to score",
+            at_parameter("validation"));
   }
   OrderSelection sel;
   sel.first_row = start;
@@ -258,23 +270,31 @@ inline OrderSelection arx_order_selection_impl(const Dataset& est, const Dataset
         if (val) {
           double ss = 0, ssy = 0, sse = 0, sum = 0;
           Eigen::Index n = 0, nall = 0;
+          bool diverges = false;
           for (std::size_t e = 0; e < val->size(); ++e) {
             const Experiment& ex = (*val)[e];
             const Eigen::MatrixXd p = model.predict(ex, 1);
             const Eigen::Index s = std::min<Eigen::Index>(start, ex.size());
             ss += (p.col(0) - ex.y().col(0)).tail(ex.size() - s).squaredNorm();
             n += ex.size() - s;
-            const Eigen::MatrixXd sim = model.simulate(ex, InitialCondition::estimate);
-            sse += (sim - ex.y()).squaredNorm();
+            // Least squares may return an unstable A on noisy data; its simulation overflows and
+            // `simulate` refuses it. The data were checked above, so that is the only refusal
+            // left here: such a candidate simply has no validation fit (−∞).
+            try {
+              const Eigen::MatrixXd sim = model.simulate(ex, InitialCondition::estimate);
+              sse += (sim - ex.y()).squaredNorm();
+            } catch (const Error&) {
+              diverges = true;
+            }
             sum += ex.y().sum();
             nall += ex.size();
           }
           const double mean = sum / static_cast<double>(std::max<Eigen::Index>(nall, 1));
           for (const auto& ex : *val) ssy += (ex.y().array() - mean).square().sum();
-          c.validation_loss = n > 0 ? ss / static_cast<double>(n) : 0.0;
+          c.validation_loss = ss / static_cast<double>(n);  // n > 0: checked above
           c.validation_fit = ssy > 0 ? 100.0 * (1.0 - std::sqrt(sse / ssy))
                                      : -std::numeric_limits<double>::infinity();
-          if (!std::isfinite(*c.validation_fit)) c.validation_fit = -std::numeric_limits<double>::infinity();
+          if (diverges || !std::isfinite(*c.validation_fit)) c.validation_fit = -std::numeric_limits<double>::infinity();
         }
         sel.candidates.push_back(c);
       }
