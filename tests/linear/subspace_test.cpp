@@ -181,8 +181,10 @@ TEST_CASE("MOESP refuses an unstable A whose response overflows, instead of NaN"
 }
 
 TEST_CASE("stabilize_matrix also stabilises a defective A", "[linear][subspace]") {
-  // A Jordan block at 1.1 has one eigenvector: the eigenvector reflection cannot be used, and the
-  // unstable A used to come back unchanged.
+  // A Jordan block at 1.1 has one eigenvector, so the eigenvector matrix is (numerically)
+  // singular; the result must still be stable with the reflected eigenvalues. (This checks the
+  // contract; Eigen's nearly singular eigenvectors happen to give the same answer, so it does not
+  // reproduce the exactly singular case that used to return A unchanged.)
   Eigen::MatrixXd a(3, 3);
   a << 1.1, 1.0, 0.0, 0.0, 1.1, 0.0, 0.0, 0.0, 0.5;
   const Eigen::MatrixXd s = nlid::detail::stabilize_matrix(a);
