@@ -18,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "nlid/codegen/any_model.hpp"
 #include "nlid/codegen/delta_form.hpp"
 #include "nlid/codegen/hammerstein_wiener.hpp"
 #include "nlid/codegen/linear.hpp"
@@ -370,4 +371,90 @@ TEST_CASE("float code of a slow ARX model in delta form starts from nlid's equil
                        << y_x(1) << " vs nlid " << ref_x(0) << ", " << ref_x(1));
   for (int t = 0; t < 20; ++t) CHECK(std::abs(y_x(t) - ref_x(t)) <= 4e-7 * std::abs(ref_x(t)));
   CHECK(rel_error(y_x, ref_x) <= 1e-5);
+}
+
+TEST_CASE("output-error code starts from past samples: generated_c_state, initial_state and AnyModel", "[codegen][delta]") {
+  using nlid::codegen::LinearForm;
+  // Input 1: the slow block (delta form in float); input 2: an FIR block (no feedback, kept as
+  // past inputs in both forms). Offset 0.5.
+  const Eigen::VectorXd b1 = Eigen::Vector2d(3e-6, 1e-6), f1 = Eigen::Vector2d(-1.997, 0.997002);
+  const nlid::OutputError m({b1, Eigen::Vector2d(0.25, 0.25)}, {f1, Eigen::VectorXd()}, {1, 1}, ts, 0.5);
+  const Eigen::MatrixXd u = random_steps2();
+  // Ramps for t0 samples, then the random steps: nlid's run over both, and the past samples at t0.
+  const Eigen::Index t0 = 1500;
+  Eigen::MatrixXd uu(t0 + u.rows(), 2);
+  for (Eigen::Index t = 0; t < t0; ++t) uu.row(t) << 0.004 * static_cast<double>(t), -0.002 * static_cast<double>(t);
+  uu.bottomRows(u.rows()) = u;
+  const Eigen::VectorXd yy = m.simulate(experiment(uu), nlid::InitialCondition::zero).col(0);
+  const nlid::OutputError block1({b1}, {f1}, {1}, ts, 0.0);  // w1 alone
+  const Eigen::VectorXd w1 = block1.simulate(experiment(uu.col(0)), nlid::InitialCondition::zero).col(0);
+  Eigen::VectorXd x(6);  // [u1(t-1) u1(t-2) w1(t-1) w1(t-2), u2(t-1) u2(t-2)]
+  x << uu(t0 - 1, 0), uu(t0 - 2, 0), w1(t0 - 1), w1(t0 - 2), uu(t0 - 1, 1), uu(t0 - 2, 1);
+  const Eigen::VectorXd ref = yy.tail(u.rows());
+
+  // Double code keeps the past samples: from them it continues nlid's run to the last bits.
+  nlid::CodegenOptions od;
+  od.name = "oe2_x_double";
+  od.initial_state = x;
+  CHECK(nlid::generated_c_state(m, x, od) == x);
+  const Eigen::VectorXd y_double = nlid_test::run_generated_c(nlid::generate_c(m, od), u, "oe2_x_double", false);
+  REQUIRE(y_double.size() == ref.size());
+  CHECK(nlid_test::max_relative_error(y_double, ref) <= 1e-12);
+
+  // Float code: block 1 holds its delta state, block 2 its past inputs.
+  nlid::CodegenOptions o;
+  o.precision = nlid::codegen::Precision::single_precision;
+  const Eigen::VectorXd xc = nlid::generated_c_state(m, x, o);
+  REQUIRE(xc.size() == 4);
+  CHECK(xc.tail(2) == x.tail(2));
+  const Eigen::VectorXd y_x = run_from_state(single_code(m, "oe2_x", LinearForm::automatic), u, xc, "delta_oe2_x");
+  REQUIRE(y_x.size() == ref.size());
+  INFO("past samples " << x.transpose() << " -> " << xc.transpose() << ": first outputs " << y_x(0) << ", " << y_x(1)
+                       << " vs nlid " << ref(0) << ", " << ref(1));
+  for (int t = 0; t < 20; ++t) CHECK(std::abs(y_x(t) - ref(t)) <= 4e-7 * std::abs(ref(t)));
+  CHECK(rel_error(y_x, ref) <= 1e-5);
+  // The same start written into NAME_x0 (CodegenOptions::initial_state).
+  o.name = "oe2_x0";
+  o.initial_state = x;
+  const Eigen::VectorXd y_init = nlid_test::run_generated_c(nlid::generate_c(m, o), u, "delta_oe2_x0", true);
+  REQUIRE(y_init.size() == ref.size());
+  CHECK(rel_error(y_init, y_x) <= 1e-6);
+
+  // Through a run-time handle, as for a model loaded from a file.
+  const nlid::AnyModel any(m);
+  CHECK(nlid::generated_c_state(any, x, o) == xc);
+  CHECK_THROWS_WITH(nlid::generated_c_state(any, x.head(5), o), Catch::Contains("has 6 (past inputs and block outputs)"));
+  CHECK_THROWS_WITH(nlid::generated_c_state(nlid::AnyModel(), x, o), Catch::Contains("empty"));
+
+  // Refusals: a state of the wrong size; a state and an equilibrium at once.
+  o.initial_state = x.head(5);
+  CHECK_THROWS_WITH(nlid::generate_c(m, o), Catch::Contains("initial_state has 5 values, the model's state has 6"));
+  o.initial_state = x;
+  o.equilibrium_input = Eigen::Vector2d(0.0, 0.0);
+  CHECK_THROWS_WITH(nlid::generate_c(m, o), Catch::Contains("both set"));
+}
+
+TEST_CASE("Hammerstein-Wiener code starts from a given block state (CodegenOptions::initial_state)", "[codegen][delta]") {
+  const SlowHw m = slow_hw();
+  const Eigen::MatrixXd u = random_steps();
+  const Eigen::Vector2d x(1.5e-3, -1.4985e-3);  // registers of a block in motion
+  Eigen::VectorXd ref(u.rows());
+  const Eigen::VectorXd theta = m.parameters();
+  REQUIRE(m.simulate<double>(u, std::span<const double>(theta.data(), static_cast<std::size_t>(theta.size())),
+                             std::span<const double>(x.data(), 2), std::span<double>(ref.data(), static_cast<std::size_t>(ref.size()))));
+  nlid::CodegenOptions o;
+  o.name = "slowhw_given";
+  o.initial_state = x;
+  const Eigen::VectorXd y_double = nlid_test::run_generated_c(nlid::generate_c(m, o), u, "hw_given_double", false);
+  CHECK(nlid_test::max_relative_error(y_double, ref) <= 1e-12);
+  o.name = "slowhw_given_f";
+  o.precision = nlid::codegen::Precision::single_precision;
+  const Eigen::VectorXd y_float = nlid_test::run_generated_c(nlid::generate_c(m, o), u, "hw_given_float", true);
+  CHECK(rel_error(y_float, ref) <= 1e-4);
+  CHECK(std::abs(ref(0)) > 1e-3);  // the given state shows in the output
+  o.initial_state = Eigen::Vector3d::Zero();
+  CHECK_THROWS_WITH(nlid::generate_c(m, o), Catch::Contains("initial_state has 3 values") &&
+                                                Catch::Contains("the linear block's registers"));
+  o.initial_state = Eigen::Vector2d(std::nan(""), 0.0);
+  CHECK_THROWS_WITH(nlid::generate_c(m, o), Catch::Contains("initial_state[0]") && Catch::Contains("not finite"));
 }

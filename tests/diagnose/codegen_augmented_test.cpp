@@ -131,3 +131,34 @@ TEST_CASE("codegen: an augmented model's sub-step count must keep RK4 stable", "
   o.substeps = 0;  // nlid's rule picks a stable count
   CHECK_NOTHROW(generate_c(m, o));
 }
+
+TEST_CASE("codegen: an augmented model starts from a given baseline state as simulate(e, x0)", "[diagnose][codegen]") {
+  // Effect set 0 has a dead time (a history in the generated state) and an actuator lag.
+  const auto m = msd_with(0);
+  const Eigen::MatrixXd u = diag_test::random_steps(800, -1.0, 1.0, 20, 60, 5u);
+  const Experiment e(u, Eigen::MatrixXd::Zero(u.rows(), 1), m.ts(), "steps");
+  const Eigen::Vector2d x0(0.12, -0.4);  // away from rest and from any equilibrium
+  CodegenOptions o;
+  o.name = "aug_x0";
+  o.initial_state = x0;
+  const GeneratedCode g = generate_c(m, o);
+  CHECK(g.source.find("CodegenOptions::initial_state") != std::string::npos);  // NAME_x0's comment says so
+  const Eigen::VectorXd yc = nlid_test::run_generated_c(g, u, "aug_x0");
+  const Eigen::VectorXd yn = m.simulate(e, Eigen::VectorXd(x0)).col(0);
+  CHECK(nlid_test::max_relative_error(yc, yn) <= 1e-12);
+  CHECK(std::abs(yn(0) - m.simulate(e, InitialCondition::zero)(0, 0)) > 1e-3);  // the start matters
+
+  // generated_c_state: the baseline state, the effect states zero and the first-sample flag set.
+  const Eigen::VectorXd gs = generated_c_state(m, Eigen::VectorXd(x0));
+  REQUIRE(gs.size() == 2 + 4 + m.dead_time_samples(m.parameters().data()) + 1);
+  CHECK(gs.head(2) == x0);
+  CHECK(gs(5) == 1.0);
+  CHECK(gs.tail(gs.size() - 6).isZero(0.0));
+  CHECK_THROWS_WITH(generated_c_state(m, Eigen::VectorXd::Zero(3)), Catch::Contains("the baseline has 2"));
+  o.initial_state = Eigen::VectorXd::Zero(3);
+  CHECK_THROWS_WITH(generate_c(m, o), Catch::Contains("initial_state has 3 values") &&
+                                          Catch::Contains("the baseline's state"));
+  o.initial_state = x0;
+  o.equilibrium_input = Eigen::VectorXd::Constant(1, 0.2);
+  CHECK_THROWS_WITH(generate_c(m, o), Catch::Contains("both set"));
+}

@@ -104,6 +104,40 @@ GeneratedCode generate_c_kind(const Handle& model, const CodegenOptions& options
 }
 }  // namespace detail
 
+namespace detail {
+/// nlid's state as the generated state, for kinds whose C keeps nlid's layout (nlarx, grey box).
+inline Eigen::VectorXd same_layout_state(int n, const Eigen::VectorXd& x, const std::string& kind) {
+  require(x.size() == n,
+          "codegen: the state has " + std::to_string(x.size()) + " values, the " + kind + " model has " + std::to_string(n),
+          at_parameter("x"));
+  return x;
+}
+}  // namespace detail
+
+/// The state of the C code `generate_c(model, options)` generates for nlid's state `x` of the
+/// model held by `model` (the x0 its `simulate` takes; ARX and output-error models: their past
+/// samples) — the values to pass to NAME_set_state, mapped as the typed `generated_c_state`
+/// overloads do (nonlinear ARX and grey-box code keep nlid's layout). Throws `nlid::Error` for
+/// an empty handle, a kind that is not generated, or an `x` of the wrong size.
+template <class Handle>
+  requires std::same_as<Handle, AnyModel>
+Eigen::VectorXd generated_c_state(const Handle& model, const Eigen::VectorXd& x, const CodegenOptions& options = {}) {
+  require(!model.empty(), "codegen: the model handle is empty", at_parameter("model"));
+  if (const auto* m = model.template target<DynamicNlarx>()) return detail::same_layout_state(m->state_dimension(), x, "nlarx");
+  if (const auto* m = model.template target<DynamicGreyBox>()) return detail::same_layout_state(m->state_dimension(), x, "grey-box");
+  if (const auto* m = model.template target<DynamicHammersteinWiener>()) return generated_c_state(*m, x, options);
+  if (const auto* m = model.template target<DynamicWienerHammerstein>()) return generated_c_state(*m, x, options);
+  if (const auto* m = model.template target<DynamicWienerSeries>()) return generated_c_state(*m, x, options);
+  if (const auto* m = model.template target<DynamicHammersteinSeries>()) return generated_c_state(*m, x, options);
+  if (const auto* m = model.template target<DynamicHammersteinWienerSeries>()) return generated_c_state(*m, x, options);
+  if (const auto* m = model.template target<DynamicNLNLSeries>()) return generated_c_state(*m, x, options);
+  if (const auto* m = model.template target<AugmentedModel<AnyPhysics>>()) return generated_c_state(*m, x, options);
+  if (const auto* m = model.template target<Arx>()) return generated_c_state(*m, x, options);
+  if (const auto* m = model.template target<OutputError>()) return generated_c_state(*m, x, options);
+  throw Error("codegen: models of kind '" + model.kind() + "' are not generated, so they have no generated state",
+              at_parameter("model"));
+}
+
 /// Generates C99 code for the model held by `model` (see the file comment), with the
 /// estimation data's range in the header when the model records it. Throws
 /// `nlid::Error` for an empty handle, a kind that is not generated (naming it), a grey box

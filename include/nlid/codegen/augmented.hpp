@@ -20,9 +20,10 @@
 ///     x[n_x+1]      Dahl friction state               x[n_x+2]   backlash play state
 ///     x[n_x+3]      1 until the first sample, then 0  x[n_x+4 …] u(k−1), u(k−2), … (dead time)
 ///
-/// NAME_init sets x to the baseline state chosen at generation (zero, or the baseline's
+/// NAME_init sets x to the baseline state chosen at generation (zero, the baseline's
 /// equilibrium for `CodegenOptions::equilibrium_input`, found as `simulate(e, equilibrium)`
-/// finds it) and the flag to 1; the effect states start from the first sample as in nlid.
+/// finds it, or `CodegenOptions::initial_state`) and the flag to 1; the effect states start from
+/// the first sample as in nlid (`generated_c_state` builds such a state for NAME_set_state).
 /// The sub-step count is nlid's rule at that state and input (`AugmentedModel::substeps`), or
 /// `CodegenOptions::substeps`; a count that leaves RK4 unstable at the start state is refused. Like
 /// `simulate`, the C step refuses a sample whose state would become non-finite (return 1).
@@ -44,6 +45,24 @@
 #include "nlid/models/integrators.hpp"
 
 namespace nlid {
+
+/// The state of the C code `generate_c(model, options)` generates that starts the baseline at
+/// `x` (`state_dimension()` values, the x0 of `simulate`) with the effect states started from the
+/// first sample, as NAME_init does (file comment) — the values to pass to NAME_set_state.
+template <class P>
+Eigen::VectorXd generated_c_state(const AugmentedModel<P>& model, const Eigen::VectorXd& x,
+                                  const CodegenOptions& /*options*/ = {}) {
+  const int nx = model.state_dimension();
+  require(x.size() == nx,
+          "codegen: the state has " + std::to_string(x.size()) + " values, the baseline has " + std::to_string(nx),
+          at_parameter("x"));
+  const Eigen::VectorXd theta = model.parameters();
+  const int n_hist = model.has_dead_time() ? model.dead_time_samples(theta.data()) + 1 : 0;
+  Eigen::VectorXd g = Eigen::VectorXd::Zero(nx + 4 + n_hist);
+  g.head(nx) = x;
+  g(nx + 3) = 1.0;  // the flag: effect states start from the first sample
+  return g;
+}
 
 /// Generates C99 code for an augmented grey-box model (see the file comment and emitter.hpp
 /// for the interface). `options.ts` must be 0 or the model's sample time (the effects are
@@ -101,7 +120,10 @@ GeneratedCode generate_c(const AugmentedModel<P>& model, const CodegenOptions& o
 
   // Baseline state of NAME_init and the input the sub-step rule is evaluated at.
   Eigen::VectorXd xb = Eigen::VectorXd::Zero(nx), u0 = Eigen::VectorXd::Zero(std::max(nu, 1));
-  if (options.equilibrium_input) {
+  if (const auto x = codegen::given_initial_state(options, nx, "the baseline's state", m)) {
+    xb = *x;
+    m.x0_doc += " for the baseline; effect states start from the first sample";
+  } else if (options.equilibrium_input) {
     require(options.equilibrium_input->size() == nu,
             "codegen: equilibrium_input has " + std::to_string(options.equilibrium_input->size()) +
                 " values, the model has " + std::to_string(nu) + " input(s)",

@@ -56,8 +56,15 @@ struct CodegenOptions {
   /// Prefix of every generated identifier and the file names (a C identifier).
   std::string name = "nlid_model";
   /// If set, `NAME_init` starts at the equilibrium for this constant input (one value per
-  /// input); otherwise at the zero state.
+  /// input); otherwise at the zero state (or `initial_state`).
   std::optional<Eigen::VectorXd> equilibrium_input;
+  /// If set, `NAME_init` starts from this state, given in nlid's layout — the x0 the model's
+  /// `simulate` takes: an nlarx lag window, a Hammerstein–Wiener or series model's block
+  /// registers, a grey box's physical state (an augmented model's baseline state: its effects
+  /// start from the first sample), an ARX or output-error model's past samples (see
+  /// `generated_c_state`) — and mapped to the generated layout as `generated_c_state` does. An
+  /// estimated initial state deploys so. Not together with `equilibrium_input`.
+  std::optional<Eigen::VectorXd> initial_state;
   /// Sample time of the generated step (grey box: required; sampled models: 0 = the model's,
   /// and a value that differs from a model's known sample time is refused — the coefficients
   /// belong to that sample time, only a model without one takes it from here).
@@ -139,7 +146,31 @@ struct ModelShape {
   std::vector<std::string> parameter_names; ///< one comment per value
   Eigen::VectorXd x0;                       ///< NAME_x0
   std::string x0_doc;                       ///< how x0 was chosen
+  std::string x0_parameter = "equilibrium_input";  ///< the option x0 came from (for errors)
 };
+
+/// `CodegenOptions::initial_state` checked against a model whose state in nlid's layout has `n`
+/// values (`layout` says what they are): not together with `equilibrium_input`, the right
+/// count, every value finite. Empty when no state was given. Sets `m`'s x0 documentation.
+inline std::optional<Eigen::VectorXd> given_initial_state(const CodegenOptions& o, Eigen::Index n, const std::string& layout,
+                                                          ModelShape& m) {
+  if (!o.initial_state) return std::nullopt;
+  require(!o.equilibrium_input,
+          "codegen: CodegenOptions::initial_state and equilibrium_input are both set; NAME_init has one start",
+          at_parameter("initial_state"));
+  require(o.initial_state->size() == n,
+          "codegen: initial_state has " + std::to_string(o.initial_state->size()) + " values, the model's state has " +
+              std::to_string(n) + " (" + layout + ")",
+          at_parameter("initial_state"));
+  for (Eigen::Index i = 0; i < n; ++i)
+    require(std::isfinite((*o.initial_state)(i)),
+            "codegen: initial_state[" + std::to_string(i) + "] = " + nlid::detail::format_g((*o.initial_state)(i)) +
+                " is not finite",
+            at_parameter("initial_state"));
+  m.x0_doc = "the state given at generation (CodegenOptions::initial_state)";
+  m.x0_parameter = "initial_state";
+  return o.initial_state;
+}
 
 /// Plain ASCII for the generated files: embedded compilers and MSVC under a non-UTF-8 code page
 /// reject or mangle other bytes, and the only non-ASCII text nlid writes is in comments (model
@@ -388,8 +419,10 @@ inline std::string make_source_prelude(const ModelShape& m, const std::set<std::
     require(std::isfinite(v) && !(single_precision() && beyond_float_range(v)),
             "codegen: the initial state x0[" + std::to_string(i) + "] = " + nlid::detail::format_g(v) + " (" + m.x0_doc +
                 ") is " + (std::isfinite(v) ? "beyond float's range" : "not finite") +
-                ": every step would refuse it; choose another equilibrium input or the zero start",
-            at_parameter("equilibrium_input"));
+                ": every step would refuse it; " +
+                (m.x0_parameter == "initial_state" ? "choose another initial state"
+                                                   : "choose another equilibrium input or the zero start"),
+            at_parameter(m.x0_parameter));
   }
   s += "/* Initial state: " + m.x0_doc + ". */\nstatic const " + c_real() + " " + m.name + "_x0[" + std::to_string(nxs) + "] = {";
   for (int i = 0; i < nxs; ++i) s += std::string(i ? ", " : "") + c_literal(i < m.x0.size() ? m.x0(i) : 0.0);

@@ -83,7 +83,9 @@ GeneratedCode generate_c(const GreyBox<P>& model, const CodegenOptions& options)
     for (std::size_t i = 0; i < model.state_info().size(); ++i) m.state_doc += (i ? ", " : "") + model.state_info()[i].name;
     m.state_doc += "]";
     Eigen::VectorXd u_sub = Eigen::VectorXd::Zero(m.nu);
-    if (options.equilibrium_input) {
+    if (const auto x = codegen::given_initial_state(options, m.nx, "the physical state", m)) {
+      m.x0 = *x;
+    } else if (options.equilibrium_input) {
       const OperatingPoint op = equilibrium(model, *options.equilibrium_input);
       m.x0 = op.x;
       u_sub = *options.equilibrium_input;

@@ -79,7 +79,9 @@ GeneratedCode generate_c(const HammersteinWiener<In, L, Out>& model, const Codeg
                   ". In terms of nlid's transposed-direct-form-II state s (x(t) = b0*w(t) + s1(t)): "
                   "e_i = sum over j <= i of C(n-j, i-j)*s_j (the coefficients of s1 z^(n-1) + .. + sn "
                   "in powers of z - 1; e1 = s1, en = s1 + .. + sn)";
-  if (options.equilibrium_input) {
+  if (const auto x = codegen::given_initial_state(options, m.nx, "the linear block's registers", m)) {
+    m.x0 = *x;
+  } else if (options.equilibrium_input) {
     const OperatingPoint op = equilibrium(model, *options.equilibrium_input);
     m.x0 = op.x;
     m.x0_doc = "the steady state for u held at " + detail::format_g((*options.equilibrium_input)(0), 17) +

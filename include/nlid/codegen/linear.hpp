@@ -105,6 +105,60 @@ inline Eigen::VectorXd arx_tdf2_state(const Arx& model, int n, const Eigen::Vect
   }
   return s;
 }
+/// The δ form of an output-error model's block i (file comment), if `o` asks for the delta form
+/// and the block has feedback; blocks without (FIR) keep their past inputs.
+inline std::optional<codegen::DeltaBlock> oe_delta_block(const OutputError& model, int i, const CodegenOptions& o) {
+  if (!codegen::use_delta_form(o) || model.f(i).size() == 0) return std::nullopt;
+  const int nb = static_cast<int>(model.b(i).size()), nf = static_cast<int>(model.f(i).size());
+  Eigen::VectorXd beta = Eigen::VectorXd::Zero(model.nk(i) + nb);
+  beta.tail(nb) = model.b(i);
+  return codegen::DeltaBlock::from_tdf2(beta, model.f_polynomial(i), std::max(nf, model.nk(i) + nb - 1));
+}
+/// Σᵢ (Lᵢ + nfᵢ): the direct form's past inputs and block outputs.
+inline int oe_direct_states(const OutputError& model) {
+  int nx = 0;
+  for (int i = 0; i < model.num_inputs(); ++i)
+    nx += std::max(0, model.nk(i) + static_cast<int>(model.b(i).size()) - 1) + static_cast<int>(model.f(i).size());
+  return nx;
+}
+/// The generated state of an output-error model for the direct form's past samples x = per input
+/// [uᵢ(t−1) … uᵢ(t−Lᵢ), wᵢ(t−1) … wᵢ(t−nfᵢ)]: each δ block's segment replaced by its δ state,
+/// T·s with the TDF-II state s_k = Σ_{j=k..n} (βⱼ uᵢ(t−1−j+k) − fⱼ wᵢ(t−1−j+k)) of the block's
+/// recursion (summed from j = n down, as the steady state of `OutputError::simulate`). In double.
+inline Eigen::VectorXd oe_generated_state(const OutputError& model, const std::vector<std::optional<codegen::DeltaBlock>>& db,
+                                          const Eigen::VectorXd& x) {
+  const int nx = oe_direct_states(model);
+  require(x.size() == nx,
+          "codegen: the state has " + std::to_string(x.size()) + " values, the model has " + std::to_string(nx) +
+              " (past inputs and block outputs)",
+          at_parameter("x"));
+  std::vector<double> out;
+  int d = 0;  // block i's segment of x
+  for (int i = 0; i < model.num_inputs(); ++i) {
+    const int nk = model.nk(i), nb = static_cast<int>(model.b(i).size()), nf = static_cast<int>(model.f(i).size());
+    const int lag_u = std::max(0, nk + nb - 1);
+    const auto& block = db[static_cast<std::size_t>(i)];
+    if (!block) {
+      for (int k = 0; k < lag_u + nf; ++k) out.push_back(x(d + k));
+    } else {
+      const int n = block->n;
+      Eigen::VectorXd s(n);
+      for (int k = 1; k <= n; ++k) {
+        double acc = 0.0;
+        for (int j = n; j >= k; --j) {
+          const int lag = j - k + 1;  // sample t − lag; inside the segment wherever a coefficient is nonzero
+          if (j - nk >= 0 && j - nk < nb) acc += model.b(i)(j - nk) * x(d + lag - 1);
+          if (j <= nf) acc -= model.f(i)(j - 1) * x(d + lag_u + lag - 1);
+        }
+        s(k - 1) = acc;
+      }
+      const Eigen::VectorXd e = block->state_from_tdf2(s);
+      out.insert(out.end(), e.data(), e.data() + e.size());
+    }
+    d += lag_u + nf;
+  }
+  return Eigen::Map<const Eigen::VectorXd>(out.data(), static_cast<Eigen::Index>(out.size()));
+}
 inline Eigen::VectorXd equilibrium_inputs(const CodegenOptions& o, int nu) {
   if (!o.equilibrium_input) return Eigen::VectorXd::Zero(nu);
   require(o.equilibrium_input->size() == nu,
@@ -123,6 +177,18 @@ inline Eigen::VectorXd generated_c_state(const Arx& model, const Eigen::VectorXd
   const auto db = codegen::detail::arx_delta_block(model, options);
   const Eigen::VectorXd s = codegen::detail::arx_tdf2_state(model, db ? db->n : 0, x);  // checks x's size
   return db ? db->state_from_tdf2(s) : x;
+}
+
+/// The state of the C code `generate_c(model, options)` generates for an output-error model
+/// whose past samples are x = per input [uᵢ(t−1) … uᵢ(t−Lᵢ), wᵢ(t−1) … wᵢ(t−nfᵢ)] (Lᵢ = nkᵢ +
+/// nbᵢ − 1, wᵢ the output of input i's block Bᵢ/Fᵢ, without the offset): `x` itself in the direct
+/// form; in the delta form each block with feedback holds its δ state instead (file comment) —
+/// the values to pass to NAME_set_state.
+inline Eigen::VectorXd generated_c_state(const OutputError& model, const Eigen::VectorXd& x,
+                                         const CodegenOptions& options = {}) {
+  std::vector<std::optional<codegen::DeltaBlock>> db;
+  for (int i = 0; i < model.num_inputs(); ++i) db.push_back(codegen::detail::oe_delta_block(model, i, options));
+  return codegen::detail::oe_generated_state(model, db, x);
 }
 
 /// Generates C99 code for an ARX model (see the file comment). Throws `nlid::Error` on a bad
@@ -156,7 +222,9 @@ inline GeneratedCode generate_c(const Arx& model, const CodegenOptions& options 
   m.state_doc += "]";
   m.x0 = Eigen::VectorXd::Zero(nx);
   const Eigen::VectorXd u0 = codegen::detail::equilibrium_inputs(options, nu);
-  if (options.equilibrium_input) {
+  if (const auto x = codegen::given_initial_state(options, nx, "past outputs and inputs", m)) {
+    m.x0 = *x;
+  } else if (options.equilibrium_input) {
     // As Arx::simulate(e, InitialCondition::equilibrium).
     const double a1 = model.a_polynomial().sum();
     double drive = model.offset();
@@ -256,16 +324,12 @@ inline GeneratedCode generate_c(const OutputError& model, const CodegenOptions& 
   // Single precision: each block with feedback in delta form (delta_form.hpp), its segment of
   // the state then holds its delta state instead of past inputs and outputs.
   std::vector<std::optional<codegen::DeltaBlock>> db(static_cast<std::size_t>(nu));
-  const bool delta = codegen::use_delta_form(options);
   int nx = 0;
   m.state_doc = "x = [";
   for (int i = 0; i < nu; ++i) {
     const auto ii = static_cast<std::size_t>(i);
-    if (delta && model.f(i).size() > 0) {
-      const int nb = static_cast<int>(model.b(i).size()), nf = static_cast<int>(model.f(i).size());
-      Eigen::VectorXd beta = Eigen::VectorXd::Zero(model.nk(i) + nb);
-      beta.tail(nb) = model.b(i);
-      db[ii] = codegen::DeltaBlock::from_tdf2(beta, model.f_polynomial(i), std::max(nf, model.nk(i) + nb - 1));
+    db[ii] = codegen::detail::oe_delta_block(model, i, options);
+    if (db[ii]) {
       lags[ii] = 0;
       uoff[ii] = woff[ii] = nx;
       nx += db[ii]->n;
@@ -286,39 +350,30 @@ inline GeneratedCode generate_c(const OutputError& model, const CodegenOptions& 
   }
   m.state_doc += "] (w_i: the output of input i's block B_i/F_i)";
   m.nx = nx;
-  m.x0 = Eigen::VectorXd::Zero(nx);
   const Eigen::VectorXd u0 = codegen::detail::equilibrium_inputs(options, nu);
-  if (options.equilibrium_input) {
+  // The start as past samples of the direct form (per input: past inputs, past block outputs),
+  // then mapped to the generated layout.
+  std::vector<double> past;
+  if (const auto x = codegen::given_initial_state(options, codegen::detail::oe_direct_states(model),
+                                                  "past inputs and block outputs", m)) {
+    past.assign(x->data(), x->data() + x->size());
+  } else if (options.equilibrium_input) {
     // As OutputError::simulate(e, InitialCondition::equilibrium).
     for (int i = 0; i < nu; ++i) {
-      const auto ii = static_cast<std::size_t>(i);
       const double f1 = model.f_polynomial(i).sum();
       require(std::abs(f1) > 1e-14 || model.b(i).sum() * u0(i) == 0.0,
               "codegen: no equilibrium: F(q) of input " + std::to_string(i + 1) + " has a root at z = 1",
               at_parameter("equilibrium_input"));
       const double w0 = std::abs(f1) > 1e-14 ? model.b(i).sum() / f1 * u0(i) : 0.0;
-      if (db[ii]) {
-        // The transposed-direct-form-II steady state s_k = sum_{j >= k} (beta_j u0 - f_j w0)
-        // (transfer_function_block.hpp), in delta form.
-        const int n = db[ii]->n, nk = model.nk(i), nb = static_cast<int>(model.b(i).size());
-        const int nf = static_cast<int>(model.f(i).size());
-        Eigen::VectorXd s(n);
-        double acc = 0.0;
-        for (int k = n; k >= 1; --k) {
-          if (k - nk >= 0 && k - nk < nb) acc += model.b(i)(k - nk) * u0(i);
-          if (k <= nf) acc -= model.f(i)(k - 1) * w0;
-          s(k - 1) = acc;
-        }
-        m.x0.segment(uoff[ii], n) = db[ii]->state_from_tdf2(s);
-        continue;
-      }
-      m.x0.segment(uoff[ii], lags[ii]).setConstant(u0(i));
-      m.x0.segment(woff[ii], model.f(i).size()).setConstant(w0);
+      past.insert(past.end(), static_cast<std::size_t>(std::max(0, model.nk(i) + static_cast<int>(model.b(i).size()) - 1)), u0(i));
+      past.insert(past.end(), static_cast<std::size_t>(model.f(i).size()), w0);
     }
     m.x0_doc = "the steady state for u held at " + detail::format_g(u0(0), 17);
   } else {
+    past.assign(static_cast<std::size_t>(codegen::detail::oe_direct_states(model)), 0.0);
     m.x0_doc = "zero (past inputs and block outputs 0)";
   }
+  m.x0 = codegen::detail::oe_generated_state(model, db, Eigen::Map<const Eigen::VectorXd>(past.data(), static_cast<Eigen::Index>(past.size())));
   const std::string P = m.name + "_p", X = "s->x";
   // Parameter layout: all b, then all f, then the offset.
   std::vector<int> pb(static_cast<std::size_t>(nu)), pf(static_cast<std::size_t>(nu));

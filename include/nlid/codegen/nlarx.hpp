@@ -55,7 +55,9 @@ GeneratedCode generate_c(const Nlarx<R, F>& model, const CodegenOptions& options
   m.state_doc = "the lag window x = [";
   for (std::size_t i = 0; i < names.size(); ++i) m.state_doc += (i ? ", " : "") + names[i];
   m.state_doc += "]" + std::string(names.empty() ? " (empty: the model has no memory)" : "");
-  if (options.equilibrium_input) {
+  if (const auto x = codegen::given_initial_state(options, m.nx, "the lag window", m)) {
+    m.x0 = *x;
+  } else if (options.equilibrium_input) {
     const OperatingPoint op = equilibrium(model, *options.equilibrium_input);
     m.x0 = op.x;
     m.x0_doc = "the equilibrium for u held at " + detail::format_g((*options.equilibrium_input)(0), 17) +

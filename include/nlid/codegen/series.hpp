@@ -146,7 +146,9 @@ GeneratedCode generate_c(const Series<Blocks...>& model, const CodegenOptions& o
                    "d^(n-1) + .. + an); e_i = sum over j <= i of C(n-j, i-j)*s_j (the coefficients of s1 z^(n-1) + .. "
                    "+ sn in powers of z - 1; e1 = s1, en = s1 + .. + sn)";
   const std::span<const double> theta(model.parameters().data(), static_cast<std::size_t>(model.parameters().size()));
-  if (options.equilibrium_input) {
+  if (const auto x = codegen::given_initial_state(options, m.nx, "the linear blocks' registers in chain order", m)) {
+    m.x0 = *x;
+  } else if (options.equilibrium_input) {
     require(options.equilibrium_input->size() == 1,
             "codegen: a series model has one input; equilibrium_input has " +
                 std::to_string(options.equilibrium_input->size()) + " values",
