@@ -73,6 +73,28 @@ inline double parse_number(const std::string& flag, const std::string& v) {
   return x;
 }
 
+/// A comma-separated list of finite numbers ("0.5" or "0.2,-1,3"); an empty item, text or a
+/// non-finite value is a usage error naming the option and the item (one value: as parse_number).
+inline std::vector<double> parse_number_list(const std::string& flag, const std::string& v) {
+  if (v.find(',') == std::string::npos) return {parse_number(flag, v)};  // one value: parse_number's message
+  std::vector<double> out;
+  std::size_t start = 0;
+  for (;;) {
+    const std::size_t comma = v.find(',', start);
+    const std::string item = v.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+    if (item.empty() || item.find_first_not_of(" ") == std::string::npos)
+      throw UsageError(flag + " needs finite numbers separated by commas, got '" + v + "' (an empty item)");
+    try {
+      out.push_back(parse_number(flag, item));
+    } catch (const UsageError&) {
+      throw UsageError(flag + " needs finite numbers separated by commas, got '" + v + "' (item " +
+                       std::to_string(out.size() + 1) + ": '" + item + "')");
+    }
+    if (comma == std::string::npos) return out;
+    start = comma + 1;
+  }
+}
+
 /// One option of a tool's command line. Every tool's messages for a bad command line come from
 /// parse_options, so the six tools word them alike.
 struct OptionSpec {

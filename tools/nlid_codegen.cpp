@@ -2,7 +2,7 @@
 // or any C code base.
 //
 //   nlid-codegen --model model.json --out DIR [--name NAME] [--ts T] [--substeps N]
-//                [--x0 zero|equilibrium] [--u0 V] [--allow-extrapolation]
+//                [--x0 zero|equilibrium|X1,X2,..] [--u0 V|V1,V2,..] [--allow-extrapolation]
 //                [--precision double|single] [--linear-form auto|direct|delta]
 //
 // Kinds: nlarx, hammerstein_wiener, series, greybox, augmented_greybox (the repaired model of
@@ -11,7 +11,9 @@
 // a C identifier. The generated step reproduces `nlid-sim` on the same model to the last bits
 // (same operations in the same order). Grey-box models are continuous: --ts sets the sample
 // time of the generated step (required for them). --x0 equilibrium makes NAME_init start in
-// the steady state for the constant input --u0 (default 0); a --u0 outside the input range of
+// the steady state for the constant input --u0 (default 0; one value for every input or one per
+// input); --x0 X1,X2,.. starts it from that state in nlid's layout (the x0 of the model's
+// simulate), mapped to the generated layout (generated_c_state). A --u0 outside the input range of
 // the estimation data recorded in the model file, or a steady output far outside its output
 // range, is refused (the model extrapolates there) unless --allow-extrapolation is given. Exit status (cli_common.hpp) 0 on success, 1 on a
 // bad file or model (a model kind that is not generated, no or a non-finite equilibrium, a
@@ -36,7 +38,7 @@
 namespace {
 constexpr const char* kUsage =
     "usage: nlid-codegen --model model.json --out DIR [--name NAME] [--ts T] [--substeps N]\n"
-    "                    [--x0 zero|equilibrium] [--u0 V] [--allow-extrapolation]\n"
+    "                    [--x0 zero|equilibrium|X1,X2,..] [--u0 V|V1,V2,..] [--allow-extrapolation]\n"
     "                    [--precision double|single] [--linear-form auto|direct|delta]\n"
     "  --model FILE     a model file (nlid-fit --save, or save() in C++)\n"
     "  --out DIR        existing directory for NAME.h and NAME.c\n"
@@ -44,9 +46,13 @@ constexpr const char* kUsage =
     "  --ts T           sample time of the generated step in seconds (grey box: required;\n"
     "                   sampled models: must equal the model's if given)\n"
     "  --substeps N     grey box: integrator sub-steps per sample (default: the model's rule)\n"
-    "  --x0 MODE        NAME_init state: zero (default) or equilibrium for the input --u0\n"
-    "  --u0 V           constant input of the equilibrium (default 0); it must lie in the input\n"
-    "                   range of the estimation data recorded in the model file\n"
+    "  --x0 MODE        NAME_init state: zero (default), equilibrium for the input --u0, or\n"
+    "                   a state X1,X2,.. in nlid's layout (the x0 of the model's simulate: an\n"
+    "                   nlarx lag window, the linear blocks' registers, a grey box's physical\n"
+    "                   state, an arx/output_error model's past samples)\n"
+    "  --u0 V           constant input of the equilibrium (default 0): one value for every input\n"
+    "                   or one per input, V1,V2,..; it must lie in the input range of the\n"
+    "                   estimation data recorded in the model file\n"
     "  --allow-extrapolation  generate an equilibrium start outside that range (a warning)\n"
     "  --precision P    double (default: nlid's numbers to the last bit) or single (float\n"
     "                   throughout, for FPUs without double; float rounding)\n"
@@ -68,10 +74,13 @@ std::string identifier_from(const std::string& path) {
   return s;
 }
 
-std::string num(double v) {
-  char b[32];
-  std::snprintf(b, sizeof b, "%.6g", v);
-  return b;
+std::string num(double v) { return nlid::detail::format_g(v); }
+
+// "0.5" or "0.2,-1": the values as the messages show them.
+std::string num_list(const Eigen::VectorXd& v) {
+  std::string s;
+  for (Eigen::Index i = 0; i < v.size(); ++i) s += (i ? "," : "") + num(v(i));
+  return s;
 }
 
 // Checks an equilibrium start against the estimation data's range recorded in the model file:
@@ -79,8 +88,8 @@ std::string num(double v) {
 // piecewise-linear map its end segments), and its "steady state" can be a finite but absurd
 // value (950 deg for a throttle that stops at 90). `y` is the steady output (empty if unknown).
 // Returns the problem in words, or "" if there is none.
-std::string extrapolation_problem(const nlid::AnyModel& m, const std::string& model, double u0, bool u0_given,
-                                  const Eigen::VectorXd& y) {
+std::string extrapolation_problem(const nlid::AnyModel& m, const std::string& model, const Eigen::VectorXd& u0,
+                                  const std::string& u0_shown, bool u0_given, const Eigen::VectorXd& y) {
   const auto& ir = m.info().input_range;
   const auto& outr = m.info().output_range;
   const auto in_names = m.input_names(), out_names = m.output_names();
@@ -94,8 +103,10 @@ std::string extrapolation_problem(const nlid::AnyModel& m, const std::string& mo
     steady += ")";
   }
   for (std::size_t i = 0; i < ir.size() && static_cast<int>(i) < m.num_inputs(); ++i) {
-    if (!ir[i].contains(u0))
-      return "--u0 " + num(u0) + (u0_given ? "" : " (the default)") + " is outside the input range of the estimation data recorded in " + model + " (" +
+    const double v = u0(static_cast<Eigen::Index>(i));
+    const std::string which = u0_shown.find(',') == std::string::npos ? "" : " (" + name(in_names, i, "u") + " = " + num(v) + ")";
+    if (!ir[i].contains(v))
+      return "--u0 " + u0_shown + which + (u0_given ? "" : " (the default)") + " is outside the input range of the estimation data recorded in " + model + " (" +
              name(in_names, i, "u") + ": " + num(ir[i].lower) + " to " + num(ir[i].upper) +
              "): the model was not fitted there, so its equilibrium is an extrapolation" + steady;
   }
@@ -105,7 +116,7 @@ std::string extrapolation_problem(const nlid::AnyModel& m, const std::string& mo
     const nlid::ChannelRange& r = outr[static_cast<std::size_t>(k)];
     const double margin = 0.1 * (r.upper - r.lower);
     if (y(k) < r.lower - margin || y(k) > r.upper + margin)
-      return "the equilibrium for --u0 " + num(u0) + " has the output " + name(out_names, static_cast<std::size_t>(k), "y") +
+      return "the equilibrium for --u0 " + u0_shown + " has the output " + name(out_names, static_cast<std::size_t>(k), "y") +
              " = " + num(y(k)) + ", far outside the output range of the estimation data recorded in " + model + " (" +
              num(r.lower) + " to " + num(r.upper) + "): the fitted model's steady state there is not one the data showed";
   }
@@ -124,7 +135,7 @@ int main(int argc, char** argv) {
                                    {"--name"},
                                    {"--ts"},
                                    {"--substeps"},
-                                   {"--x0", OptionSpec::once, {"zero", "equilibrium"}},
+                                   {"--x0"},
                                    {"--u0"},
                                    {"--allow-extrapolation", OptionSpec::flag},
                                    {"--precision", OptionSpec::once, {"double", "single"}},
@@ -138,7 +149,16 @@ int main(int argc, char** argv) {
                       linear_form = a.get("--linear-form", "auto");
     const double ts = a.get_number("--ts", 0.0);
     if (a.has("--ts") && !(ts > 0)) throw UsageError("--ts must be positive, got '" + a.get("--ts") + "'");
-    const double u0 = a.get_number("--u0", 0.0);
+    const std::vector<double> u0_values = a.has("--u0") ? nlid_tools::parse_number_list("--u0", a.get("--u0"))
+                                                         : std::vector<double>{0.0};
+    // --x0: a mode, or a state (a list of numbers).
+    std::vector<double> x0_state;
+    if (x0 != "zero" && x0 != "equilibrium") {
+      if (x0.find_first_of("0123456789") == std::string::npos)
+        throw UsageError("--x0 must be zero, equilibrium or a state X1,X2,.. (numbers separated by commas), got '" + x0 +
+                         "'");
+      x0_state = nlid_tools::parse_number_list("--x0", x0);
+    }
     const bool u0_given = a.has("--u0"), allow_extrapolation = a.has("--allow-extrapolation");
     const int substeps = a.get_int("--substeps", 1, 1000000, 0);
     if (model.empty() || out.empty()) throw UsageError("--model and --out are required");
@@ -167,14 +187,23 @@ int main(int argc, char** argv) {
       throw nlid::Error("a grey-box model is continuous: give --ts, the sample time of the generated step (e.g. the "
                         "sample time of the data it was estimated on) - " + model,
                         nlid::at_parameter("--ts"));
+    // One --u0 value holds every input; a list gives one per input.
+    if (u0_values.size() != 1 && static_cast<int>(u0_values.size()) != m.num_inputs())
+      throw nlid::Error("--u0 has " + std::to_string(u0_values.size()) + " values, the model " + model + " has " +
+                            std::to_string(m.num_inputs()) + " input" + (m.num_inputs() == 1 ? "" : "s") +
+                            " (give one value for every input, or one per input)",
+                        nlid::at_parameter("--u0"));
+    const Eigen::VectorXd u0 =
+        u0_values.size() == 1 ? Eigen::VectorXd::Constant(m.num_inputs(), u0_values[0])
+                              : Eigen::VectorXd(Eigen::Map<const Eigen::VectorXd>(u0_values.data(), m.num_inputs()));
+    const std::string u0_shown = u0_values.size() == 1 ? num(u0_values[0]) : num_list(u0);
     if (x0 == "equilibrium") {
       // NAME_init's state is nlid-sim's equilibrium for a record starting at u0: a steady state
       // that is not finite (an input far outside the model's range) would be written as inf/nan.
       stage = "computing the equilibrium for --u0";
       const double step = m.ts() > 0 ? m.ts() : ts;
       if (step > 0) {
-        const nlid::Experiment held(Eigen::MatrixXd::Constant(8, m.num_inputs(), u0), Eigen::MatrixXd::Zero(8, m.num_outputs()),
-                                    step);
+        const nlid::Experiment held(u0.transpose().replicate(8, 1), Eigen::MatrixXd::Zero(8, m.num_outputs()), step);
         Eigen::MatrixXd y;
         bool simulated = false;
         std::string no_steady_state;
@@ -186,25 +215,25 @@ int main(int argc, char** argv) {
         }
         if (simulated && y.rows() > 0 && !y.row(0).allFinite()) {
           char buf[160];
-          std::snprintf(buf, sizeof buf, "the equilibrium of %s for the input held at --u0 %.17g is not finite (output %g)",
-                        model.c_str(), u0, y(0, 0));
+          std::snprintf(buf, sizeof buf, "the equilibrium of %s for the input held at --u0 %s is not finite (output %g)",
+                        model.c_str(), u0_shown.c_str(), y(0, 0));
           throw nlid::Error(std::string(buf) + ": the generated initial state would be inf/nan - choose an input within "
                                                "the model's operating range",
                             nlid::at_parameter("--u0"));
         }
         const Eigen::VectorXd y0 = simulated && y.rows() > 0 ? Eigen::VectorXd(y.row(0).transpose()) : Eigen::VectorXd();
-        const std::string problem = extrapolation_problem(m, model, u0, u0_given, y0);
+        const std::string problem = extrapolation_problem(m, model, u0, u0_shown, u0_given, y0);
         if (!problem.empty() && !allow_extrapolation)
           throw nlid::Error(problem + " - choose --u0 within the range, or give --allow-extrapolation to generate it anyway",
                             nlid::at_parameter("--u0"));
         if (!problem.empty()) std::cerr << "nlid-codegen: warning: " << problem << " (generated: --allow-extrapolation)\n";
         if (!simulated)
-          throw nlid::Error("no equilibrium start for --u0 " + num(u0) + " (" + model + "): " + no_steady_state,
+          throw nlid::Error("no equilibrium start for --u0 " + u0_shown + " (" + model + "): " + no_steady_state,
                             nlid::at_parameter("--u0"));
       }
       if (m.info().input_range.empty())
         std::cerr << "nlid-codegen: note: " << model << " records no range of its estimation data (written before nlid "
-                  << "kept it, or saved without record_data_range), so --u0 " << num(u0)
+                  << "kept it, or saved without record_data_range), so --u0 " << u0_shown
                   << " is not checked against the inputs the model was fitted on\n";
     }
     stage = "generating C for " + model;
@@ -215,8 +244,21 @@ int main(int argc, char** argv) {
     if (precision == "single") o.precision = nlid::codegen::Precision::single_precision;
     if (linear_form == "direct") o.linear_form = nlid::codegen::LinearForm::direct;
     if (linear_form == "delta") o.linear_form = nlid::codegen::LinearForm::delta;
-    if (x0 == "equilibrium") o.equilibrium_input = Eigen::VectorXd::Constant(m.num_inputs(), u0);
-    const nlid::GeneratedCode g = nlid::generate_c(m, o);
+    if (x0 == "equilibrium") o.equilibrium_input = u0;
+    if (!x0_state.empty())
+      o.initial_state = Eigen::Map<const Eigen::VectorXd>(x0_state.data(), static_cast<Eigen::Index>(x0_state.size()));
+    nlid::GeneratedCode g;
+    try {
+      g = nlid::generate_c(m, o);
+    } catch (const nlid::Error& e) {
+      // The library names its option; on this command line the state is --x0.
+      if (x0_state.empty() || e.where().parameter != "initial_state") throw;
+      std::string text = e.message();
+      const std::string lib = "codegen: initial_state";
+      text = text.rfind(lib, 0) == 0 ? "--x0 " + x0 + " (" + model + ")" + text.substr(lib.size())
+                                     : "--x0 " + x0 + " (" + model + "): " + text.substr(text.find(' ') + 1);
+      throw nlid::Error(text, nlid::at_parameter("--x0"));
+    }
     stage = "writing " + out;
     const auto files = g.write(out);
     std::cerr << "nlid-codegen: " << m.kind() << " model " << model << " -> " << files.at(0) << ", " << files.at(1)

@@ -106,6 +106,33 @@ std::optional<std::string> cortex_m4f_imports(const fs::path& dir, const std::st
   return slurp(dir / "imports.txt");
 }
 
+// The values of NAME_x0 in a generated source ("static const double NAME_x0[n] = {a, (-b)};").
+std::vector<double> x0_values(const std::string& source, const std::string& name) {
+  const std::size_t at = source.find(name + "_x0[");
+  REQUIRE(at != std::string::npos);
+  const std::size_t open = source.find('{', at), close = source.find('}', at);
+  REQUIRE(open < close);
+  std::vector<double> v;
+  std::string item;
+  std::stringstream list(source.substr(open + 1, close - open - 1));
+  while (std::getline(list, item, ',')) {
+    std::erase_if(item, [](char c) { return c == '(' || c == ')'; });  // negative literals are parenthesized
+    v.push_back(std::strtod(item.c_str(), nullptr));
+  }
+  return v;
+}
+
+// "a,b,c" with 17 significant digits (read back exactly).
+std::string number_list(const std::vector<double>& v) {
+  std::string s;
+  char b[40];
+  for (std::size_t i = 0; i < v.size(); ++i) {
+    std::snprintf(b, sizeof b, "%s%.17g", i ? "," : "", v[i]);
+    s += b;
+  }
+  return s;
+}
+
 bool pure_ascii(const std::string& s) {
   return std::all_of(s.begin(), s.end(), [](char c) { return static_cast<unsigned char>(c) < 0x80; });
 }
@@ -175,6 +202,31 @@ TEST_CASE("nlid-codegen: C from nlid-fit's model files reproduces nlid-sim for e
       CHECK(max_relative_gap(ye_c, ye_nlid) <= 1e-12);
       // Started in equilibrium, the first output is the steady output, not the zero-state one.
       CHECK(std::abs(ye_c[0] - y_c[0]) > 1e-6);
+
+      // --x0 X1,X2,..: that equilibrium's state in nlid's layout (double code keeps it: read back
+      // from eq_model.c) is the same start, so the same NAME_x0 and the same run; in single
+      // precision it is mapped as --x0 equilibrium maps its own (the delta state of linear blocks).
+      const std::vector<double> x_eq = x0_values(slurp(dir / "eq_model.c"), "eq_model");
+      const Run gx = codegen("--model " + q(model) + " --out " + q(dir) + " --name x_model --x0 " + number_list(x_eq) + " " +
+                             c.codegen_options);
+      INFO(gx.err);
+      REQUIRE(gx.code == 0);
+      CHECK(x0_values(slurp(dir / "x_model.c"), "x_model") == x_eq);
+      CHECK(run_generated(dir, "x_model", u) == ye_c);
+      REQUIRE(codegen("--model " + q(model) + " --out " + q(dir) + " --name xs_model --precision single --x0 " +
+                      number_list(x_eq) + " " + c.codegen_options).code == 0);
+      REQUIRE(codegen("--model " + q(model) + " --out " + q(dir) + " --name es_model --precision single --x0 equilibrium --u0 " +
+                      u0 + " --allow-extrapolation " + c.codegen_options).code == 0);
+      CHECK(x0_values(slurp(dir / "xs_model.c"), "xs_model") == x0_values(slurp(dir / "es_model.c"), "es_model"));
+      std::vector<double> x_short(x_eq.begin(), x_eq.end() - 1);
+      x_short.push_back(0.0);
+      x_short.push_back(0.0);  // one value too many
+      const Run bad = codegen("--model " + q(model) + " --out " + q(dir) + " --name x_bad --x0 " + number_list(x_short) + " " +
+                              c.codegen_options);
+      CHECK(bad.code == 1);
+      CHECK_THAT(bad.err, Catch::Contains("has " + std::to_string(x_short.size()) + " values, the model's state has " +
+                                          std::to_string(x_eq.size())) &&
+                              Catch::Contains("parameter '--x0'"));
 
       // Single precision: no double in the code, float rounding of the same model.
       const Run gs = codegen("--model " + q(model) + " --out " + q(dir) + " --name sp_model --precision single " +
@@ -259,7 +311,16 @@ TEST_CASE("nlid-codegen: a kind it does not generate, a grey box without --ts, a
   CHECK_THAT(r.err, Catch::Contains("--u0 sets the input of --x0 equilibrium"));
   r = codegen("--model " + q(nlarx) + " --out " + q(dir) + " --x0 steady");
   CHECK(r.code == 2);
-  CHECK_THAT(r.err, Catch::Contains("--x0 must be zero or equilibrium"));
+  CHECK_THAT(r.err, Catch::Contains("--x0 must be zero, equilibrium or a state X1,X2,.."));
+  r = codegen("--model " + q(nlarx) + " --out " + q(dir) + " --x0 0.5,,1");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("--x0 needs finite numbers separated by commas, got '0.5,,1' (an empty item)"));
+  r = codegen("--model " + q(nlarx) + " --out " + q(dir) + " --x0 equilibrium --u0 0.5,x");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("--u0 needs finite numbers separated by commas") && Catch::Contains("item 2: 'x'"));
+  r = codegen("--model " + q(nlarx) + " --out " + q(dir) + " --x0 equilibrium --u0 0.1,0.2");
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("--u0 has 2 values, the model") && Catch::Contains("has 1 input (give one value"));
   r = codegen("--model " + q(nlarx) + " --out " + q(dir) + " --precision half");
   CHECK(r.code == 2);
   CHECK_THAT(r.err, Catch::Contains("--precision must be double or single, got 'half'"));
@@ -506,4 +567,35 @@ TEST_CASE("nlid-diagnose --save records the data range as the estimation saw it 
   const std::vector<double> raw = csv_column(est, 1);
   const auto [lo, hi] = std::minmax_element(raw.begin(), raw.end());
   CHECK((ri(0) < *lo || ri(1) > *hi));
+}
+
+TEST_CASE("nlid-codegen: --u0 gives each input of a two-input model its own value", "[tools][codegen]") {
+  // A two-input ARX model file (the tools fit one input; a C++ program saves more):
+  // y(t) = 0.5 y(t-1) + u1(t-1) + 2 u2(t-1), steady state y = 2 (u1 + 2 u2).
+  const fs::path dir = work_dir() / "cg_two_inputs";
+  fs::create_directories(dir);
+  const fs::path model = dir / "arx2.json";
+  std::ofstream(model) << R"json({"format": "nlid-model", "version": 1, "kind": "arx", "ts": 0.01,
+ "initial_condition": "zero", "created": "2026-11-27T00:00:00Z", "generator": "test", "description": "",
+ "inputs": [{"name": "cmd", "unit": ""}, {"name": "load", "unit": ""}], "outputs": [{"name": "y", "unit": ""}],
+ "structure": {"a": [-0.5], "b": [[1.0], [2.0]], "nk": [1, 1], "offset": 0.0}})json";
+  Run r = codegen("--model " + q(model) + " --out " + q(dir) + " --x0 equilibrium --u0 0.2,-0.3");
+  INFO(r.err);
+  REQUIRE(r.code == 0);
+  // State [y(t-1), u1(t-1), u2(t-1)] at the steady state for u = (0.2, -0.3): y = 2 (0.2 - 0.6).
+  const std::vector<double> x = x0_values(slurp(dir / "arx2.c"), "arx2");
+  REQUIRE(x.size() == 3);
+  CHECK(std::abs(x[0] - (-0.8)) < 1e-15);
+  CHECK(x[1] == 0.2);
+  CHECK(x[2] == -0.3);
+  // One value holds both inputs.
+  REQUIRE(codegen("--model " + q(model) + " --out " + q(dir) + " --name arx2_one --x0 equilibrium --u0 0.1").code == 0);
+  const std::vector<double> x1 = x0_values(slurp(dir / "arx2_one.c"), "arx2_one");
+  REQUIRE(x1.size() == 3);
+  CHECK(std::abs(x1[0] - 0.6) < 1e-15);
+  CHECK(x1[1] == 0.1);
+  CHECK(x1[2] == 0.1);
+  r = codegen("--model " + q(model) + " --out " + q(dir) + " --x0 equilibrium --u0 0.1,0.2,0.3");
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("--u0 has 3 values, the model") && Catch::Contains("has 2 inputs"));
 }
