@@ -647,6 +647,22 @@ TEST_CASE("model file: estimated linear models keep their report and standard de
              Catch::Contains("the standard deviation of b1 (entry 2) must be finite and >= 0") && Catch::Contains("parameters.stddev"));
   CHECK_THAT(error_of([&] { (void)load_model(write_text("arx_count.json", edited(text, "\"values\": [", "\"values\": [1, "))); }),
              Catch::Contains("4 values at parameters.values") && Catch::Contains("3 parameters"));
+  // A parameter the data did not determine has an infinite standard deviation ("not
+  // identifiable"), and a multi-output report its fit per output: both survive the file.
+  Arx undetermined = a;
+  Eigen::VectorXd sd = a.parameter_stddev();
+  sd(1) = std::numeric_limits<double>::infinity();
+  undetermined.set_parameter_stddev(sd);
+  LinearEstimationReport rep = a.report();
+  rep.set_fit({91.5, 62.25});
+  undetermined.set_report(rep);
+  const std::string pu = temp_path("arx_undetermined.json");
+  save_model(pu, undetermined);
+  const Arx u2 = load_model<Arx>(pu);
+  CHECK(bit_equal(u2.parameter_stddev(), sd));
+  CHECK(u2.report().fit_per_output == std::vector<double>{91.5, 62.25});
+  CHECK(u2.report().fit_percent == 62.25);
+  CHECK(u2.describe() == undetermined.describe());
   // Without "parameters" (a hand-written file) the structure alone defines the model.
   j = read_json(pa);
   j.erase("parameters");

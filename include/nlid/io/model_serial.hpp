@@ -825,8 +825,9 @@ inline Eigen::VectorXd check_linear_parameters(const JsonView& file, const std::
                          " do not match the structure's (" + want + ")");
     }
   }
-  const auto check_count = [&](const JsonView& v) {
-    const Eigen::VectorXd x = read_vector(v);
+  // Standard deviations may be +inf ("not identifiable", written as extended numbers).
+  const auto check_count = [&](const JsonView& v, bool extended = false) {
+    const Eigen::VectorXd x = extended ? read_extended_vector(v) : read_vector(v);
     if (x.size() != n) {
       v.fail("the file has " + std::to_string(x.size()) + " values at " + v.path_text() +
              ", the model structure has " + std::to_string(n) + " parameters");
@@ -845,7 +846,7 @@ inline Eigen::VectorXd check_linear_parameters(const JsonView& file, const std::
     }
   }
   if (!p.contains("stddev")) return {};
-  return check_count(p.at("stddev"));
+  return check_count(p.at("stddev"), true);
 }
 
 /// Rethrows a constructor error of a linear model located at the structure.
@@ -882,7 +883,7 @@ struct ModelSerial<Arx> {
     s["offset"] = m.offset();
     j["structure"] = std::move(s);
     j["parameters"] = detail::parameters_json(m.parameter_names(), m.parameters());
-    if ((m.parameter_stddev().array() != 0.0).any()) j["parameters"]["stddev"] = m.parameter_stddev();
+    if ((m.parameter_stddev().array() != 0.0).any()) j["parameters"]["stddev"] = extended_vector(m.parameter_stddev());
     j["report"] = linear_report_to_json(m.report());
   }
   /// Builds the model.
@@ -943,7 +944,7 @@ struct ModelSerial<OutputError> {
     s["offset"] = m.offset();
     j["structure"] = std::move(s);
     j["parameters"] = detail::parameters_json(m.parameter_names(), m.parameters());
-    if ((m.parameter_stddev().array() != 0.0).any()) j["parameters"]["stddev"] = m.parameter_stddev();
+    if ((m.parameter_stddev().array() != 0.0).any()) j["parameters"]["stddev"] = extended_vector(m.parameter_stddev());
     j["report"] = linear_report_to_json(m.report());
   }
   /// Builds the model.

@@ -176,6 +176,9 @@ namespace nlid {
   j["num_parameters"] = r.num_parameters;
   j["loss"] = extended_number(r.loss);
   j["fit_percent"] = extended_number(r.fit_percent);
+  if (!r.fit_per_output.empty())
+    j["fit_per_output"] = extended_vector(Eigen::Map<const Eigen::VectorXd>(
+        r.fit_per_output.data(), static_cast<Eigen::Index>(r.fit_per_output.size())));
   j["iterations"] = r.iterations;
   j["solver_message"] = r.solver_message;
   return j;
@@ -184,7 +187,7 @@ namespace nlid {
 /// Reads `linear_report_to_json`.
 [[nodiscard]] inline LinearEstimationReport linear_report_from_json(const JsonView& v) {
   v.check_keys({"method", "focus", "num_experiments", "num_samples", "num_parameters", "loss", "fit_percent",
-                "iterations", "solver_message"});
+                "fit_per_output", "iterations", "solver_message"});
   LinearEstimationReport r;
   r.method = v.at("method").as_string();
   r.focus = v.at("focus").as_string();
@@ -193,6 +196,10 @@ namespace nlid {
   r.num_parameters = read_int(v.at("num_parameters"), 0, std::numeric_limits<int>::max());
   r.loss = read_extended_number(v.at("loss"));
   r.fit_percent = read_extended_number(v.at("fit_percent"));
+  if (v.contains("fit_per_output")) {  // per output channel (files before it have the scalar only)
+    const Eigen::VectorXd f = read_extended_vector(v.at("fit_per_output"));
+    r.fit_per_output.assign(f.data(), f.data() + f.size());
+  }
   r.iterations = read_int(v.at("iterations"), 0, std::numeric_limits<int>::max());
   r.solver_message = v.at("solver_message").as_string();
   return r;
