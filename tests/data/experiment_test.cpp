@@ -155,6 +155,24 @@ TEST_CASE("NonFinitePolicy::keep and ::interpolate", "[data]") {
   }
 }
 
+TEST_CASE("Experiment errors show a name with control characters escaped, not cut at a NUL byte", "[data][errors]") {
+  Eigen::MatrixXd u = Eigen::MatrixXd::Zero(6, 1);
+  Eigen::VectorXd y = Eigen::VectorXd::Zero(6);
+  y(0) = kNaN;
+  const std::string name("run\0a", 5);  // a NUL byte would end what() early and lose the location
+  nlid::Experiment e(u, y, 1.0, name, nlid::NonFinitePolicy::keep);
+  e.set_output_names({std::string("ang\0le", 6)});
+  try {
+    e.validate();
+    FAIL("a missing sample was accepted");
+  } catch (const nlid::Error& err) {
+    const std::string what = err.what();
+    CHECK_THAT(what, Contains("experiment 'run\\x00a'"));
+    CHECK_THAT(what, Contains("'ang\\x00le'"));  // the location's column name
+    CHECK_THAT(what, Contains("row 1"));          // after the names: nothing was cut
+  }
+}
+
 TEST_CASE("Experiment::validate catches changes made through the mutable accessors", "[data]") {
   nlid::Experiment e = ramp(5, 1.0);
   e.u().conservativeResize(4, 1);

@@ -38,6 +38,7 @@
 #include "nlid/core/error.hpp"
 #include "nlid/core/format.hpp"
 #include "nlid/data/detail/missing.hpp"
+#include "nlid/data/detail/printable.hpp"
 
 namespace nlid {
 
@@ -271,7 +272,7 @@ class Experiment {
   // The experiment's name goes into the message (Location has no field for it), so an error in
   // one of several records says which one.
   std::string prefix() const {
-    return name_.empty() ? std::string() : "experiment '" + name_ + "': ";
+    return name_.empty() ? std::string() : "experiment '" + detail::printable(name_) + "': ";
   }
 
   static Location where() { return {}; }
@@ -290,7 +291,7 @@ class Experiment {
     Location l = where();
     l.row = static_cast<long>(k) + 1;
     l.column = static_cast<long>(c) + 1;
-    l.column_name = names[static_cast<std::size_t>(c)];
+    l.column_name = detail::printable(names[static_cast<std::size_t>(c)], std::string::npos);
     return l;
   }
 
@@ -324,7 +325,7 @@ class Experiment {
                                 : std::to_string(g.begin) + ".." + std::to_string(g.end - 1);
       }
       add_note("filled " + std::to_string(filled) + " missing sample(s) of '" +
-               names[static_cast<std::size_t>(c)] + "' by linear interpolation (sample indices " +
+               detail::printable(names[static_cast<std::size_t>(c)]) + "' by linear interpolation (sample indices " +
                list + ")");
     }
   }
