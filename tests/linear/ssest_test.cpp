@@ -108,10 +108,7 @@ TEST_CASE("ssest reports the fit of each output against that output's own mean",
   truth.set_offset(Eigen::Vector2d(100.0, 0.0));
   const Eigen::MatrixXd u = nlid_test::white_noise(1500, 1, 61);
   Eigen::MatrixXd y = truth.simulate(u, Eigen::VectorXd::Zero(2));
-  for (int i = 0; i < 2; ++i) {
-    const double sd = std::sqrt((y.col(i).array() - y.col(i).mean()).square().mean());
-    y.col(i) += nlid_test::white_noise(1500, 1, 62 + static_cast<unsigned>(i), sd).col(0);
-  }
+  nlid_test::add_noise_of_signal_size(y, 62u);
   nlid::SsestOptions opt;
   opt.subspace.offset = true;
   const StateSpace m = nlid::ssest(Experiment(u, y, 1.0), 2, opt);

@@ -117,10 +117,7 @@ TEST_CASE("MOESP reports the fit of each output against that output's own mean",
   truth.set_offset(Eigen::Vector2d(100.0, 0.0));
   const Eigen::MatrixXd u = nlid_test::white_noise(2000, 2, 21);
   Eigen::MatrixXd y = truth.simulate(u, Eigen::VectorXd::Zero(3));
-  for (int i = 0; i < 2; ++i) {
-    const double sd = std::sqrt((y.col(i).array() - y.col(i).mean()).square().mean());
-    y.col(i) += nlid_test::white_noise(2000, 1, 22 + static_cast<unsigned>(i), sd).col(0);
-  }
+  nlid_test::add_noise_of_signal_size(y, 22u);
   nlid::SubspaceOptions opt;
   opt.offset = true;
   const StateSpace m = nlid::moesp(Experiment(u, y, 1.0), 3, opt);
