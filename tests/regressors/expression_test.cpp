@@ -169,6 +169,23 @@ TEST_CASE("expression: errors name the column of the bad token") {
   CHECK(error_column(deep) == -1);  // left-nested sums need only two slots
 }
 
+TEST_CASE("expression: deep nesting is an error with a column, not a stack overflow") {
+  // A recursive-descent parser recurses once per '(' or sign; without a bound these texts
+  // overflowed the C++ stack (a crash) before the value-stack check could run.
+  std::string msg;
+  const std::string parens = std::string(100000, '(') + "1" + std::string(100000, ')');
+  CHECK(error_column(parens, &msg) == 201);
+  CHECK_THAT(msg, Catch::Contains("nests deeper than 200 levels"));
+  CHECK(error_column(std::string(100000, '-') + "y1(t-1)", &msg) == 201);
+  CHECK_THAT(msg, Catch::Contains("nests deeper"));
+  CHECK(error_column("2^" + std::string(100000, '+') + "2", &msg) >= 1);
+  CHECK_THAT(msg, Catch::Contains("nests deeper"));
+  // Nesting within the bound still parses and evaluates.
+  const std::string ok = std::string(150, '(') + "y1(t-1)" + std::string(150, ')');
+  CHECK(eval(ok, {2.5}) == 2.5);
+  CHECK(eval(std::string(150, '-') + "3", {}) == 3.0);
+}
+
 TEST_CASE("expression: C code for generated models") {
   const Expression e = Expression::parse("max(y1(t-1),90)+min(y1(t-1),15)-105");
   const std::string c = e.to_c([](const nlid::SignalRef& s) { return "y_" + std::to_string(s.lag); });

@@ -317,10 +317,18 @@ class ExpressionParser {
     }
   }
   void unary() {
+    // Every nesting (parenthesis, function argument, sign, exponent) passes through here; a
+    // bound keeps a hostile or mistyped text (thousands of '(') from overflowing the C++ stack
+    // of this recursive parser, which no value-stack check can prevent: "((((1))))" needs one slot.
+    if (++nesting_ > max_nesting) {
+      fail(p_, "expression nests deeper than " + std::to_string(max_nesting) +
+                   " levels (parentheses, function calls, signs, powers); split it into several regressors");
+    }
     skip();
-    if (peek('-')) { ++p_; unary(); emit(Op::neg); return; }
-    if (peek('+')) { ++p_; unary(); return; }
-    power();
+    if (peek('-')) { ++p_; unary(); emit(Op::neg); }
+    else if (peek('+')) { ++p_; unary(); }
+    else power();
+    --nesting_;
   }
   void power() {
     primary();
@@ -511,10 +519,13 @@ class ExpressionParser {
     throw Error(what + " at column " + std::to_string(where.column) + " of '" + std::string(s_) + "'", where);
   }
 
+  static constexpr int max_nesting = 200;
+
   std::string_view s_;
   const std::vector<std::string>& inputs_;
   const std::string& output_;
   std::size_t p_ = 0;
+  int nesting_ = 0;
   Expression e_;
 };
 
