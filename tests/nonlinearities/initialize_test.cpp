@@ -263,3 +263,35 @@ TEST_CASE("TreePartition initialisation finds a regime boundary", "[nonlineariti
   const double boundary = f.center()(0) + f.scale()(0) * f.split_threshold(0) / v(0);
   CHECK(boundary == Approx(0.0).margin(0.1));
 }
+
+namespace {
+// A regressor that is constant in the estimation data (an input held fixed) carries no
+// information; the initialisation must leave it out, not give it a huge coefficient.
+template <class F>
+void check_constant_regressor_is_ignored(F f) {
+  const Eigen::MatrixXd X0 = uniform_x(300, 1, -1, 1, 18);
+  Eigen::MatrixXd X(300, 2);
+  X.col(0) = X0.col(0);
+  X.col(1).setConstant(0.1);  // its mean is 0.1 − 1.5e-16: x − mean is rounding noise, not 0
+  REQUIRE(X.col(1).mean() != 0.1);
+  const Eigen::VectorXd y = (2.0 * X.col(0)).array().tanh().matrix() + Eigen::VectorXd::Ones(300);
+  const auto th = init(f, X, y);
+  double largest = 0;
+  for (double t : th) largest = std::max(largest, std::abs(t));
+  INFO("max |theta| = " << largest);
+  CHECK(largest < 1e3);  // was ~3e15
+  CHECK(nlid::r_squared(f, X, y, th) > 0.95);
+  // Where the held regressor moves, g moves by a bounded amount (was ~3e14).
+  const std::vector<double> at{0.3, 0.1}, moved{0.3, 0.2};
+  const double g0 = f(std::span<const double>(at), std::span<const double>(th));
+  const double g1 = f(std::span<const double>(moved), std::span<const double>(th));
+  CHECK(std::abs(g1 - g0) < 10.0);
+}
+}  // namespace
+
+TEST_CASE("a constant regressor gets no huge coefficient in the networks and the tree", "[nonlinearities][initialize]") {
+  check_constant_regressor_is_ignored(nlid::SigmoidNet<2, 3>{});
+  check_constant_regressor_is_ignored(nlid::SigmoidNet<nlid::Dynamic, nlid::Dynamic>(2, 3));
+  check_constant_regressor_is_ignored(nlid::WaveletNet<2, 3>{});
+  check_constant_regressor_is_ignored(nlid::TreePartition<2, 2>{});
+}

@@ -13,14 +13,21 @@
 
 namespace nlid::detail {
 
+/// Whether a column with the given mean is constant up to rounding: its standard deviation is
+/// below 1e-12 of its magnitude (plus 1e-12, for columns near zero).
+inline bool is_constant_column(const Eigen::Ref<const Eigen::VectorXd>& col, double mean) {
+  const double s = std::sqrt((col.array() - mean).square().mean());
+  return !(s > 1e-12 * (1.0 + std::abs(mean)));
+}
+
 /// Column means and standard deviations of X; a (numerically) constant column gets scale 1, so
-/// its standardised value is 0 and it simply drops out instead of dividing by zero.
+/// it does not divide by zero (`Standardizer::fit` then zeroes its standardised values).
 inline void column_moments_into(const Eigen::MatrixXd& X, Eigen::VectorXd& mean, Eigen::VectorXd& scale) {
   mean = X.colwise().mean().transpose();
   scale.resize(X.cols());
   for (Eigen::Index j = 0; j < X.cols(); ++j) {
     const double s = std::sqrt((X.col(j).array() - mean(j)).square().mean());
-    scale(j) = s > 1e-12 * (1.0 + std::abs(mean(j))) ? s : 1.0;
+    scale(j) = is_constant_column(X.col(j), mean(j)) ? 1.0 : s;
   }
 }
 

@@ -61,13 +61,21 @@ class Standardizer {
     inv_scale_ = scale.cwiseInverse();
   }
 
-  /// Learns r (and s) from the rows of X and returns the standardised data Z.
+  /// Learns r (and s) from the rows of X and returns the standardised data Z. A numerically
+  /// constant column of X gives an exactly zero column of Z.
   Eigen::MatrixXd fit(const Eigen::MatrixXd& X) {
     Eigen::VectorXd mean, sd;
     detail::column_moments_into(X, mean, sd);
     center_ = mean;
     inv_scale_ = standardize_ ? Vector(sd.cwiseInverse()) : Vector(Vector::Ones(X.cols()));
-    return transform(X);
+    Eigen::MatrixXd Z = transform(X);
+    // x − mean of a constant column is rounding noise (0.1 − mean(0.1, …) ≈ 1e-17), not 0. The
+    // least-squares solves equilibrate columns, so that noise would become a unit column and get
+    // a coefficient of ~1e15: harmless on these data, a blow-up wherever the regressor moves.
+    for (Eigen::Index j = 0; j < X.cols(); ++j) {
+      if (detail::is_constant_column(X.col(j), mean(j))) Z.col(j).setZero();
+    }
+    return Z;
   }
 
   /// Z = (X − r) ⊘ s row-wise.
