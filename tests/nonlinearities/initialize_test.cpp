@@ -234,6 +234,20 @@ TEST_CASE("Poly1d initialisation is exact on badly scaled inputs", "[nonlinearit
   CHECK(th[3] == Approx(1e-3).epsilon(1e-8));
 }
 
+TEST_CASE("Poly1d initialisation on a constant input is the constant mean(y)", "[nonlinearities][initialize]") {
+  // 0.1 six times has the mean 0.1 − 1.4e-17: the rounding noise used to be scaled up to ±1 and
+  // expanded back into coefficients of 1e50 (g(0.1) = 4e31 instead of 2).
+  Eigen::MatrixXd X = Eigen::MatrixXd::Constant(6, 1, 0.1);
+  REQUIRE(X.col(0).mean() != 0.1);
+  const Eigen::VectorXd y = Eigen::VectorXd::LinSpaced(6, 1.5, 2.5);
+  nlid::Poly1d<3> f;
+  for (double v : {0.1, 47.3, 0.0}) {
+    X.setConstant(v);
+    const auto th = init(f, X, y);
+    CHECK(th == std::vector<double>{y.mean(), 0.0, 0.0, 0.0});
+  }
+}
+
 TEST_CASE("LinearMap initialisation is ordinary least squares", "[nonlinearities][initialize]") {
   const Eigen::MatrixXd X = uniform_x(100, 3, -1, 1, 16);
   const Eigen::VectorXd y = X * Eigen::Vector3d(1.5, -0.5, 0.25) + Eigen::VectorXd::Constant(100, -2.0);

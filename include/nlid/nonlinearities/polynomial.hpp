@@ -15,7 +15,8 @@
 /// differ in scale by up to max|x|^D (for angles in degrees and D = 3, about 10⁶), so the fit is
 /// computed in the centred, scaled variable t = (x − μ)/σ and the coefficients are converted
 /// back exactly by the binomial expansion of (x − μ)ᵏ — the conditioning of the solve then
-/// does not depend on the units of x.
+/// does not depend on the units of x. A constant x (σ below 1e-12 of |μ|) gives the constant
+/// polynomial g = mean(y).
 
 #include <cmath>
 #include <span>
@@ -71,8 +72,15 @@ class Poly1d {
     detail::check_init_data(X, y, theta.size(), 1, degree_ + 1, degree_ + 1, "Poly1d");
     const Eigen::VectorXd x = X.col(0);
     const double mu = x.mean();
-    double sigma = std::sqrt((x.array() - mu).square().mean());
-    if (!(sigma > 0)) sigma = 1.0;
+    const double sigma = std::sqrt((x.array() - mu).square().mean());
+    if (!(sigma > 1e-12 * (1.0 + std::abs(mu)))) {
+      // A constant input determines g at one point only: the constant polynomial, mean(y). The
+      // general path would divide the rounding noise x − μ ≈ 1e-17 by itself (t = ±1) and give
+      // coefficients of 1e50 through the expansion below.
+      theta[0] = y.mean();
+      for (int k = 1; k <= degree_; ++k) theta[static_cast<std::size_t>(k)] = 0.0;
+      return;
+    }
     const int n = degree_ + 1;
     Eigen::MatrixXd V(x.size(), n);
     V.col(0).setOnes();
