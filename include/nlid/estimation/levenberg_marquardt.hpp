@@ -235,7 +235,8 @@ struct LmSummary {
   double initial_cost = 0;           ///< F at the (projected) initial θ
   double final_cost = 0;             ///< F at the returned θ
   double final_gradient_norm = 0;    ///< projected-gradient max-norm at the returned θ (NaN
-                                     ///< if status is jacobian_not_finite: not computable)
+                                     ///< if status is jacobian_not_finite, or if Jᵀr overflowed:
+                                     ///< not computable, and then never "converged")
   double final_lambda = 0;           ///< damping at exit
   int residual_evaluations = 0;      ///< calls of `evaluate` (with or without J)
   int jacobian_evaluations = 0;      ///< calls of `evaluate` with J
@@ -460,7 +461,7 @@ class LmEngine {
       compute_step(lambda, sum);  // x_trial_ = P(x + δ)
       const double step_norm = (x_trial_ - x_).norm();
       const bool tiny_step =
-          step_norm <= options_.parameter_tolerance * (x_.norm() + options_.parameter_tolerance);
+          step_norm <= options_.parameter_tolerance * (free_norm(x_) + options_.parameter_tolerance);
       sum.iterations = iter;
       // Model decrease of the projected step: m(0) − m(δ) = −(gᵀδ + ½ δᵀAδ).
       y_ = x_trial_ - x_;
@@ -739,14 +740,27 @@ class LmEngine {
     qr_ready_ = false;
   }
 
+  // NaN if a free component is NaN (JᵀJ and Jᵀr overflow for Jacobian entries beyond ~1e154):
+  // std::max would drop it and report 0, i.e. "converged" at a point nothing was computed for.
   double projected_gradient_norm() const {
     double gn = 0;
     for (int k = 0; k < n_; ++k) {
       if (fixed_[k]) continue;
       const double p = x_[k] - std::clamp(x_[k] - g_[k], lower_[k], upper_[k]);
+      if (std::isnan(p)) return std::numeric_limits<double>::quiet_NaN();
       gn = std::max(gn, std::abs(p));
     }
     return gn;
+  }
+
+  // ‖θ‖₂ over the non-fixed parameters: the scale of the parameter-tolerance test, which a large
+  // held value must not loosen for the parameters being estimated.
+  double free_norm(const Vector& x) const {
+    double s = 0;
+    for (int k = 0; k < n_; ++k) {
+      if (!fixed_[k]) s += x[k] * x[k];
+    }
+    return std::sqrt(s);
   }
 
   // Solves the scaled damped system for y, sets x_trial_ = P(x + D⁻¹y).
