@@ -32,6 +32,22 @@ nlid::Error error_of(Fn&& fn) {
   return nlid::Error("unreachable");
 }
 
+// y = a·sin(ω t) on 100 samples; θ = (a, ω).
+auto sine_problem() {
+  return nlid::make_problem<nlid::Dynamic>(
+      2, 100, [](const Eigen::VectorXd& th, Eigen::VectorXd& r, Eigen::MatrixXd* J) {
+        for (int i = 0; i < 100; ++i) {
+          const double t = 0.04 * i;
+          r[i] = th[0] * std::sin(th[1] * t) - 1.5 * std::sin(3.0 * t);
+          if (J) {
+            (*J)(i, 0) = std::sin(th[1] * t);
+            (*J)(i, 1) = th[0] * t * std::cos(th[1] * t);
+          }
+        }
+        return true;
+      });
+}
+
 // A functor that reports a negative residual count.
 struct NoResiduals {
   static constexpr int num_params = 1;
@@ -81,4 +97,64 @@ TEST_CASE("a large fixed parameter does not loosen the step test of the free one
   CHECK(std::abs(x[0] - 1.0) < 1e-6);
   CHECK(std::abs(x[1] - 1.0) < 1e-6);
   CHECK(x[2] == 1e9);
+}
+
+TEST_CASE("multi-start validates the solver's options before sampling with them", "[estimation][multi_start][errors]") {
+  const auto pb = sine_problem();
+  Eigen::VectorXd theta(2);
+  theta << 1.0, 2.0;
+  std::atomic<int> prepared{0};
+  nlid::MultiStartOptions o;
+  o.num_threads = 1;
+  o.range_lower = Eigen::Vector2d(0.1, 0.5);
+  o.range_upper = Eigen::Vector2d(3.0, 6.0);
+  o.prepare = [&](Eigen::VectorXd&) { ++prepared; };
+
+  // Bounds and fixed flags of the wrong size were indexed per parameter while sampling.
+  auto bad = o;
+  bad.lm.lower_bounds = Eigen::VectorXd::Zero(1);
+  nlid::Error e = error_of([&] { (void)nlid::multi_start(pb, theta, bad); });
+  CHECK_THAT(std::string(e.what()), Contains("lower_bounds has 1 entries"));
+  CHECK(e.where().parameter == "lower_bounds");
+  bad = o;
+  bad.lm.fixed = {true};
+  e = error_of([&] { (void)nlid::multi_start(pb, theta, bad); });
+  CHECK(e.where().parameter == "fixed");
+  bad = o;
+  bad.lm.lower_bounds = Eigen::Vector2d(0.0, 5.0);
+  bad.lm.upper_bounds = Eigen::Vector2d(1.0, 4.0);
+  bad.lm.parameter_names = {"a", "omega"};
+  e = error_of([&] { (void)nlid::multi_start(pb, theta, bad); });
+  CHECK_THAT(std::string(e.what()), Contains("lower bound 5 exceeds upper bound 4 for parameter 'omega'"));
+  CHECK(e.where().parameter == "omega");
+  bad = o;
+  bad.lm.max_iterations = -3;
+  e = error_of([&] { (void)nlid::multi_start(pb, theta, bad); });
+  CHECK(e.where().parameter == "max_iterations");
+  CHECK(prepared == 0);  // refused before any candidate was made or evaluated
+
+  bad = o;
+  bad.num_threads = -2;
+  e = error_of([&] { (void)nlid::multi_start(pb, theta, bad); });
+  CHECK_THAT(std::string(e.what()), Contains("num_threads must be >= 0"));
+  CHECK(e.where().parameter == "num_threads");
+
+  // The caller's θ is candidate 0: a NaN in it is named, not silently dropped from the search.
+  Eigen::VectorXd nan_theta(2);
+  nan_theta << std::numeric_limits<double>::quiet_NaN(), 2.0;
+  bad = o;
+  bad.lm.parameter_names = {"a", "omega"};
+  e = error_of([&] { (void)nlid::multi_start(pb, nan_theta, bad); });
+  CHECK_THAT(std::string(e.what()), Contains("initial value of parameter 'a' is not finite"));
+  CHECK(e.where().parameter == "a");
+  // Without it the sampled entries are the sequence's: the same θ is then fine.
+  bad.include_initial = false;
+  const auto res = nlid::multi_start(pb, nan_theta, bad);
+  CHECK(std::abs(nan_theta[1] - 3.0) < 1e-6);
+  CHECK(res.best >= 0);
+
+  // Valid options still run as before.
+  const auto ok = nlid::multi_start(pb, theta, o);
+  CHECK(ok.best_cost < 1e-12);
+  CHECK(prepared > 0);
 }

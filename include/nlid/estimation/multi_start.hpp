@@ -19,7 +19,8 @@
 ///     solver's own criterion (`lm_cost`: robust loss and regularization of `lm` included), so
 ///     the ranking agrees with the final costs; candidates that cannot be evaluated are dropped.
 ///  3. Refinement. Levenberg–Marquardt runs from the `num_starts` best candidates (θ⁽⁰⁾ always
-///     among them when `include_initial`), in parallel on `num_threads` threads.
+///     among them when `include_initial` and it could be evaluated), in parallel on
+///     `num_threads` threads.
 ///  4. The lowest final cost wins; ties go to the earlier candidate, so the result does not
 ///     depend on the thread count or on scheduling.
 ///
@@ -74,9 +75,10 @@ enum class StartSequence {
 struct MultiStartOptions {
   int num_starts = 8;        ///< Levenberg–Marquardt runs (from the best screened candidates), ≥ 1
   int num_candidates = 64;   ///< candidates screened by cost (raised to num_starts if smaller)
-  int num_threads = 0;       ///< worker threads; 0 = std::thread::hardware_concurrency()
+  int num_threads = 0;       ///< worker threads, ≥ 0; 0 = std::thread::hardware_concurrency()
   double cost_tolerance = 0.01;  ///< relative band that counts as "reached the best cost"
-  bool include_initial = true;   ///< the caller's θ is candidate 0 and always refined
+  /// The caller's θ (then all finite) is candidate 0 and refined whenever it can be evaluated.
+  bool include_initial = true;
   /// Search box per parameter; empty = LmOptions bounds. Non-finite ends: not sampled.
   Eigen::VectorXd range_lower, range_upper;
   /// Per parameter: space samples logarithmically (needs range_lower > 0). Empty = none.
@@ -220,8 +222,9 @@ inline int resolve_threads(int requested) {
 }  // namespace detail
 
 /// Multi-start Levenberg–Marquardt from `theta` (which receives the best result); see the file
-/// comment. Throws `nlid::Error` for invalid options (naming them), or if no candidate can be
-/// evaluated at all.
+/// comment. Throws `nlid::Error` for invalid options, `options.lm` included (naming them, before
+/// any candidate is evaluated), a non-finite entry of `theta` when it is candidate 0, or if no
+/// candidate can be evaluated at all.
 template <LeastSquaresProblem P>
 MultiStartSummary multi_start(const P& problem, Eigen::Matrix<double, P::num_params, 1>& theta,
                               const MultiStartOptions& options = {}) {
@@ -235,6 +238,22 @@ MultiStartSummary multi_start(const P& problem, Eigen::Matrix<double, P::num_par
   require(o.num_starts >= 1, "multi-start: num_starts must be >= 1", at_parameter("num_starts"));
   require(o.cost_tolerance >= 0.0, "multi-start: cost_tolerance must be >= 0",
           at_parameter("cost_tolerance"));
+  require(o.num_threads >= 0,
+          "multi-start: num_threads must be >= 0 (0: one per hardware thread), got " + std::to_string(o.num_threads),
+          at_parameter("num_threads"));
+  // The solver's options first: the sampling below indexes their bounds and fixed flags, and a
+  // bad option would otherwise surface only as every run's failure, after the whole screening.
+  LevenbergMarquardt<P>(o.lm).setup(problem);
+  if (o.include_initial) {
+    for (int k = 0; k < n; ++k) {
+      const std::string name = o.lm.parameter_names.empty() ? "theta[" + std::to_string(k) + "]"
+                                                             : o.lm.parameter_names[static_cast<std::size_t>(k)];
+      require(std::isfinite(theta[k]),
+              "multi-start: the initial value of parameter '" + name + "' is not finite (" +
+                  detail::format_g(theta[k]) + "); it is candidate 0 (include_initial)",
+              at_parameter(name));
+    }
+  }
   auto check_size = [n](const Eigen::VectorXd& v, const char* what) {
     require(v.size() == 0 || v.size() == n,
             std::string("multi-start: ") + what + " must be empty or have " + std::to_string(n) +
