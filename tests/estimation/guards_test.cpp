@@ -158,3 +158,62 @@ TEST_CASE("multi-start validates the solver's options before sampling with them"
   CHECK(ok.best_cost < 1e-12);
   CHECK(prepared > 0);
 }
+
+TEST_CASE("helpers name bad arguments with their values", "[estimation][errors]") {
+  // Huber's δ is printed as a number, not as std::to_string's "-0.000000".
+  LmOptions o;
+  o.loss = nlid::RobustLoss::huber(-1e-9);
+  nlid::AutoDiffProblem problem(nlid_test::ExpFit<3>(2.0, -1.3, 0.5));
+  Eigen::Vector3d th(1.0, -0.5, 0.0);
+  nlid::Error e = error_of([&] { (void)nlid::solve_least_squares(problem, th, o); });
+  CHECK_THAT(std::string(e.what()), Contains("got -1e-09"));
+  CHECK(e.where().parameter == "loss.delta");
+
+  // check_jacobian: a tolerance no comparison can meet, and a θ of the wrong size.
+  e = error_of([&] { (void)nlid::check_jacobian(problem, th, std::numeric_limits<double>::quiet_NaN()); });
+  CHECK(e.where().parameter == "tolerance");
+  CHECK_THROWS_WITH(nlid::check_jacobian(problem, th, -1.0), Contains("tolerance must be finite and >= 0"));
+  CHECK(nlid::check_jacobian(problem, th, 0.0).max_error >= 0.0);
+  nlid::AutoDiffProblem dyn(nlid_test::Rosenbrock<nlid::Dynamic>{});
+  Eigen::VectorXd wrong = Eigen::VectorXd::Zero(3);
+  CHECK_THROWS_WITH(nlid::check_jacobian(dyn, wrong), Contains("theta has 3 entries, the problem has 2 parameters"));
+
+  // NumericDiffProblem refuses a functor without residuals, as AutoDiffProblem does.
+  e = error_of([&] { nlid::NumericDiffProblem nd(NoResiduals{}); });
+  CHECK_THAT(std::string(e.what()), Contains("no residuals"));
+  CHECK(e.where().parameter == "num_residuals");
+}
+
+TEST_CASE("parameter_uncertainty refuses bounds that are not an interval", "[estimation][uncertainty][errors]") {
+  auto line = nlid::make_problem<2>(2, 20, [](const Eigen::Vector2d& t, Eigen::VectorXd& r,
+                                              nlid::JacobianMatrix<2>* J) {
+    for (int i = 0; i < 20; ++i) {
+      r[i] = t[0] + t[1] * i - (1.0 + 0.5 * i + 0.01 * std::sin(3.0 * i));
+      if (J) {
+        (*J)(i, 0) = 1.0;
+        (*J)(i, 1) = i;
+      }
+    }
+    return true;
+  });
+  const Eigen::Vector2d th(1.0, 0.5);
+  nlid::UncertaintyOptions o;
+  o.names = {"offset", "slope"};
+  // A NaN lower bound: the on-bound test compares false, and the parameter would count as free.
+  o.lower_bounds = Eigen::Vector2d(std::nan(""), 0.0);
+  nlid::Error e = error_of([&] { (void)nlid::parameter_uncertainty(line, th, o); });
+  CHECK_THAT(std::string(e.what()), Contains("bounds [nan, inf] of parameter offset are not an interval"));
+  CHECK(e.where().parameter == "offset");
+  o.lower_bounds = Eigen::Vector2d(0.0, 0.6);
+  o.upper_bounds = Eigen::Vector2d(2.0, 0.4);
+  e = error_of([&] { (void)nlid::parameter_uncertainty(line, th, o); });
+  CHECK(e.where().parameter == "slope");
+  o.lower_bounds = Eigen::Vector2d(0.0, 0.0);
+  o.upper_bounds = Eigen::Vector2d(2.0, 1.0);
+  CHECK(nlid::parameter_uncertainty(line, th, o).rank == 2);
+  auto broken = nlid::make_problem<2>(2, 20, [](const Eigen::Vector2d&, Eigen::VectorXd&, nlid::JacobianMatrix<2>*) {
+    return false;
+  });
+  e = error_of([&] { (void)nlid::parameter_uncertainty(broken, th); });
+  CHECK(e.where().parameter == "theta");
+}

@@ -24,6 +24,7 @@
 #include <Eigen/Core>
 
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/estimation/concepts.hpp"
 
 namespace nlid {
@@ -34,7 +35,7 @@ inline constexpr double default_relative_step = 6.055454452393343e-06;  // ε^{1
 namespace detail {
 inline void check_relative_step(double eta) {
   if (!(std::isfinite(eta) && eta > 0 && eta < 1)) {
-    throw Error("relative finite-difference step must be in (0, 1), got " + std::to_string(eta),
+    throw Error("relative finite-difference step must be in (0, 1), got " + format_g(eta),
                 at_parameter("relative_step"));
   }
 }
@@ -60,6 +61,9 @@ class NumericDiffProblem {
       throw Error("NumericDiffProblem: functor reports " + std::to_string(n) +
                       " parameters but its static num_params is " + std::to_string(num_params),
                   at_parameter("num_parameters"));
+    }
+    if (f_.num_residuals() < 1) {
+      throw Error("NumericDiffProblem: functor reports no residuals", at_parameter("num_residuals"));
     }
     scratch(n, f_.num_residuals());
   }
@@ -164,16 +168,25 @@ struct JacobianCheck {
 };
 
 /// Compares the problem's own Jacobian at θ with central differences. Throws `nlid::Error` if
-/// the problem cannot be evaluated at θ (the error names the parameter vector).
+/// the problem cannot be evaluated at θ or θ has the wrong size (the error names the parameter
+/// vector), or if `tolerance` is negative or not finite (a check that could never pass).
 template <LeastSquaresProblem P>
 JacobianCheck check_jacobian(const P& problem, const ParameterVector<P::num_params>& theta,
                              double tolerance = 1e-6) {
+  if (!(std::isfinite(tolerance) && tolerance >= 0)) {
+    throw Error("check_jacobian: tolerance must be finite and >= 0, got " + detail::format_g(tolerance),
+                at_parameter("tolerance"));
+  }
   const int n = problem.num_parameters();
   const Eigen::Index m = problem.num_residuals();
+  if (theta.size() != n) {
+    throw Error("check_jacobian: theta has " + std::to_string(theta.size()) + " entries, the problem has " +
+                    std::to_string(n) + " parameters",
+                at_parameter("theta"));
+  }
   Eigen::VectorXd r(m);
   JacobianMatrix<P::num_params> J(m, n), Jfd;
-  if (theta.size() != n || !problem.evaluate(theta, r, &J) ||
-      !numeric_jacobian(problem, theta, Jfd)) {
+  if (!problem.evaluate(theta, r, &J) || !numeric_jacobian(problem, theta, Jfd)) {
     throw Error("check_jacobian: the problem cannot be evaluated at the given parameters",
                 at_parameter("theta"));
   }

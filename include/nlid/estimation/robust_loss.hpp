@@ -34,6 +34,7 @@
 #include <Eigen/Core>
 
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 
 namespace nlid {
 
@@ -65,8 +66,7 @@ struct LossValue {
 /// Throws `nlid::Error` naming `loss.delta` if the loss is not usable.
 inline void validate(const RobustLoss& loss) {
   if (loss.kind == RobustLoss::Kind::huber && !(std::isfinite(loss.delta) && loss.delta > 0)) {
-    throw Error("Huber loss threshold delta must be finite and > 0, got " +
-                    std::to_string(loss.delta),
+    throw Error("Huber loss threshold delta must be finite and > 0, got " + detail::format_g(loss.delta),
                 at_parameter("loss.delta"));
   }
 }

@@ -294,6 +294,13 @@ ParameterUncertainty parameter_uncertainty(const Pb& problem, const Eigen::Vecto
                                               : options.names[static_cast<std::size_t>(i)]);
     require(std::isfinite(theta[i]), std::string(who) + "parameter " + out.names.back() + " is not finite",
             at_parameter(out.names.back()));
+    // A NaN bound compares false and would silently make an on-bound parameter free.
+    const double lo = options.lower_bounds.size() ? options.lower_bounds[i] : -std::numeric_limits<double>::infinity();
+    const double hi = options.upper_bounds.size() ? options.upper_bounds[i] : std::numeric_limits<double>::infinity();
+    require(!std::isnan(lo) && !std::isnan(hi) && lo <= hi,
+            std::string(who) + "the bounds [" + detail::format_g(lo) + ", " + detail::format_g(hi) + "] of parameter " +
+                out.names.back() + " are not an interval",
+            at_parameter(out.names.back()));
   }
 
   std::vector<ResidualSeries> series = options.series;
@@ -334,13 +341,14 @@ ParameterUncertainty parameter_uncertainty(const Pb& problem, const Eigen::Vecto
   const ParameterVector<Pb::num_params> th = theta;
   Eigen::VectorXd r(m);
   JacobianMatrix<Pb::num_params> Jfull(m, n);
-  require(problem.evaluate(th, r, &Jfull), std::string(who) + "the problem cannot be evaluated at theta");
+  require(problem.evaluate(th, r, &Jfull), std::string(who) + "the problem cannot be evaluated at theta",
+          at_parameter("theta"));
   for (int i = 0; i < n; ++i) {
     require(Jfull.col(i).allFinite(), std::string(who) + "the Jacobian column of " + out.names[static_cast<std::size_t>(i)] +
                                           " is not finite",
             at_parameter(out.names[static_cast<std::size_t>(i)]));
   }
-  require(r.allFinite(), std::string(who) + "the residuals at theta are not finite");
+  require(r.allFinite(), std::string(who) + "the residuals at theta are not finite", at_parameter("theta"));
 
   // Free parameters: estimated and off their bounds.
   out.free.assign(static_cast<std::size_t>(n), true);
