@@ -111,4 +111,16 @@ TEST_CASE("bad evaluation arguments name x or theta", "[nonlinearities][errors]"
   std::vector<double> tp(6);
   require_error([&] { p.theta_from_breakpoints(std::vector<double>{0, 0, 1}, std::vector<double>{1, 2, 3}, tp); },
                 "breakpoints", "strictly increasing at index 1");
+  // Non-finite positions or values used to be written into θ as inf/NaN without a word (a NaN
+  // first position was reported as "not strictly increasing at index 1").
+  const double inf = std::numeric_limits<double>::infinity();
+  require_error([&] { p.theta_from_breakpoints(std::vector<double>{0, 1, inf}, std::vector<double>{1, 2, 3}, tp); },
+                "breakpoints", "breakpoint 2 is not finite");
+  require_error([&] { p.theta_from_breakpoints(std::vector<double>{std::nan(""), 1, 2}, std::vector<double>{1, 2, 3}, tp); },
+                "breakpoints", "breakpoint 0 is not finite");
+  require_error([&] { p.theta_from_breakpoints(std::vector<double>{0, 1, 2}, std::vector<double>{1, std::nan(""), 3}, tp); },
+                "values", "value 1 is not finite");
+  require_error([&] { p.theta_from_breakpoints(std::vector<double>{-1e308, 1e308, 1.5e308}, std::vector<double>{1, 2, 3}, tp); },
+                "breakpoints", "gap between breakpoints 0 and 1");
+  for (double t : tp) CHECK(t == 0.0);  // θ untouched by a refused table
 }

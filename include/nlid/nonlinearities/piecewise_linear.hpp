@@ -187,20 +187,33 @@ class PwLinear {
     theta_from_breakpoints(pos, vals, theta);
   }
 
-  /// Writes θ for breakpoints (x, y); x strictly increasing. Throws naming "breakpoints".
+  /// Writes θ for breakpoints (x, y); x finite and strictly increasing, y finite. Throws naming
+  /// "breakpoints" or "values" (θ is left unchanged then).
   void theta_from_breakpoints(std::span<const double> xs, std::span<const double> ys,
                               std::span<double> theta) const {
     detail::check_size(xs.size(), n_, "breakpoints", "PwLinear");
     detail::check_size(ys.size(), n_, "values", "PwLinear");
     detail::check_size(theta.size(), 2 * n_, "theta", "PwLinear");
-    theta[0] = xs[0];
-    for (std::size_t k = 1; k < xs.size(); ++k) {
-      if (!(xs[k] > xs[k - 1])) {
+    for (std::size_t k = 0; k < xs.size(); ++k) {
+      if (!std::isfinite(xs[k])) {
+        throw Error("PwLinear: breakpoint " + std::to_string(k) + " is not finite", at_parameter("breakpoints"));
+      }
+      if (!std::isfinite(ys[k])) {
+        throw Error("PwLinear: value " + std::to_string(k) + " is not finite", at_parameter("values"));
+      }
+      if (k > 0 && !(xs[k] > xs[k - 1])) {
         throw Error("PwLinear: breakpoints must be strictly increasing at index " + std::to_string(k),
                     at_parameter("breakpoints"));
       }
-      theta[k] = std::log(xs[k] - xs[k - 1]);
+      // Finite neighbours can still be more than DBL_MAX apart; θ would hold log(∞).
+      if (k > 0 && !std::isfinite(xs[k] - xs[k - 1])) {
+        throw Error("PwLinear: the gap between breakpoints " + std::to_string(k - 1) + " and " + std::to_string(k) +
+                        " is not a finite number",
+                    at_parameter("breakpoints"));
+      }
     }
+    theta[0] = xs[0];
+    for (std::size_t k = 1; k < xs.size(); ++k) theta[k] = std::log(xs[k] - xs[k - 1]);
     for (std::size_t k = 0; k < ys.size(); ++k) theta[xs.size() + k] = ys[k];
   }
 
