@@ -329,6 +329,16 @@ TEST_CASE("model specs refuse a key or map given twice and options that do nothi
   CHECK_THROWS_WITH(parse_model_spec("hw:nb=2,nf=2,nk=0:in=poly1d:2:in=saturation"), Contains("'in=' is given twice"));
   CHECK_THROWS_WITH(parse_model_spec("linear:arx:na=2,nb=1,nk=0:focus=prediction"), Contains("focus applies to nlarx"));
   CHECK_THROWS_WITH(parse_model_spec("nlarx:na=2,nb=2,nk=0:sigmoidnet:linear=7"), Contains("at most 1"));
+  // A bare map before in=/out= wrote past the end of the map list (undefined behaviour).
+  CHECK_THROWS_WITH(parse_model_spec("hw:nb=3,nf=3,nk=0:saturation:out=pwlinear"),
+                    Contains("'out=' cannot follow a nonlinearity given without in= or out="));
+  CHECK_THROWS_WITH(parse_model_spec("hw:nb=3,nf=3,nk=0:saturation:in=pwlinear"), Contains("'in=' cannot follow"));
+  // An order the family does not use was dropped silently.
+  CHECK_THROWS_WITH(parse_model_spec("hw:na=2,nb=3,nf=3,nk=0:in=pwlinear:out=saturation"),
+                    Contains("na does not apply to hw models (their orders: nb, nf, nk)"));
+  CHECK_THROWS_WITH(parse_model_spec("linear:arx:na=2,nb=1,nf=3,nk=0"),
+                    Contains("nf does not apply to linear:arx models (their orders: na, nb, nk)"));
+  CHECK_THROWS_WITH(parse_model_spec("nlarx:na=2,nb=2,nf=1,nk=0:sigmoidnet:3"), Contains("nf does not apply to nlarx"));
   // Two order fields of a Wiener-Hammerstein spec repeat their keys legitimately.
   CHECK(parse_model_spec("wh:nb=4,nf=3,nk=0:poly1d:9:nb=4,nf=3,nk=0").orders.size() == 2);
   CHECK(parse_model_spec("hw:nb=3,nf=3,nk=0:in=pwlinear:10:out=pwlinear:breakpoints=10").nonlinearities.size() == 2);

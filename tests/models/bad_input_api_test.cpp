@@ -61,6 +61,55 @@ TEST_CASE("Nlarx prediction and simulation name a missing sample or an overflow,
   CHECK(ok.allFinite());
 }
 
+TEST_CASE("Nlarx starts that read outputs name a missing output sample, a missing y(0) only drops the equilibrium guess",
+          "[models][errors]") {
+  Lin m;
+  m.set_parameters((Eigen::VectorXd(4) << 0.5, -0.1, 0.4, 0.2).finished());
+  // measured reads y(0), y(1): a gap there was a "divergence" at sample 2.
+  CHECK_THROWS_WITH(m.simulate(record(50, -1, 1), nlid::InitialCondition::measured),
+                    Catch::Contains("missing (non-finite) output at sample 1") && Catch::Contains("measured start") && !Catch::Contains("diverges"));
+  // estimate fits x0 to every output: a gap anywhere is named, not a solver failure at 'theta'.
+  CHECK_THROWS_WITH(m.simulate(record(50, -1, 30), nlid::InitialCondition::estimate),
+                    Catch::Contains("missing (non-finite) output sample at sample index 30"));
+  // equilibrium only takes y(0) as Newton's first guess: without it the default guess serves.
+  const Eigen::MatrixXd with = m.simulate(record(50), nlid::InitialCondition::equilibrium);
+  const Eigen::MatrixXd without = m.simulate(record(50, -1, 0), nlid::InitialCondition::equilibrium);
+  CHECK(without.allFinite());
+  CHECK((with - without).cwiseAbs().maxCoeff() < 1e-9);  // a linear map has one steady state
+  // Hammerstein-Wiener and series models estimating their start need the outputs too.
+  nlid::HammersteinWiener<nlid::UnitGain, nlid::TransferFunctionBlock<2, 2, 1>, nlid::Saturation> hw;
+  CHECK_THROWS_WITH(hw.initial_state(record(40, -1, 12), nlid::InitialCondition::estimate),
+                    Catch::Contains("missing (non-finite) output sample at sample index 12"));
+}
+
+TEST_CASE("Nlarx: a start that cannot be formed or a k-step prediction that blows up is a DivergenceError",
+          "[models][errors]") {
+  // y(t) = 1.5 y(t-1) + ...: no stable steady state, and any start away from it explodes.
+  Lin m;
+  m.set_parameters((Eigen::VectorXd(4) << 1.5, 0.0, 1.0, 0.0).finished());
+  nlid::Experiment e = record(2000);  // 1.5^t overflows a double after about 1750 samples
+  e.u().setConstant(1.0);
+  for (const auto ic : {nlid::InitialCondition::estimate, nlid::InitialCondition::zero}) {
+    try {
+      (void)m.simulate(e, ic);
+      FAIL("no error");
+    } catch (const nlid::DivergenceError& d) {
+      CHECK(d.sample() >= 0);
+    }
+  }
+  Lin big;
+  big.set_parameters(Eigen::VectorXd::Constant(4, 1e300));
+  nlid::Experiment f = record(50);
+  f.y() *= 1e10;
+  try {
+    (void)big.predict(f, 3);
+    FAIL("no error");
+  } catch (const nlid::DivergenceError& d) {
+    CHECK_THAT(d.what(), Catch::Contains("k-step prediction of experiment 'rec' diverges at sample"));
+    CHECK(d.sample() >= 2);
+  }
+}
+
 TEST_CASE("Hammerstein-Wiener and series simulations name a missing input sample", "[models][errors]") {
   nlid::HammersteinWiener<nlid::UnitGain, nlid::TransferFunctionBlock<2, 2, 1>, nlid::Saturation> hw;
   CHECK_THROWS_WITH(hw.simulate(record(40, 7)), Catch::Contains("missing (non-finite) input sample at sample index 7"));

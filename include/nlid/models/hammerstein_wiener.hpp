@@ -263,6 +263,7 @@ class HammersteinWiener {
       case InitialCondition::zero: return Eigen::VectorXd::Zero(state_dimension());
       case InitialCondition::equilibrium: return equilibrium_state<double>(e.u()(0, 0), th);
       case InitialCondition::estimate: {
+        detail::require_complete_for(e, index, true, "fit of the initial state");
         std::vector<int> free(static_cast<std::size_t>(state_dimension()));
         for (int i = 0; i < state_dimension(); ++i) free[static_cast<std::size_t>(i)] = i;
         const Eigen::VectorXd y = e.y().col(0);

@@ -265,9 +265,11 @@ class Nlarx {
       const double tail = (ys.tail(100).array() - ys(n - 1)).abs().maxCoeff();
       if (tail <= 1e-9 * (1.0 + std::abs(ys(n - 1)))) return ys(n - 1);
     }
-    throw Error("no steady state found for the held input u = " + detail::format_g(u0(0), 4) +
-                    " (the model oscillates or diverges)",
-                at_parameter("initial"));
+    // A DivergenceError (at sample 0: the start cannot be formed), so that compare scores the
+    // record as diverged, as it does a zero start that blows up.
+    throw DivergenceError("no steady state found for the held input u = " + detail::format_g(u0(0), 4) +
+                              " (the model oscillates or diverges)",
+                          0, at_parameter("initial"));
   }
 
   // ---- user-level model (stored θ, sample time, channel names) -------------------------------
@@ -326,12 +328,24 @@ class Nlarx {
     const Eigen::VectorXd y = e.y().col(0);
     switch (ic) {
       case InitialCondition::zero: return Eigen::VectorXd::Zero(state_dimension());
-      case InitialCondition::measured: return measured_state(e.u(), y, history_length());
+      case InitialCondition::measured: {
+        // The start reads the first n0 outputs: a gap there is the data's, not a divergence.
+        for (Eigen::Index k = 0; k < history_length(); ++k)
+          require(std::isfinite(y(k)),
+                  detail::experiment_label(e, index) + " has a missing (non-finite) output at sample " +
+                      std::to_string(k) + ": the measured start reads the first " + std::to_string(history_length()) +
+                      " outputs; fill the gap (Experiment::fill_missing) or cut the record there",
+                  detail::experiment_location(index));
+        return measured_state(e.u(), y, history_length());
+      }
       case InitialCondition::equilibrium: {
         const Eigen::RowVectorXd u0 = e.u().row(0);
-        return held_state<double>(equilibrium_output(u0, detail::as_const_span(theta_), y(0)), u0);
+        // y(0) only guides Newton's method; a missing first output leaves the default guess.
+        const double guess = std::isfinite(y(0)) ? y(0) : 0.0;
+        return held_state<double>(equilibrium_output(u0, detail::as_const_span(theta_), guess), u0);
       }
       case InitialCondition::estimate: {
+        detail::require_complete_for(e, index, true, "fit of the initial state");
         const Eigen::RowVectorXd u0 = e.u().row(0);
         const Eigen::VectorXd base = held_state<double>(y(0), u0);
         std::vector<int> free(static_cast<std::size_t>(output_lag()));
@@ -399,9 +413,11 @@ class Nlarx {
       const Eigen::VectorXd x0 = measured_state(e.u(), y, s);
       const bool ok = simulate(e.u().middleRows(s, len), detail::as_const_span(theta_), detail::as_const_span(x0),
                                std::span<double>(buf.data(), static_cast<std::size_t>(len)));
-      yhat(t, 0) = ok ? buf(len - 1) : std::numeric_limits<double>::quiet_NaN();
-      require(ok, "k-step prediction of " + detail::experiment_label(e, -1) + " diverges at sample " + std::to_string(t),
-              detail::experiment_location(-1));
+      if (!ok)
+        throw DivergenceError("k-step prediction of " + detail::experiment_label(e, -1) + " diverges at sample " +
+                                  std::to_string(t),
+                              static_cast<long>(t), detail::experiment_location(-1));
+      yhat(t, 0) = buf(len - 1);
     }
     return yhat;
   }

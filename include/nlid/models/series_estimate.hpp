@@ -434,7 +434,10 @@ SeriesInitialization initialize_series(Series<B...>& model, const Dataset& data,
   using M = Series<B...>;
   constexpr std::size_t K = M::num_blocks;
   detail::adopt_data(model, data, 0, M::kind().c_str());
-  detail::require_enough_samples(M::kind(), model.num_parameters(), data, 0);
+  // As estimate() counts them: parameters held by solver.fixed are not estimated (docs/models.md).
+  detail::require_enough_samples(M::kind(),
+                                 model.num_parameters() - detail::count_fixed(options.solver.fixed, model.num_parameters()),
+                                 data, 0);
   require(options.surrogate_degree >= 1, "surrogate_degree must be >= 1", at_parameter("surrogate_degree"));
   require(options.candidates >= 1, "candidates must be >= 1", at_parameter("candidates"));
   SeriesInitialization info;

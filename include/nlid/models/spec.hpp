@@ -45,6 +45,7 @@
 #include <map>
 #include <optional>
 #include <string>
+#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -293,6 +294,12 @@ inline ModelSpec parse_model_spec(const std::string& text) {
       require(s.family == "hw", "model spec '" + text + "': 'in=' and 'out=' belong to hw models", at_parameter("model"));
       kind = tok.substr(tok.find('=') + 1);
       const bool is_in = tok[0] == 'i';
+      // The two slots exist only if no bare map came first ("hw:...:saturation:out=pwlinear"
+      // would otherwise write past the list).
+      require(s.nonlinearities.empty() || in_given || out_given,
+              "model spec '" + text + "': '" + tok.substr(0, tok.find('=') + 1) +
+                  "' cannot follow a nonlinearity given without in= or out= (name both maps: in=KIND:out=KIND)",
+              at_parameter("model"));
       if (s.nonlinearities.empty()) {
         s.nonlinearities.resize(2);
         map_keys.resize(2);
@@ -400,6 +407,12 @@ inline ModelSpec parse_model_spec(const std::string& text) {
             "model spec '" + text + "': orders need " + std::string(na ? "na, " : "") + "nb (>= 1), " +
                 (nf ? "nf, " : "") + "nk",
             at_parameter("model"));
+    // An order the family has no use for would be dropped silently ("hw:na=2,..." is not an ARX part).
+    for (const auto& [key, given, used] : {std::tuple{"na", o.na >= 0, na}, std::tuple{"nf", o.nf >= 0, nf}})
+      require(!given || used,
+              "model spec '" + text + "': " + key + " does not apply to " + s.family + " models (their orders: " +
+                  (na ? "na, " : "") + "nb, " + (nf ? "nf, " : "") + "nk)",
+              at_parameter(key));
   };
   if (s.family == "linear:arx") { need(1, 0, "linear:arx:na=2,nb=1,nk=0"); need_keys(s.orders[0], true, false); }
   if (s.family == "linear:oe") { need(1, 0, "linear:oe:nb=2,nf=2,nk=0"); need_keys(s.orders[0], false, true); }

@@ -5,6 +5,8 @@
 /// "initial conditions" estimated along with, or after, θ). Solved by Levenberg–Marquardt with
 /// the Jacobian ∂ŷ_s/∂x0 from forward AD through the simulation.
 
+#include <cmath>
+#include <limits>
 #include <span>
 #include <string>
 #include <vector>
@@ -12,6 +14,7 @@
 #include <Eigen/Core>
 
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/estimation/autodiff.hpp"
 #include "nlid/estimation/levenberg_marquardt.hpp"
 #include "nlid/models/detail/model_common.hpp"
@@ -65,8 +68,9 @@ inline double divergence_limit(const Eigen::VectorXd& y) {
   return 1e3 * (1.0 + scale);
 }
 
-/// x0 with its `free` entries estimated (the others stay as in `base`). Throws `nlid::Error` if
-/// the simulation diverges from `base`.
+/// x0 with its `free` entries estimated (the others stay as in `base`). Throws
+/// `nlid::DivergenceError` (naming the first sample beyond the limit) if the simulation diverges
+/// from `base`, so that `compare` scores that record as diverged, as it does a zero start.
 template <class M>
 Eigen::VectorXd estimate_initial_state(const M& model, const Eigen::MatrixXd& u, const Eigen::VectorXd& y,
                                        std::span<const double> theta, Eigen::VectorXd base,
@@ -77,10 +81,15 @@ Eigen::VectorXd estimate_initial_state(const M& model, const Eigen::MatrixXd& u,
   const std::vector<int> free_copy = free;
   InitialStateResiduals<M> f(model, u, y, theta, base, std::move(free), divergence_limit(y));
   {
-    Eigen::VectorXd r(y.size());
-    require(f.template residuals<double>(as_const_span(z), as_span(r)),
-            "cannot estimate the initial state: the simulation diverges from the starting guess",
-            at_parameter("initial"));
+    Eigen::VectorXd r = Eigen::VectorXd::Constant(y.size(), std::numeric_limits<double>::quiet_NaN());
+    if (!f.template residuals<double>(as_const_span(z), as_span(r))) {
+      const double limit = divergence_limit(y);
+      Eigen::Index k = 0;  // the first sample not written or beyond the limit
+      while (k < r.size() && std::isfinite(r(k)) && std::abs(r(k) + y(k)) <= limit) ++k;
+      throw DivergenceError("cannot estimate the initial state: the simulation from the starting guess diverges "
+                            "(beyond " + format_g(limit) + " at sample " + std::to_string(k) + ")",
+                            static_cast<long>(k), at_parameter("initial"));
+    }
   }
   AutoDiffProblem<InitialStateResiduals<M>> problem(f);
   LmOptions options;
