@@ -44,6 +44,14 @@ TEST_CASE("bad structure arguments name the parameter", "[nonlinearities][errors
   require_error([] { nlid::TreePartition<Dynamic, Dynamic> f(2, 0); }, "depth", "depth must be at least 1");
   require_error([] { nlid::TreePartition<Dynamic, Dynamic> f(2, 13); }, "depth", "at most 12");
   require_error([] { nlid::TreePartition<2, 2> f; (void)f.split_threshold(3); }, "node", "node 3 does not exist");
+  // A NaN direction or threshold, or a −∞ threshold, used to be stored: NaN routes every x left,
+  // −∞ every x right, and describe() printed "not split" for both.
+  require_error([] { nlid::TreePartition<2, 2> f; f.set_split(1, Eigen::Vector2d(1, std::nan("")), 0.5); }, "direction",
+                "split direction of node 1 is not finite");
+  require_error([] { nlid::TreePartition<2, 2> f; f.set_split(0, Eigen::Vector2d(1, 0), std::nan("")); }, "threshold",
+                "must be a number or +inf");
+  require_error([] { nlid::TreePartition<2, 2> f; f.set_split(0, Eigen::Vector2d(1, 0), -std::numeric_limits<double>::infinity()); },
+                "threshold", "must be a number or +inf");
   require_error([] { nlid::Saturation f(90, 15); }, "lower", "lower limit 90 exceeds upper limit 15");
   require_error([] { nlid::DeadZone f(1, -1); }, "lower", "lower limit 1 exceeds upper limit -1");
   require_error([] { nlid::Saturation f(0, std::numeric_limits<double>::infinity()); }, "upper", "finite");

@@ -100,10 +100,23 @@ class TreePartition {
     return thr_[static_cast<std::size_t>(node)];
   }
   /// Sets the split of node ν (to restore a saved model, or to impose a known regime boundary).
+  /// threshold = +∞ marks the node as not split. Throws naming "direction" (wrong length, not
+  /// finite) or "threshold" (NaN or −∞).
   void set_split(int node, const Eigen::VectorXd& direction, double threshold) {
     check_node(node);
     if (direction.size() != m_) {
       throw Error("TreePartition: split direction needs " + std::to_string(m_) + " entries", at_parameter("direction"));
+    }
+    if (!direction.allFinite()) {
+      throw Error("TreePartition: split direction of node " + std::to_string(node) + " is not finite",
+                  at_parameter("direction"));
+    }
+    // NaN would silently send everything left and −∞ everything right, while `describe` calls
+    // both "not split"; +∞ is the one non-finite value with a meaning.
+    if (std::isnan(threshold) || threshold == -std::numeric_limits<double>::infinity()) {
+      throw Error("TreePartition: split threshold of node " + std::to_string(node) +
+                      " must be a number or +inf (not split), got " + detail::format_g(threshold),
+                  at_parameter("threshold"));
     }
     for (int j = 0; j < m_; ++j) dir_[static_cast<std::size_t>(node * m_ + j)] = direction(j);
     thr_[static_cast<std::size_t>(node)] = threshold;
