@@ -217,3 +217,23 @@ TEST_CASE("parameter_uncertainty refuses bounds that are not an interval", "[est
   e = error_of([&] { (void)nlid::parameter_uncertainty(broken, th); });
   CHECK(e.where().parameter == "theta");
 }
+
+TEST_CASE("StackedProblem checks argument sizes like the other adapters", "[estimation][problem][errors]") {
+  // Its rows are copied into segments of r and J: a wrong size was an out-of-range write.
+  nlid::AutoDiffProblem part(nlid_test::ExpFit<3>(2.0, -1.3, 0.5, 10));
+  const nlid::StackedProblem<decltype(part)> stacked({part, part});
+  const Eigen::Vector3d th(1.0, -0.5, 0.0);
+  Eigen::VectorXd short_r(15), r(20);
+  nlid::JacobianMatrix<3> J(20, 3), short_J(19, 3);
+  nlid::Error e = error_of([&] { (void)stacked.evaluate(th, short_r, nullptr); });
+  CHECK_THAT(std::string(e.what()), Contains("3 parameters, 20 residuals"));
+  CHECK(e.where().parameter == "r");
+  e = error_of([&] { (void)stacked.evaluate(th, r, &short_J); });
+  CHECK(e.where().parameter == "J");
+  REQUIRE(stacked.evaluate(th, r, &J));
+  Eigen::VectorXd r1(10);
+  nlid::JacobianMatrix<3> J1(10, 3);
+  REQUIRE(part.evaluate(th, r1, &J1));
+  CHECK(r.tail(10) == r1);
+  CHECK(J.topRows(10) == J1);
+}

@@ -124,9 +124,15 @@ class StackedProblem {
     return o;
   }
 
-  /// Evaluates every part; false as soon as one part is not evaluable.
+  /// Evaluates every part; false as soon as one part is not evaluable. Throws `nlid::Error` if
+  /// `theta`, `r` or `*J` has the wrong size (the rows are copied into segments of them).
   bool evaluate(const ParameterVector<num_params>& theta, Eigen::VectorXd& r,
                 JacobianMatrix<num_params>* J) const {
+    if (theta.size() != n_ || r.size() != m_ || (J && (J->rows() != m_ || J->cols() != n_))) {
+      throw Error("StackedProblem::evaluate: argument sizes do not match the problem (" + std::to_string(n_) +
+                      " parameters, " + std::to_string(m_) + " residuals)",
+                  at_parameter(theta.size() != n_ ? "theta" : r.size() != m_ ? "r" : "J"));
+    }
     Scratch& s = scratch();
     Eigen::Index row = 0;
     for (std::size_t k = 0; k < parts_.size(); ++k) {
