@@ -141,6 +141,15 @@ TEST_CASE("bad orders and bad data are reported with what and where", "[regresso
                     Catch::Contains("model order nb must be >= 0") && Catch::Contains("parameter 'nb'"));
   CHECK_THROWS_WITH((nlid::LaggedRegressors<2, Dynamic, 0>(3, 1, 0)),
                     Catch::Contains("na = 3 differs from its compile-time value 2"));
+  // Orders beyond the largest model order are refused as RegressorList refuses them; two
+  // accepted huge orders made input_lag() = nk + nb − 1 overflow int (negative history).
+  CHECK_THROWS_WITH((nlid::InputLags<Dynamic, Dynamic>(2000000000, 2000000000)),
+                    Catch::Contains("model order nb must be <= 100000") && Catch::Contains("parameter 'nb'"));
+  CHECK_THROWS_WITH((nlid::LaggedRegressors<Dynamic, Dynamic, Dynamic>(1, 1, nlid::max_model_order + 1)),
+                    Catch::Contains("parameter 'nk'"));
+  CHECK_THROWS_WITH((nlid::OutputLags<Dynamic>(nlid::max_model_order + 1)), Catch::Contains("parameter 'na'"));
+  CHECK(nlid::InputLags<Dynamic, Dynamic>(nlid::max_model_order, nlid::max_model_order).input_lag() ==
+        2 * nlid::max_model_order - 1);
   nlid::LaggedRegressors<4, 2, 0> r;
   const Eigen::MatrixXd u = test_inputs(4);
   const Eigen::VectorXd y = test_outputs(4);

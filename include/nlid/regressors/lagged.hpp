@@ -32,9 +32,15 @@
 namespace nlid {
 
 namespace detail {
-/// Checks an order against its compile-time value (if any); throws `nlid::Error` naming it.
+/// Checks an order against its compile-time value (if any) and the largest model order (as
+/// `RegressorList` does; nk + nb − 1 of two huge orders overflowed int); throws `nlid::Error`
+/// naming it.
 inline int checked_order(int value, int compile_time, const char* name) {
   require(value >= 0, std::string("model order ") + name + " must be >= 0, got " + std::to_string(value),
+          at_parameter(name));
+  require(value <= max_model_order,
+          std::string("model order ") + name + " must be <= " + std::to_string(max_model_order) +
+              " (the largest model order), got " + std::to_string(value),
           at_parameter(name));
   require(compile_time == Dynamic || compile_time == value,
           std::string("model order ") + name + " = " + std::to_string(value) +
