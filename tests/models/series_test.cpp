@@ -363,6 +363,12 @@ TEST_CASE("series rejects bad input with located messages", "[models][series]") 
         std::string::npos);
   Wh w;
   CHECK(message([&] { (void)nlid::initialize_series(w, ten); }).find("11 free parameters") != std::string::npos);
+  // Parameters held by solver.fixed are not estimated: with two of them fixed, 9 free parameters
+  // fit on 10 samples in both (initialize_series counted all 11 and refused what estimate accepts).
+  nlid::SeriesEstimateOptions held;
+  held.solver.fixed.assign(11, false);
+  held.solver.fixed[0] = held.solver.fixed[1] = true;
+  CHECK(message([&] { (void)nlid::initialize_series(w, ten, held); }).find("free parameters") == std::string::npos);
   nlid::Experiment gap = simulate_truth(gaussian_input(200, 5));
   Eigen::MatrixXd yg = gap.y();
   yg(42, 0) = std::numeric_limits<double>::quiet_NaN();
