@@ -170,9 +170,9 @@ class SigmoidNet {
   }
 
   /// Alternative data-driven start number `start` ≥ 0 (0: the default start above). Start k
-  /// extends the dictionary's ladder of slopes β ∈ {1, 2.5, 6.25} by k further rungs of ×2.5
-  /// (15.6, 39, 98, …): steeper candidate units whose transition is narrow compared with the
-  /// spread of their projection — the near-discontinuous effects a smooth start misses, e.g. the
+  /// extends the dictionary's ladder of slopes β ∈ {1, 2.5, 6} by k further rungs 6.25·2.5^j,
+  /// j = 1 … k (15.6, 39, 98, …): steeper candidate units whose transition is narrow compared
+  /// with the spread of their projection — the near-discontinuous effects a smooth start misses, e.g. the
   /// sign change of Coulomb friction at zero velocity, which is a tiny part of a velocity
   /// projection's range. Which start is best is a matter of the estimation cost
   /// (`EstimateOptions::starts` compares them). Throws naming "start" if start < 0.
