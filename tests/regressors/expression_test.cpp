@@ -226,5 +226,8 @@ TEST_CASE("custom_regressor(text) and RegressorList equal the compile-time regre
   CHECK(miso.input_lag() == 3);
   CHECK(miso.num_input_channels() == 2);
   CHECK_THROWS_WITH(nlid::RegressorList().add_output_lags(-1), Catch::Contains("na must be >= 0"));
+  // A default-constructed Expression used to become a silent regressor named "" that reads 0.
+  CHECK_THROWS_WITH(nlid::RegressorList().add_custom(Expression{}),
+                    Catch::Contains("expression is empty") && Catch::Contains("parameter 'expression'"));
   CHECK_THROWS_WITH(nlid::RegressorList::lagged(1, {1, 2}, {0}), Catch::Contains("2 nb orders but 1 delays"));
 }

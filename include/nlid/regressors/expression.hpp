@@ -665,8 +665,11 @@ class RegressorList {
     b.channel = channel;
     return add(std::move(b));
   }
-  /// Appends a custom regressor.
+  /// Appends a custom regressor. Throws naming "expression" for an empty (default-constructed)
+  /// one, which would be a regressor named "" that always reads 0.
   RegressorList& add_custom(Expression e) {
+    require(!e.program().empty(), "custom regressor: the expression is empty (build it with Expression::parse)",
+            at_parameter("expression"));
     Block b;
     b.kind = Kind::custom;
     b.expression = std::move(e);
