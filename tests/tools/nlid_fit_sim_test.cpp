@@ -326,6 +326,27 @@ TEST_CASE("nlid-fit + nlid-sim read semicolon-separated decimal-comma files and 
   CHECK_THAT(r.err, Catch::Contains("--ts needs a positive sample time"));
 }
 
+TEST_CASE("nlid-fit greybox: --iterations bounds the refinement and the file keeps the estimation's report",
+          "[tools][fit]") {
+  // --iterations used to be ignored for grey boxes (each start ran up to 100 iterations), and
+  // the saved report read "estimated": false with no costs or fits.
+  const fs::path est = write_record("grey_it_est", 1200, 43u, 0);
+  const fs::path one = work_dir() / "grey_it1.json", full = work_dir() / "grey_it100.json";
+  REQUIRE(fit("--model greybox:first_order --est " + q(est) + " --iterations 1 --save " + q(one)).code == 0);
+  REQUIRE(fit("--model greybox:first_order --est " + q(est) + " --save " + q(full)).code == 0);
+  const nlid::Json a = nlid::read_json(one.string()), b = nlid::read_json(full.string());
+  const nlid::JsonView ra = a.view().at("report"), rb = b.view().at("report");
+  CHECK(ra.at("estimated").as_bool());
+  CHECK(ra.at("iterations").as_integer() == 1);
+  CHECK_THAT(ra.at("status").as_string(), Catch::Contains("max_iterations_reached"));
+  CHECK(rb.at("estimated").as_bool());
+  CHECK(rb.at("iterations").as_integer() > 1);
+  CHECK_THAT(rb.at("status").as_string(), Catch::Contains("(converged)"));
+  CHECK(rb.at("initial_condition").as_string() == "estimate");
+  REQUIRE(rb.at("fit_percent").as_array().size() == 1);
+  CHECK(rb.at("fit_percent").at(0).as_number() > 90.0);
+}
+
 TEST_CASE("nlid-sim --band: the covariance nlid-fit saves gives y_std, models without one are refused",
           "[tools][sim]") {
   const fs::path est = write_record("band_est", 1200, 41u, 0), val = write_record("band_val", 600, 42u, 0);

@@ -606,7 +606,13 @@ AnyModel fit_model_spec_kind(const ModelSpec& s, const Dataset& data, const Spec
   DynamicGreyBox g = make_greybox(s.physics);
   GreyBoxEstimateOptions go;
   if (s.initial_condition) go.initial_condition = *s.initial_condition;
+  // The refinement of each start is the grey box's main stage (SpecFitOptions::iterations).
+  if (o.iterations >= 0) go.multi_start.lm.max_iterations = o.iterations;
   const GreyBoxEstimate ge = estimate(g, data, go);
+  // A grey box holds no report itself: the file keeps the estimation's (it read "estimated":
+  // false before, with no iterations, costs or fits).
+  info.report = estimation_report(ge);
+  info.report->initial_condition = nlid::to_string(go.initial_condition);
   if (o.uncertainty && ge.uncertainty.theta.size() > 0) {
     o.uncertainty(ge.uncertainty);
     detail::spec_band(g, ge.uncertainty, o, s.initial_condition.value_or(InitialCondition::estimate));
