@@ -700,6 +700,11 @@ TEST_CASE("model file: doubles are exact, non-finite numbers are spelled out") {
   CHECK(j.dump().find("\"inf\"") != std::string::npos);
   const auto t2 = NonlinearitySerial<TreePartition<Dynamic, Dynamic>>::load(j.view());
   CHECK(std::isinf(t2.split_threshold(0)));
+  // A NaN threshold is refused by the tree, and the file's key path says where it came from.
+  Json bad_tree = j;
+  bad_tree["splits"][0]["threshold"] = "nan";
+  CHECK_THAT(error_of([&] { (void)NonlinearitySerial<TreePartition<Dynamic, Dynamic>>::load(bad_tree.view()); }),
+             Catch::Contains("threshold") && Catch::Contains("splits[0]"));
 
   // A non-finite parameter cannot get into a model (so no file holds one): the error names it.
   Eigen::VectorXd bad = th;

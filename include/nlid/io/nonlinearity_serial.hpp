@@ -394,7 +394,12 @@ struct NonlinearitySerial<TreePartition<M, D>> {
     for (int node = 0; node < f.leaves() - 1; ++node) {
       const JsonView s = splits.at(static_cast<std::size_t>(node));
       s.check_keys({"direction", "threshold"});
-      f.set_split(node, read_vector(s.at("direction"), f.input_dimension()), read_extended_number(s.at("threshold")));
+      try {
+        f.set_split(node, read_vector(s.at("direction"), f.input_dimension()), read_extended_number(s.at("threshold")));
+      } catch (const Error& e) {  // a NaN direction or threshold: say where in the file
+        if (e.where().file.empty()) s.fail(e.message() + " (at " + s.path_text() + ")");
+        throw;
+      }
     }
   }
   /// Builds the tree.
