@@ -126,6 +126,22 @@ TEST_CASE("Json numbers that underflow read as a zero of their own sign") {
   CHECK(nlid::Json::parse("-4.9406564584124654e-324").as_number() == -std::numeric_limits<double>::denorm_min());
 }
 
+TEST_CASE("Json tells underflow from overflow by magnitude, not by the exponent's sign or digit count") {
+  // No exponent at all, yet far below the smallest subnormal.
+  const double tiny = nlid::Json::parse("-0." + std::string(400, '0') + "1").as_number();
+  CHECK(tiny == 0.0);
+  CHECK(std::signbit(tiny));
+  CHECK(nlid::Json::parse("0." + std::string(400, '0') + "1e+5").as_number() == 0.0);
+  // Many integer digits and a negative exponent: 1e-400, an underflow.
+  CHECK(nlid::Json::parse("1" + std::string(300, '0') + "e-700").as_number() == 0.0);
+  // Overflow stays an error, also with a negative exponent; the message marks a cut number.
+  const nlid::Error big = parse_error("[1" + std::string(500, '0') + "e-100]");
+  CHECK_THAT(big.what(), Catch::Contains("too large for a double"));
+  CHECK_THAT(big.what(), Catch::Contains("0000..."));
+  CHECK(big.where().column == 2);
+  CHECK_THAT(parse_error("1e99999999999999999999").what(), Catch::Contains("too large"));
+}
+
 TEST_CASE("Json refuses integers a double cannot hold and non-finite numbers, naming the path") {
   CHECK_THROWS_WITH(nlid::Json(9007199254740993LL), Catch::Contains("cannot be stored exactly"));
   CHECK_NOTHROW(nlid::Json(-9007199254740992LL));
@@ -195,6 +211,14 @@ TEST_CASE("Json string errors: lone surrogates, bad escapes, raw control charact
   j["name"] = std::string("caf\xE9");  // Latin-1, not UTF-8
   CHECK(error_of([&] { (void)j.dump(); }).message() ==
         "string at name is not valid UTF-8 (byte 3)");
+}
+
+TEST_CASE("Json parse error columns do not count a byte-order mark, which editors do not show") {
+  CHECK(nlid::Json::parse("\xEF\xBB\xBF[1]").size() == 1);
+  const nlid::Error e = parse_error("\xEF\xBB\xBF[1, x]");
+  CHECK(e.where().row == 1);
+  CHECK(e.where().column == 5);
+  CHECK(parse_error("\xEF\xBB\xBF").where().column == 1);
 }
 
 TEST_CASE("Json parse errors say what and where (line and column)") {

@@ -46,6 +46,7 @@
 /// Format", 2017, sections 2–8 (grammar: section 2 values, 6 numbers, 7 strings, 8.2 Unicode);
 /// The Unicode Standard, section 3.9 (UTF-8 well-formedness, table 3-7).
 
+#include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <concepts>
@@ -865,7 +866,8 @@ class JsonParser {
       : s_(text), source_(std::make_shared<const std::string>(source)) {}
 
   Json run() {
-    if (s_.substr(0, 3) == "\xEF\xBB\xBF") pos_ = 3;  // tolerate a UTF-8 byte-order mark
+    // Tolerate a UTF-8 byte-order mark. Editors do not show it, so columns start after it.
+    if (s_.substr(0, 3) == "\xEF\xBB\xBF") pos_ = line_start_ = col_pos_ = 3;
     skip_space();
     if (pos_ >= s_.size()) fail("empty input: expected a JSON value");
     Json v = value(0);
@@ -1118,19 +1120,14 @@ class JsonParser {
     } else {
       while (digit()) ++pos_;
     }
-    std::size_t int_digits = pos_ - start;
     if (pos_ < s_.size() && s_[pos_] == '.') {
       ++pos_;
       if (!digit()) fail("expected a digit after the decimal point");
       while (digit()) ++pos_;
     }
-    long exponent_sign = 1;
     if (pos_ < s_.size() && (s_[pos_] == 'e' || s_[pos_] == 'E')) {
       ++pos_;
-      if (pos_ < s_.size() && (s_[pos_] == '+' || s_[pos_] == '-')) {
-        if (s_[pos_] == '-') exponent_sign = -1;
-        ++pos_;
-      }
+      if (pos_ < s_.size() && (s_[pos_] == '+' || s_[pos_] == '-')) ++pos_;
       if (!digit()) fail("expected a digit in the exponent");
       while (digit()) ++pos_;
     }
@@ -1138,17 +1135,45 @@ class JsonParser {
     const auto r = std::from_chars(s_.data() + start, s_.data() + pos_, x);
     if (r.ec == std::errc::result_out_of_range) {
       // Underflow rounds to zero, as IEEE arithmetic would; overflow would invent an infinity.
-      if (exponent_sign < 0 && int_digits < 300) {
+      // from_chars reports both alike, and neither the exponent's sign nor the digit count
+      // tells them apart ("0.000...1" has no exponent, "1000...0e-700" has 301 digits).
+      if (decimal_order(start, pos_) < 0) {
         x = s_[start] == '-' ? -0.0 : 0.0;
       } else {
+        const std::size_t shown = std::min<std::size_t>(pos_ - start, 40);
+        const std::string text(s_.substr(start, shown));
         pos_ = start;
-        fail("number " + std::string(s_.substr(start, 40)) + " is too large for a double");
+        fail("number " + text + (shown < 40 ? "" : "...") + " is too large for a double");
       }
     } else if (r.ec != std::errc() || r.ptr != s_.data() + pos_) {
       pos_ = start;
       fail("malformed number");
     }
     return x;
+  }
+
+  // Decimal exponent of the leading significant digit of the number text [b, e), i.e. k with
+  // 10^k <= |x| < 10^(k+1). Only its sign is used: a double overflows beyond 10^308 and
+  // underflows below 10^-324, so a saturated exponent is exact enough.
+  long long decimal_order(std::size_t b, std::size_t e) const {
+    long long order = -1;
+    bool significant = false, fraction = false;
+    std::size_t k = b;
+    for (; k < e && s_[k] != 'e' && s_[k] != 'E'; ++k) {
+      const char c = s_[k];
+      if (c == '.') {
+        fraction = true;
+      } else if (c >= '0' && c <= '9') {
+        significant = significant || c != '0';
+        if (!fraction && significant) ++order;
+        if (fraction && !significant) --order;
+      }
+    }
+    long long exponent = 0, sign = 1;
+    if (k < e) ++k;  // 'e'
+    if (k < e && (s_[k] == '+' || s_[k] == '-')) sign = s_[k++] == '-' ? -1 : 1;
+    for (; k < e; ++k) exponent = std::min(exponent * 10 + (s_[k] - '0'), 1'000'000'000LL);
+    return order + sign * exponent;
   }
 
   // Reads a whole word so that "tru" or "nulll" is reported as one bad literal, and common
