@@ -62,6 +62,20 @@ TEST_CASE("Reading Eigen types checks the shape and names the key path") {
   const nlid::Json wide = nlid::Json::parse("[[1, 2, 3]]");
   CHECK_THROWS_WITH((wide.get<Eigen::Matrix<double, Eigen::Dynamic, 2>>()),
                     Catch::StartsWith("nlid: expected 2 columns at [0], found 3"));
+  // Bounded dynamic sizes (MaxRows/MaxCols) are limits too: a longer array is an error, not a
+  // write past the inline storage.
+  using Bounded = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 2, 1>;
+  CHECK_THROWS_WITH(model.at("theta").get<Bounded>(),
+                    Catch::StartsWith("nlid: expected at most 2 elements at model.theta, found 3"));
+  CHECK(nlid::Json::parse("[7, 8]").get<Bounded>() == Eigen::Vector2d(7, 8));
+  using BoundedRow = Eigen::Matrix<double, 1, Eigen::Dynamic, Eigen::RowMajor, 1, 2>;
+  CHECK_THROWS_WITH(model.at("theta").get<BoundedRow>(),
+                    Catch::StartsWith("nlid: expected at most 2 elements at model.theta"));
+  using BoundedMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 2, 2>;
+  CHECK_THROWS_WITH(wide.get<BoundedMatrix>(),
+                    Catch::StartsWith("nlid: expected at most 2 columns at [0], found 3"));
+  CHECK_THROWS_WITH(nlid::Json::parse("[[1], [2], [3]]").get<BoundedMatrix>(),
+                    Catch::StartsWith("nlid: expected at most 2 rows at top level, found 3"));
   // NaN in a vector is refused when written, with its index.
   Eigen::Vector2d nan_vec(1.0, std::numeric_limits<double>::quiet_NaN());
   nlid::Json k;

@@ -65,6 +65,13 @@ Plain eigen_from_json(const JsonView& view) {
       view.fail("expected " + std::to_string(fixed) + " elements at " + view.path_text() +
                 ", found " + std::to_string(n));
     }
+    // A bounded dynamic vector (MaxRows set) cannot grow past its bound: resize() would
+    // assert, or write past the inline storage with NDEBUG.
+    constexpr int bound = R == 1 ? Plain::MaxColsAtCompileTime : Plain::MaxRowsAtCompileTime;
+    if (bound != Eigen::Dynamic && n > bound) {
+      view.fail("expected at most " + std::to_string(bound) + " elements at " + view.path_text() +
+                ", found " + std::to_string(n));
+    }
     if constexpr (R == 1) {
       m.resize(1, n);
     } else {
@@ -77,10 +84,20 @@ Plain eigen_from_json(const JsonView& view) {
       view.fail("expected " + std::to_string(R) + " rows at " + view.path_text() + ", found " +
                 std::to_string(n));
     }
+    constexpr int max_rows = Plain::MaxRowsAtCompileTime;
+    constexpr int max_cols = Plain::MaxColsAtCompileTime;
+    if (max_rows != Eigen::Dynamic && n > max_rows) {
+      view.fail("expected at most " + std::to_string(max_rows) + " rows at " + view.path_text() +
+                ", found " + std::to_string(n));
+    }
     const Eigen::Index cols = n == 0 ? 0 : static_cast<Eigen::Index>(view.at(0).as_array().size());
     if (C != Eigen::Dynamic && n > 0 && cols != C) {
       view.at(0).fail("expected " + std::to_string(C) + " columns at " + view.at(0).path_text() +
                       ", found " + std::to_string(cols));
+    }
+    if (max_cols != Eigen::Dynamic && cols > max_cols) {
+      view.at(0).fail("expected at most " + std::to_string(max_cols) + " columns at " +
+                      view.at(0).path_text() + ", found " + std::to_string(cols));
     }
     m.resize(n, n == 0 && C != Eigen::Dynamic ? C : cols);
     for (Eigen::Index r = 0; r < n; ++r) {
