@@ -5,6 +5,8 @@
 
 #include <catch2/catch.hpp>
 
+#include "../support/error_of.hpp"
+
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -42,16 +44,7 @@ struct TempDir {
   std::string file(const std::string& name) const { return (path / name).string(); }
 };
 
-template <class F>
-nlid::Error error_of(F&& f) {
-  try {
-    f();
-  } catch (const nlid::Error& e) {
-    return e;
-  }
-  FAIL("expected nlid::Error");
-  return nlid::Error("unreachable");
-}
+using nlid_test::error_of;
 
 std::string throttle(int i) {
   return std::string(NLID_TEST_DATA_DIR) + "/throttle/data" + std::to_string(i) + ".csv";

@@ -2,6 +2,8 @@
 #include "nlid/data/experiment.hpp"
 
 #include <catch2/catch.hpp>
+
+#include "../support/error_of.hpp"
 #include <cmath>
 #include <limits>
 #include <string>
@@ -27,17 +29,7 @@ nlid::Experiment ramp(Eigen::Index n, double ts, int nu = 1, int ny = 1, std::st
   return {u, y, ts, std::move(name)};
 }
 
-// Runs `f`, which must throw nlid::Error; returns it for inspection.
-template <class F>
-nlid::Error error_of(F&& f) {
-  try {
-    f();
-  } catch (const nlid::Error& e) {
-    return e;
-  }
-  FAIL("expected nlid::Error");
-  return nlid::Error("unreachable");
-}
+using nlid_test::error_of;
 
 }  // namespace
 

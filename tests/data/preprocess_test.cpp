@@ -3,6 +3,8 @@
 #include "nlid/data/preprocess.hpp"
 
 #include <catch2/catch.hpp>
+
+#include "../support/error_of.hpp"
 #include <cmath>
 #include <limits>
 #include <numbers>
@@ -11,16 +13,7 @@ namespace {
 
 using Catch::Matchers::Contains;
 
-template <class F>
-nlid::Error error_of(F&& f) {
-  try {
-    f();
-  } catch (const nlid::Error& e) {
-    return e;
-  }
-  FAIL("expected nlid::Error");
-  return nlid::Error("unreachable");
-}
+using nlid_test::error_of;
 
 // u = [k, 2] , y = [a + b t + s(t)] with s a zero-mean wiggle orthogonal to 1 and t.
 nlid::Experiment trended(double a, double b, double ts = 0.1, Eigen::Index n = 201,

@@ -4,6 +4,8 @@
 // the helpers are named.
 #include <catch2/catch.hpp>
 
+#include "../support/error_of.hpp"
+
 #include <atomic>
 #include <cmath>
 #include <limits>
@@ -20,17 +22,7 @@ using nlid::LmStatus;
 
 namespace {
 
-// The error `fn` throws; fails the test if it throws none or another type.
-template <class Fn>
-nlid::Error error_of(Fn&& fn) {
-  try {
-    fn();
-  } catch (const nlid::Error& e) {
-    return e;
-  }
-  FAIL("no nlid::Error thrown");
-  return nlid::Error("unreachable");
-}
+using nlid_test::error_of;
 
 // y = a·sin(ω t) on 100 samples; θ = (a, ω).
 auto sine_problem() {
