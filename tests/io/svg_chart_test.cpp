@@ -79,6 +79,28 @@ TEST_CASE("Nice ticks are 1-2-5 steps with the decimals the step needs") {
   CHECK(nlid::detail::nice_ticks(3, 3, 5).values.empty());  // degenerate span: no ticks, no loop
 }
 
+TEST_CASE("Nice ticks on a narrow range far from zero are distinct, with distinct labels") {
+  // The span is far below what 15 significant digits resolve at 1e17: the step must not be.
+  const auto t = nlid::detail::nice_ticks(1e17 - 2, 1e17 + 34, 5);
+  REQUIRE_FALSE(t.values.empty());
+  CHECK(t.values.size() < 10);
+  for (std::size_t i = 1; i < t.values.size(); ++i) CHECK(t.values[i] > t.values[i - 1]);
+  nlid::LineChart c;
+  c.line("y", std::vector<double>{1e17, 1e17 + 16, 1e17 + 32});
+  const std::string s = c.svg();
+  std::vector<std::string> labels;  // y tick labels are the end-anchored texts
+  const std::string marker = "text-anchor=\"end\">";
+  for (std::size_t p = s.find(marker); p != std::string::npos; p = s.find(marker, p + 1)) {
+    const std::size_t b = p + marker.size();
+    labels.push_back(s.substr(b, s.find('<', b) - b));
+  }
+  REQUIRE_FALSE(labels.empty());
+  CHECK(labels.size() < 10);
+  std::vector<std::string> unique = labels;
+  std::sort(unique.begin(), unique.end());
+  CHECK(std::unique(unique.begin(), unique.end()) == unique.end());
+}
+
 TEST_CASE("Line chart: axes, legend, shading, band, output is deterministic") {
   std::vector<double> t, y, yhat;
   for (int k = 0; k <= 200; ++k) {
@@ -237,6 +259,13 @@ TEST_CASE("All text is escaped, invalid UTF-8 and control characters are replace
   CHECK(svg.find("bad \xEF\xBF\xBD( utf8 \xEF\xBF\xBD ctl") != std::string::npos);
   CHECK(svg.find("onload=\"") == std::string::npos);
   CHECK(svg.find("red&quot; onload=&quot;x") != std::string::npos);
+}
+
+TEST_CASE("Escaping replaces the noncharacters U+FFFE and U+FFFF, which XML 1.0 forbids") {
+  CHECK(nlid::detail::escape_xml("a\xEF\xBF\xBF" "b\xEF\xBF\xBE" "c") ==
+        "a\xEF\xBF\xBD" "b\xEF\xBF\xBD" "c");
+  // Their neighbours are ordinary characters and stay.
+  CHECK(nlid::detail::escape_xml("\xEF\xBF\xBD\xEF\xBF\xBC") == "\xEF\xBF\xBD\xEF\xBF\xBC");
 }
 
 TEST_CASE("Line chart inputs: Eigen vectors and std::array work, bad input is an error") {

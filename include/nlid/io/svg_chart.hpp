@@ -402,6 +402,14 @@ inline std::string escape_xml(std::string_view text) {
         const unsigned char b = static_cast<unsigned char>(text[i + k]);
         ok = k == 1 ? (b >= lo && b <= hi) : (b >= 0x80 && b <= 0xBF);
       }
+      // U+FFFE and U+FFFF are well-formed UTF-8 but not XML 1.0 characters: one replacement
+      // for the whole sequence, as for any other character the markup cannot hold.
+      if (ok && n == 3 && c == 0xEF && static_cast<unsigned char>(text[i + 1]) == 0xBF &&
+          static_cast<unsigned char>(text[i + 2]) >= 0xBE) {
+        out.append("\xEF\xBF\xBD");
+        i += n;
+        continue;
+      }
       if (ok) {
         out.append(text.substr(i, n));
         i += n;
@@ -508,7 +516,11 @@ inline Ticks nice_ticks(double lo, double hi, double target) {
   Ticks t;
   const double span = hi - lo;
   if (!(span > 0) || !std::isfinite(span)) return t;
-  const double raw = span / std::max(1.0, target);
+  // A step below ~1e-14 of the values cannot be told apart in a label (nor, near 2^53 / step,
+  // counted in k += 1): y in [1e17, 1e17 + 32] gave 100 identical ticks. Such a range gets the
+  // finest step its labels can show, even if that leaves a single tick.
+  const double resolution = std::max(std::abs(lo), std::abs(hi)) * 1e-14;
+  const double raw = std::max(span / std::max(1.0, target), resolution);
   const double mag = std::pow(10.0, std::floor(std::log10(raw)));
   const double f = raw / mag;
   t.step = (f < 1.5 ? 1.0 : f < 3.0 ? 2.0 : f < 7.0 ? 5.0 : 10.0) * mag;
