@@ -114,6 +114,15 @@ TEST_CASE("HtmlReport escapes all text so none of it can become markup or script
   CHECK(contains(h, "&lt;/svg&gt;&lt;script&gt;alert(4)&lt;/script&gt;"));
 }
 
+TEST_CASE("HtmlReport keeps a leading blank line of preformatted text") {
+  // HTML drops one newline right after <pre>, so the markup must carry one more.
+  nlid::HtmlReport r("t");
+  r.preformatted("\nafter a blank line").preformatted("no blank line");
+  const std::string h = r.str();
+  CHECK(contains(h, "<pre>\n\nafter a blank line</pre>"));
+  CHECK(contains(h, "<pre>no blank line</pre>"));
+}
+
 TEST_CASE("HtmlReport rejects malformed input with a message saying what and where") {
   nlid::HtmlReport r("x");
   CHECK_THROWS_WITH(r.heading("h", 1),

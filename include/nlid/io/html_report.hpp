@@ -416,7 +416,9 @@ inline std::string HtmlReport::str() const {
         h.append("<p>").append(detail::escape_xml(b.content)).append("</p>\n");
         break;
       case Kind::preformatted:
-        h.append("<pre>").append(detail::escape_xml(b.content)).append("</pre>\n");
+        // An HTML parser drops one newline right after <pre>; doubling it keeps a leading one.
+        h.append(b.content.starts_with('\n') ? "<pre>\n" : "<pre>");
+        h.append(detail::escape_xml(b.content)).append("</pre>\n");
         break;
       case Kind::note: {
         const char* cls = b.level == static_cast<int>(NoteKind::good)      ? "note good"
