@@ -202,6 +202,25 @@ TEST_CASE("Fixed parameters stay bit-for-bit, zero and equilibrium starts work",
   }
 }
 
+TEST_CASE("An estimate held on a bound is inside the bounds, not one rounding below", "[greybox][estimate]") {
+  GreyBox<physics::FirstOrder> truth;
+  truth.set_parameters(Eigen::Vector3d(0.5, 2.0, 1.0));
+  const Dataset d(nlid_test::simulated(truth, nlid_test::steps({0.0, 1.0, 0.3}, 50, 300), 0.02,
+                                       Eigen::VectorXd::Constant(1, 1.0), 0.01, 3, "lag"));
+  // The optimum tau = 0.5 lies below the lower bound, so the solver stops on it. The solver works
+  // in units of the start value 7, and this bound does not survive the round trip (lower / 7) * 7.
+  const double lower = 0.9179;
+  REQUIRE(lower / 7.0 * 7.0 < lower);
+  GreyBox<physics::FirstOrder> m;
+  m.set_parameter("tau", 7.0);
+  m.set_bounds("tau", lower, 100.0);
+  nlid::GreyBoxEstimate r;
+  REQUIRE_NOTHROW(r = estimate(m, d, quick(1, 1)));
+  CHECK(m.parameter("tau") == lower);
+  CHECK(r.parameters[0] == lower);
+  for (const nlid::StartResult& s : r.multi_start.starts) CHECK(s.theta[0] >= lower);
+}
+
 TEST_CASE("Values set by the user survive data-driven initialisation", "[greybox][estimate]") {
   const Dataset d = throttle_data(1.0);
   GreyBox<physics::Throttle> m;

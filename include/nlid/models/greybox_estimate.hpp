@@ -343,10 +343,20 @@ GreyBoxEstimate estimate(GreyBox<P>& model, const Dataset& data,
 
   GreyBoxEstimate out;
   out.multi_start = multi_start(scaled, theta, ms);
-  theta = theta.cwiseProduct(scale);
+  // The solver held a parameter on its bound in scaled units: (lower / s) · s can come back one
+  // rounding below lower, and the model would then refuse its own estimate as out of bounds.
+  const auto unscale = [&](const Eigen::VectorXd& v) {
+    Eigen::VectorXd t = v.cwiseProduct(scale);
+    for (int i = 0; i < np; ++i) {
+      const ParameterInfo& q = info[static_cast<std::size_t>(i)];
+      t[i] = std::clamp(t[i], q.lower, q.upper);
+    }
+    return t;
+  };
+  theta = unscale(theta);
   for (StartResult& sr : out.multi_start.starts) {
-    sr.start = sr.start.cwiseProduct(scale);
-    sr.theta = sr.theta.cwiseProduct(scale);
+    sr.start = unscale(sr.start);
+    sr.theta = unscale(sr.theta);
   }
   const StartResult& best = out.multi_start.best_start();
   out.summary = best.summary;
