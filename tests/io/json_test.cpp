@@ -291,6 +291,13 @@ TEST_CASE("Json parse errors say what and where (line and column)") {
   CHECK(e.where().column == 2);
   CHECK(parse_error(std::string(600, '[')).message() ==
         "JSON parse error: nesting deeper than 512 levels");
+  // A large object (past the 32 members checked by a scan) finds a repeat of an early key and
+  // of a late one, and reads back whole when there is none.
+  std::string big = "{";
+  for (int k = 0; k < 100; ++k) big += (k ? ", \"k" : "\"k") + std::to_string(k) + "\": " + std::to_string(k);
+  CHECK(nlid::Json::parse(big + "}").as_object().size() == 100);
+  CHECK(parse_error(big + ", \"k3\": 0}").message() == "JSON parse error: duplicate key 'k3' in object");
+  CHECK(parse_error(big + ", \"k77\": 0}").message() == "JSON parse error: duplicate key 'k77' in object");
 }
 
 TEST_CASE("Json accessors name the key path, file, line and column on wrong type or missing key") {

@@ -59,6 +59,7 @@
 #include <string_view>
 #include <system_error>
 #include <type_traits>
+#include <unordered_set>
 #include <utility>
 #include <variant>
 #include <vector>
@@ -918,6 +919,7 @@ class JsonParser {
       v.value_ = std::move(members);
       return;
     }
+    std::unordered_set<std::string> seen;  // keys of a large object (below)
     while (true) {
       skip_space();
       if (pos_ >= s_.size()) fail_unterminated("object", open);
@@ -925,11 +927,19 @@ class JsonParser {
       if (peek() != '"') fail("expected a string key in double quotes, found " + describe_here());
       const std::size_t key_pos = pos_;
       std::string key = string();
-      for (const Json::Member& m : members) {
-        if (m.first == key) {
-          pos_ = key_pos;
-          fail("duplicate key '" + key + "' in object");
-        }
+      // A scan of the earlier keys is cheapest for the small objects of model files; past 32
+      // members a set keeps a large (or hostile) object from costing n² comparisons.
+      bool duplicate = false;
+      if (members.size() < 32) {
+        for (const Json::Member& m : members) duplicate = duplicate || m.first == key;
+      } else {
+        if (seen.empty())
+          for (const Json::Member& m : members) seen.insert(m.first);
+        duplicate = !seen.insert(key).second;
+      }
+      if (duplicate) {
+        pos_ = key_pos;
+        fail("duplicate key '" + key + "' in object");
       }
       skip_space();
       if (pos_ >= s_.size()) fail_unterminated("object", open);
