@@ -470,6 +470,27 @@ TEST_CASE("A free body under a net force has no equilibrium: reported, not guess
                     Catch::Contains("has no equilibrium"));
 }
 
+TEST_CASE("An equilibrium start is the one estimation uses where there are many", "[greybox]") {
+  // A free body at u = u_offset rests anywhere: every position is an equilibrium. Estimation
+  // starts the record where it was measured; a simulation of the same record must too, or
+  // compare() after estimate() would report another fit than the estimate did.
+  GreyBox<physics::RigidBody> m;  // c = 1, b = 1, u_offset = 0
+  Eigen::MatrixXd u = Eigen::MatrixXd::Zero(100, 1);
+  u.bottomRows(50).setConstant(0.5);
+  const Experiment e = nlid_test::simulated(m, u, 0.02, Eigen::Vector2d(3.0, 0.0), 0.0, 1, "body");
+  const Dataset d(e);
+  const nlid::GreyBoxProblem<physics::RigidBody> pb(m.physics(), m.integrator(), d, InitialCondition::equilibrium);
+  Eigen::Vector2d x_problem;
+  REQUIRE(pb.initial_state(Eigen::VectorXd(m.parameters()), 0, x_problem.data()));
+  CHECK(x_problem[0] == Approx(3.0).epsilon(1e-12));
+  const Eigen::Vector2d x_model = m.initial_state(e, InitialCondition::equilibrium);
+  CHECK(x_model[0] == x_problem[0]);
+  CHECK(x_model[1] == x_problem[1]);
+  CHECK((m.simulate(e, InitialCondition::equilibrium) - e.y()).cwiseAbs().maxCoeff() < 1e-12);
+  // Without a record there is no measured start: the search begins at the zero state.
+  CHECK(m.equilibrium(Eigen::VectorXd::Constant(1, 0.0))[0] == 0.0);
+}
+
 TEST_CASE("Data errors say what and where", "[greybox][errors]") {
   GreyBox<physics::Throttle> m;
   const double ts = 0.01;

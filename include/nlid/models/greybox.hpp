@@ -439,7 +439,13 @@ class GreyBox {
         return StateVector::Zero(nx);
       case InitialCondition::equilibrium: {
         require(e.size() > 0, "equilibrium start needs at least one input sample");
-        return equilibrium(e.u().row(0).transpose(), e.name());
+        // Searched from the record's own start, as estimation does (GreyBoxProblem): where the
+        // equilibrium is not unique, both then pick the same one.
+        const ParameterVector p = parameters();
+        const Eigen::VectorXd y0 = e.y().row(0).transpose(), u0 = e.u().row(0).transpose();
+        StateVector x(nx);
+        physics_initial_guess(physics_, y0.data(), u0.data(), p.data(), x.data());
+        return equilibrium_from(x, u0, e.name());
       }
       case InitialCondition::measured:
         throw Error("InitialCondition::measured applies to regression models (past outputs); a "
@@ -450,25 +456,15 @@ class GreyBox {
     return estimate_initial_state(e);
   }
 
-  /// Equilibrium state for the input `u` held constant: f(x̄, u, p) = 0 (Newton from the
-  /// physics' initial-state guess). Throws `nlid::Error` if there is none (e.g. a free body under
-  /// a net force).
+  /// Equilibrium state for the input `u` held constant: f(x̄, u, p) = 0 (Newton from the zero
+  /// state; `InitialCondition::equilibrium` starts from the record's first sample instead).
+  /// Throws `nlid::Error` if there is none (e.g. a free body under a net force).
   [[nodiscard]] StateVector equilibrium(const Eigen::Ref<const Eigen::VectorXd>& u,
                                         const std::string& label = {}) const {
     require(u.size() == input_dimension(), "equilibrium: input has " + std::to_string(u.size()) +
                                                " entries, the model takes " +
                                                std::to_string(input_dimension()));
-    const ParameterVector p = parameters();
-    StateVector x = StateVector::Zero(state_dimension());
-    const Eigen::VectorXd uv = u;
-    const EquilibriumResult res = physics_equilibrium(physics_, uv.data(), p.data(), x.data());
-    if (!res.converged) {
-      throw Error("grey-box model '" + name() + "' has no equilibrium for the input held at its " +
-                  (label.empty() ? std::string("given") : "first ('" + label + "')") +
-                  " value (|f(x)| stays at " + detail::format_g(res.residual) +
-                  "); use InitialCondition::estimate or zero");
-    }
-    return x;
+    return equilibrium_from(StateVector::Zero(state_dimension()), u, label);
   }
 
   /// Number of leading samples `InitialCondition::estimate` fits x₀ to in `simulate` and
@@ -593,6 +589,21 @@ class GreyBox {
             "value " + detail::format_g(v) + " of '" + q.name + "' is outside its bounds [" +
                 detail::format_g(q.lower) + ", " + detail::format_g(q.upper) + "]",
             at_parameter(q.name));
+  }
+
+  // Shared by `equilibrium` and the per-record start, so both fail with the same message.
+  StateVector equilibrium_from(StateVector x, const Eigen::Ref<const Eigen::VectorXd>& u,
+                               const std::string& label) const {
+    const ParameterVector p = parameters();
+    const Eigen::VectorXd uv = u;
+    const EquilibriumResult res = physics_equilibrium(physics_, uv.data(), p.data(), x.data());
+    if (!res.converged) {
+      throw Error("grey-box model '" + name() + "' has no equilibrium for the input held at its " +
+                  (label.empty() ? std::string("given") : "first ('" + label + "')") +
+                  " value (|f(x)| stays at " + detail::format_g(res.residual) +
+                  "); use InitialCondition::estimate or zero");
+    }
+    return x;
   }
 
   // x₀ minimising the simulation error over the first `initial_state_window_` samples of this

@@ -324,14 +324,7 @@ class GreyBoxProblem {
     Eigen::Matrix<double, NU, 1> u0(nu_);
     for (int j = 0; j < ny_; ++j) y0[j] = ex.y()(0, j);
     for (int j = 0; j < nu_; ++j) u0[j] = ex.u()(0, j);
-    if constexpr (detail::HasInitialStateHook<P>) {
-      if (y0.allFinite() && phys_.initial_state(y0.data(), u0.data(), p, x0)) return;
-    }
-    for (int i = 0; i < nx_; ++i) x0[i] = 0.0;
-    Eigen::VectorXd xe = Eigen::VectorXd::Zero(nx_);
-    if (physics_equilibrium(phys_, u0.data(), p, xe.data()).converged) {
-      for (int i = 0; i < nx_; ++i) x0[i] = xe[i];
-    }
+    physics_initial_guess(phys_, y0.data(), u0.data(), p, x0);
   }
 
   // Equilibrium at the first input, from the initial-state guess; optionally J⁻¹ at the solution.

@@ -328,6 +328,27 @@ EquilibriumResult physics_equilibrium(const P& phys, const double* u, const doub
   return res;
 }
 
+/// Initial-state guess for a record that starts with output `y0` and input `u0`: the physics'
+/// `initial_state` hook when it has one and y0 is finite, else the equilibrium for u0 held when
+/// Newton from zero finds one, else zero. The start of every equilibrium search of a record, so
+/// that estimation and simulation settle on the same equilibrium where there are several (a
+/// free position, several stable levels).
+template <Physics P>
+void physics_initial_guess(const P& phys, const double* y0, const double* u0, const double* p, double* x0) {
+  const int nx = detail::physics_states(phys);
+  if constexpr (detail::HasInitialStateHook<P>) {
+    const int ny = detail::physics_outputs(phys);
+    bool finite = true;
+    for (int j = 0; j < ny; ++j) finite = finite && std::isfinite(y0[j]);
+    if (finite && phys.initial_state(y0, u0, p, x0)) return;
+  }
+  for (int i = 0; i < nx; ++i) x0[i] = 0.0;
+  Eigen::VectorXd xe = Eigen::VectorXd::Zero(nx);
+  if (physics_equilibrium(phys, u0, p, xe.data()).converged) {
+    for (int i = 0; i < nx; ++i) x0[i] = xe[i];
+  }
+}
+
 /// One Newton step in Dual arithmetic from a converged equilibrium x̄ (double), giving
 /// x̄(p) with exact first-order sensitivities to the dual parameters `p`:
 /// x = x̄ − J⁻¹ f(x̄, u, p), J = ∂f/∂x at x̄ (implicit function theorem). `jinv` is J⁻¹ (n_x × n_x,
