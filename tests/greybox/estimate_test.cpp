@@ -232,6 +232,17 @@ TEST_CASE("Values set by the user survive data-driven initialisation", "[greybox
   CHECK(m.initialized());
 }
 
+TEST_CASE("Data that point outside a parameter's bounds leave no inverted range", "[greybox][estimate]") {
+  const Dataset d = throttle_data(1.0);
+  GreyBox<physics::Throttle> m;
+  m.set_bounds("b", 0.0, 1000.0);  // the records need b = 56000
+  m.initialize(d);
+  const nlid::ParameterInfo& b = m.parameter_info()[3];
+  CHECK(b.value == 1000.0);
+  CHECK(b.range_lower <= b.range_upper);
+  CHECK(b.range_upper <= 1000.0);
+}
+
 TEST_CASE("Uncertainty of the throttle estimate: the truth lies within a few sigma, names and units",
           "[greybox][estimate][uncertainty]") {
   const Dataset d = throttle_data(1.0);

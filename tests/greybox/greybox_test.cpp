@@ -103,6 +103,64 @@ TEST_CASE("Parameter errors name the parameter and list the known ones", "[greyb
   CHECK_THROWS_WITH(m.set_integrator(o), Catch::Contains("stability_target"));
 }
 
+namespace {
+// One-parameter lag whose parameter table the test writes.
+struct TableLag {
+  static constexpr int num_states = 1, num_inputs = 1, num_outputs = 1, num_params = 1;
+  nlid::ParameterInfo info;
+  std::array<nlid::ParameterInfo, 1> parameter_info() const { return {{info}}; }
+  template <class T>
+  void derivative(const T* x, const T* u, const T* p, T* dx) const {
+    dx[0] = u[0] - p[0] * x[0];
+  }
+  template <class T>
+  void output(const T* x, const T*, const T*, T* y) const {
+    y[0] = x[0];
+  }
+};
+}  // namespace
+
+TEST_CASE("A physics' parameter table is checked when the model is built", "[greybox][errors]") {
+  const double inf = std::numeric_limits<double>::infinity();
+  const auto refused = [](const nlid::ParameterInfo& q, const std::string& text) {
+    try {
+      GreyBox<TableLag> m(TableLag{q});
+      FAIL("no throw");
+    } catch (const nlid::Error& e) {
+      CHECK_THAT(e.what(), Catch::Contains(text));
+      CHECK(e.where().parameter == "a");
+    }
+  };
+  refused({"a", "1/s", "", inf, 0.0, inf}, "default value inf of 'a' is not finite");
+  refused({"a", "1/s", "", 1.0, 0.0, inf, 5.0, 0.5}, "range [5, 0.5] of 'a' must satisfy lower <= upper");
+  refused({"a", "1/s", "", 1.0, std::nan(""), inf}, "bounds [nan, inf] of 'a' must satisfy lower <= upper");
+  CHECK_NOTHROW(GreyBox<TableLag>(TableLag{{"a", "1/s", "", 1.0, 0.0, inf}}));  // NaN range: the bounds
+}
+
+TEST_CASE("Sample times and tolerances are checked by name", "[greybox][errors]") {
+  GreyBox<physics::Throttle> m;
+  for (const double ts : {0.0, -0.01, std::nan(""), std::numeric_limits<double>::infinity()}) {
+    try {
+      (void)m.substeps(ts);
+      FAIL("no throw for ts = " << ts);
+    } catch (const nlid::Error& e) {
+      CHECK_THAT(e.what(), Catch::Contains("sample time must be positive and finite"));
+      CHECK(e.where().parameter == "ts");
+    }
+  }
+  CHECK(m.substeps(0.01) == 2);  // h sqrt(k + K) = 1.005
+  nlid::IntegratorOptions o;
+  CHECK(nlid::substeps_for(std::nan(""), 100.0, o) == o.max_substeps);  // not an undefined cast
+  o.absolute_tolerance = 0.0;
+  try {
+    m.set_integrator(o);
+    FAIL("no throw");
+  } catch (const nlid::Error& e) {
+    CHECK_THAT(e.what(), Catch::Contains("absolute_tolerance"));
+    CHECK(e.where().parameter == "absolute_tolerance");
+  }
+}
+
 TEST_CASE("Throttle steady states follow the equation, free and on the stops", "[greybox]") {
   GreyBox<physics::Throttle> m;
   m.set_parameters(throttle_truth());

@@ -115,9 +115,21 @@ class GreyBox {
         require(info[j].name != q.name, "duplicate parameter name '" + q.name + "'",
                 at_parameter(q.name));
       }
+      require(!std::isnan(q.lower) && !std::isnan(q.upper) && q.lower <= q.upper,
+              "bounds [" + detail::format_g(q.lower) + ", " + detail::format_g(q.upper) + "] of '" + q.name +
+                  "' must satisfy lower <= upper",
+              at_parameter(q.name));
+      // An infinite default passes an infinite bound, then every simulation is NaN.
+      require(std::isfinite(q.value), "default value " + detail::format_g(q.value) + " of '" + q.name + "' is not finite",
+              at_parameter(q.name));
       require(q.lower <= q.value && q.value <= q.upper,
               "default value " + detail::format_g(q.value) + " of '" + q.name +
                   "' is outside its bounds",
+              at_parameter(q.name));
+      // NaN ends mean "the bounds"; multi-start would silently never sample an inverted range.
+      require(!(q.range_lower > q.range_upper),
+              "range [" + detail::format_g(q.range_lower) + ", " + detail::format_g(q.range_upper) + "] of '" +
+                  q.name + "' must satisfy lower <= upper",
               at_parameter(q.name));
       params_.push_back(q);
     }
@@ -307,8 +319,11 @@ class GreyBox {
     integrator_ = o;
   }
   /// Sub-steps per sample the rule gives at the current parameters for sample time `ts`
-  /// (initial state and input only matter for physics without a `spectral_radius`).
+  /// (initial state and input only matter for physics without a `spectral_radius`). Throws
+  /// `nlid::Error` naming "ts" unless ts is positive and finite.
   [[nodiscard]] int substeps(double ts) const {
+    require(ts > 0.0 && std::isfinite(ts), "sample time must be positive and finite, got " + detail::format_g(ts),
+            at_parameter("ts"));
     const ParameterVector p = parameters();
     const StateVector x = StateVector::Zero(state_dimension());
     const Eigen::VectorXd u = Eigen::VectorXd::Zero(input_dimension());
@@ -343,6 +358,9 @@ class GreyBox {
         if (std::isfinite(t.range_lower) && std::isfinite(t.range_upper) && t.range_lower <= t.range_upper) {
           q.range_lower = std::max(t.range_lower, q.lower);
           q.range_upper = std::min(t.range_upper, q.upper);
+          // The data suggest values the bounds forbid: no range inside them, so the start stays
+          // at the bound-clamped value rather than leaving an inverted range in the table.
+          if (q.range_lower > q.range_upper) q.range_lower = q.range_upper = q.value;
           q.log_scale = t.log_scale && q.range_lower > 0.0;
         }
       }

@@ -115,8 +115,10 @@ inline void validate(const IntegratorOptions& o) {
   require(o.stability_target > 0.0 && o.stability_target <= 2.5,
           "stability_target must be in (0, 2.5] (RK4 is unstable beyond h*rho = 2.78)",
           at_parameter("stability_target"));
-  require(o.relative_tolerance > 0.0 && o.absolute_tolerance > 0.0,
-          "adaptive tolerances must be positive", at_parameter("relative_tolerance"));
+  require(o.relative_tolerance > 0.0, "relative_tolerance of the adaptive method must be positive",
+          at_parameter("relative_tolerance"));
+  require(o.absolute_tolerance > 0.0, "absolute_tolerance of the adaptive method must be positive",
+          at_parameter("absolute_tolerance"));
   require(o.max_adaptive_steps >= 1, "max_adaptive_steps must be >= 1",
           at_parameter("max_adaptive_steps"));
 }
@@ -128,7 +130,8 @@ inline int substeps_for(double h, double spectral_radius, const IntegratorOption
   if (o.substeps > 0) return o.substeps;
   if (!(spectral_radius > 0.0) || !std::isfinite(spectral_radius)) return o.min_substeps;
   const double need = std::ceil(h * spectral_radius / o.stability_target);
-  if (need >= static_cast<double>(o.max_substeps)) return o.max_substeps;
+  // Written so that a NaN h also lands on the ceiling: converting NaN to int is undefined.
+  if (!(need < static_cast<double>(o.max_substeps))) return o.max_substeps;
   return std::max(o.min_substeps, static_cast<int>(need));
 }
 
