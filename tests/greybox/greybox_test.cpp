@@ -521,6 +521,18 @@ TEST_CASE("Initial conditions: zero, equilibrium, estimated, measured is rejecte
                     Catch::Contains("InitialCondition::measured applies to regression models"));
 }
 
+TEST_CASE("An initial-state window shorter than the states need is widened", "[greybox]") {
+  GreyBox<physics::MassSpringDamper> m;
+  m.set_parameters(Eigen::Vector4d(12.0, 100.0, 80.0, 0.25));
+  const Experiment e =
+      nlid_test::simulated(m, nlid_test::steps({0.5, 1.0}, 50, 200), 0.01, Eigen::Vector2d(1.3, -4.0), 0.0, 7, "msd");
+  m.set_initial_state_window(1);  // one sample cannot fix position and velocity
+  Eigen::Vector2d x0;
+  REQUIRE_NOTHROW(x0 = m.initial_state(e, InitialCondition::estimate));
+  CHECK(x0[0] == Approx(1.3).epsilon(1e-6));
+  CHECK(x0[1] == Approx(-4.0).epsilon(1e-4));
+}
+
 TEST_CASE("A free body under a net force has no equilibrium: reported, not guessed", "[greybox][errors]") {
   GreyBox<physics::RigidBody> m;  // c = 1, b = 1, u_offset = 0
   CHECK_NOTHROW(m.equilibrium(Eigen::VectorXd::Constant(1, 0.0)));

@@ -627,8 +627,13 @@ class GreyBox {
   // x₀ minimising the simulation error over the first `initial_state_window_` samples of this
   // record with the parameters held (findstates on a prefix).
   StateVector estimate_initial_state(const Experiment& e) const {
-    const Eigen::Index n = initial_state_window_ > 0 ? std::min<Eigen::Index>(e.size(), initial_state_window_)
-                                                     : e.size();
+    // A window too short to determine x₀ (one sample, or fewer outputs than states) is widened:
+    // the record, not the window, is then what a too-short error is about.
+    const int ny = output_dimension();
+    const Eigen::Index needed = std::max<Eigen::Index>(2, (state_dimension() + ny - 1) / ny);
+    const Eigen::Index n = initial_state_window_ > 0
+                               ? std::min<Eigen::Index>(e.size(), std::max(initial_state_window_, needed))
+                               : e.size();
     Dataset d(n == e.size() ? e
                             : Experiment(e.u().topRows(n), e.y().topRows(n), e.ts(), e.name(),
                                          NonFinitePolicy::keep));
