@@ -11,19 +11,11 @@
 #include <string>
 #include <vector>
 
+#include "../support/error_of.hpp"
+
 namespace {
 
-// Runs `f`, expects an nlid::Error, and returns it so the test can check message and location.
-template <class F>
-nlid::Error error_of(F&& f) {
-  try {
-    f();
-  } catch (const nlid::Error& e) {
-    return e;
-  }
-  FAIL("expected nlid::Error");
-  return nlid::Error("unreachable");
-}
+using nlid_test::error_of;
 
 nlid::Error parse_error(const std::string& text) {
   return error_of([&] { (void)nlid::Json::parse(text, "t.json"); });

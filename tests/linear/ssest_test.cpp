@@ -113,12 +113,7 @@ TEST_CASE("ssest reports the fit of each output against that output's own mean",
   opt.subspace.offset = true;
   const StateSpace m = nlid::ssest(Experiment(u, y, 1.0), 2, opt);
   const nlid::LinearEstimationReport& r = m.report();
-  REQUIRE(r.fit_per_output.size() == 2);
-  for (double f : r.fit_per_output) {
-    CHECK(f > 15.0);
-    CHECK(f < 45.0);
-  }
-  CHECK(r.fit_percent == std::min(r.fit_per_output[0], r.fit_per_output[1]));
+  nlid_test::check_fits_of_noisy_outputs(r);
 }
 
 TEST_CASE("ssest rejects bad orders, options and data with located messages", "[linear][ssest][errors]") {
