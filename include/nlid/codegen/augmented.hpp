@@ -142,9 +142,7 @@ GeneratedCode generate_c(const AugmentedModel<P>& model, const CodegenOptions& o
   } else {
     m.x0_doc = "zero baseline state; effect states start from the first sample";
   }
-  m.x0 = Eigen::VectorXd::Zero(m.nx);
-  m.x0.head(nx) = xb;
-  m.x0(i_first) = 1.0;
+  m.x0 = generated_c_state(model, xb, options);  // the baseline at xb, effects from the first sample
   const double rho = model.stiffness(theta.data(), xb.data(), u0.data());
   const int sub = options.substeps > 0 ? options.substeps : std::max(1, substeps_for(model.ts(), rho, model.integrator()));
   // As for grey boxes (codegen/greybox.hpp): a count that leaves RK4 unstable at the start state,

@@ -114,11 +114,14 @@ inline std::optional<codegen::DeltaBlock> oe_delta_block(const OutputError& mode
   beta.tail(nb) = model.b(i);
   return codegen::DeltaBlock::from_tdf2(beta, model.f_polynomial(i), std::max(nf, model.nk(i) + nb - 1));
 }
+/// Lᵢ = nkᵢ + nbᵢ − 1: the past inputs of an output-error model's block i in the direct form.
+inline int oe_input_lag(const OutputError& model, int i) {
+  return std::max(0, model.nk(i) + static_cast<int>(model.b(i).size()) - 1);
+}
 /// Σᵢ (Lᵢ + nfᵢ): the direct form's past inputs and block outputs.
 inline int oe_direct_states(const OutputError& model) {
   int nx = 0;
-  for (int i = 0; i < model.num_inputs(); ++i)
-    nx += std::max(0, model.nk(i) + static_cast<int>(model.b(i).size()) - 1) + static_cast<int>(model.f(i).size());
+  for (int i = 0; i < model.num_inputs(); ++i) nx += oe_input_lag(model, i) + static_cast<int>(model.f(i).size());
   return nx;
 }
 /// The generated state of an output-error model for the direct form's past samples x = per input
@@ -136,7 +139,7 @@ inline Eigen::VectorXd oe_generated_state(const OutputError& model, const std::v
   int d = 0;  // block i's segment of x
   for (int i = 0; i < model.num_inputs(); ++i) {
     const int nk = model.nk(i), nb = static_cast<int>(model.b(i).size()), nf = static_cast<int>(model.f(i).size());
-    const int lag_u = std::max(0, nk + nb - 1);
+    const int lag_u = oe_input_lag(model, i);
     const auto& block = db[static_cast<std::size_t>(i)];
     if (!block) {
       for (int k = 0; k < lag_u + nf; ++k) out.push_back(x(d + k));
@@ -208,10 +211,10 @@ inline GeneratedCode generate_c(const Arx& model, const CodegenOptions& options 
   require(m.ts > 0, "codegen: the model has no sample time; set CodegenOptions::ts", at_parameter("ts"));
   m.parameters = model.parameters();
   m.parameter_names = model.parameter_names();
-  std::vector<int> lags(static_cast<std::size_t>(nu)), off(static_cast<std::size_t>(nu));
+  const std::vector<int> lags = codegen::detail::arx_input_lags(model);
+  std::vector<int> off(static_cast<std::size_t>(nu));
   int nx = na;
   for (int i = 0; i < nu; ++i) {
-    lags[static_cast<std::size_t>(i)] = std::max(0, model.nk(i) + model.nb(i) - 1);
     off[static_cast<std::size_t>(i)] = nx;
     nx += lags[static_cast<std::size_t>(i)];
   }
@@ -340,7 +343,7 @@ inline GeneratedCode generate_c(const OutputError& model, const CodegenOptions& 
                      "(t), B(z)/F(z) = (c0 d^n + .. + cn)/(d^n + a1 d^(n-1) + .. + an), " + db[ii]->describe() + ")";
       continue;
     }
-    lags[ii] = std::max(0, model.nk(i) + static_cast<int>(model.b(i).size()) - 1);
+    lags[ii] = codegen::detail::oe_input_lag(model, i);
     uoff[ii] = nx;
     woff[ii] = nx + lags[ii];
     nx += lags[ii] + static_cast<int>(model.f(i).size());
@@ -365,7 +368,7 @@ inline GeneratedCode generate_c(const OutputError& model, const CodegenOptions& 
               "codegen: no equilibrium: F(q) of input " + std::to_string(i + 1) + " has a root at z = 1",
               at_parameter("equilibrium_input"));
       const double w0 = std::abs(f1) > 1e-14 ? model.b(i).sum() / f1 * u0(i) : 0.0;
-      past.insert(past.end(), static_cast<std::size_t>(std::max(0, model.nk(i) + static_cast<int>(model.b(i).size()) - 1)), u0(i));
+      past.insert(past.end(), static_cast<std::size_t>(codegen::detail::oe_input_lag(model, i)), u0(i));
       past.insert(past.end(), static_cast<std::size_t>(model.f(i).size()), w0);
     }
     m.x0_doc = "the steady state for u held at " + detail::format_g(u0(0), 17);
