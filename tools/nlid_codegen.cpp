@@ -196,7 +196,8 @@ int main(int argc, char** argv) {
     const Eigen::VectorXd u0 =
         u0_values.size() == 1 ? Eigen::VectorXd::Constant(m.num_inputs(), u0_values[0])
                               : Eigen::VectorXd(Eigen::Map<const Eigen::VectorXd>(u0_values.data(), m.num_inputs()));
-    const std::string u0_shown = u0_values.size() == 1 ? num(u0_values[0]) : num_list(u0);
+    const std::string u0_shown =  // as given: one value, or one per input
+        num_list(Eigen::Map<const Eigen::VectorXd>(u0_values.data(), static_cast<Eigen::Index>(u0_values.size())));
     if (x0 == "equilibrium") {
       // NAME_init's state is nlid-sim's equilibrium for a record starting at u0: a steady state
       // that is not finite (an input far outside the model's range) would be written as inf/nan.
