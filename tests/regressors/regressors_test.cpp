@@ -105,6 +105,29 @@ TEST_CASE("a regressor function must be generic over the scalar", "[regressors]"
   static_assert(nlid::RegressorFunction<decltype(generic), 1>);
   static_assert(!nlid::RegressorFunction<decltype(double_only), 1>);
   static_assert(!nlid::RegressorFunction<decltype(generic), 2>);
+  // A result that merely converts to the dual is a constant there: the derivative would be lost.
+  auto returns_double = [](auto y) -> double { return nlid::value_of(y) * 2.0; };
+  auto double_only_inside = [](auto y) { return std::floor(nlid::value_of(y)); };
+  static_assert(!nlid::RegressorFunction<decltype(returns_double), 1>);
+  static_assert(!nlid::RegressorFunction<decltype(double_only_inside), 1>);
+  // Piecewise constant, written to return the argument's type; a reference to it is that type too.
+  auto piecewise_constant = [](auto y) { return decltype(y)(std::floor(nlid::value_of(y))); };
+  auto by_reference = [](const auto& y) -> const auto& { return y; };
+  static_assert(nlid::RegressorFunction<decltype(piecewise_constant), 1>);
+  static_assert(nlid::RegressorFunction<decltype(by_reference), 1>);
+  // On a float this function returns double (float · double): float results are converted by
+  // evaluate, not checked by the concept, as before.
+  const auto c = nlid::custom_regressor<nlid::OutputLag<1>>("", [](auto y) { return y * 2.0 - 190.0; });
+  const std::vector<float> past{100.0f, 0.0f};
+  struct FloatWindow {
+    using Scalar = float;
+    const std::vector<float>* y_;
+    float y(int lag) const { return (*y_)[static_cast<std::size_t>(lag - 1)]; }
+    float u(int, int) const { return 0.0f; }
+  };
+  float out = 0.0f;
+  c.evaluate(FloatWindow{&past}, std::span<float>(&out, 1));
+  CHECK(out == 10.0f);
 }
 
 TEST_CASE("history ring buffer keeps the last L values in lag order", "[regressors]") {

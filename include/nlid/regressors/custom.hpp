@@ -18,9 +18,15 @@
 /// The lags are compile-time, so the regressor's history requirement is known to the compiler
 /// (a fixed-size simulation can keep its past outputs on the stack). `fn` is called with one
 /// scalar per listed signal, in order, on double, float and `Dual` alike; a generic lambda
-/// (`auto` parameters) or a functor with a templated call operator does exactly that. A lambda
-/// taking `double` would silently drop derivatives, so it is rejected by the
-/// `RegressorFunction` concept at the declaration.
+/// (`auto` parameters) or a functor with a templated call operator does exactly that. A function
+/// that would silently drop derivatives is rejected by the `RegressorFunction` concept at the
+/// declaration: a lambda taking `double`, and equally one whose result on a `Dual` is not that
+/// `Dual` (`[](auto y) -> double {…}`, or a call of a double-only function on
+/// `nlid::value_of(y)`), which the dual type would otherwise accept through its conversion from a
+/// constant and the estimator would see a zero derivative. A piecewise-constant function, whose
+/// derivative is zero anyway, must return the argument's type too:
+/// `[](auto y) { using T = decltype(y); return T(std::floor(nlid::value_of(y))); }` (or use
+/// `nlid::floor`, which keeps the type).
 ///
 /// Note: `nlid::max`/`nlid::min` accept (double, double) and (Dual, double); plain `std::max`
 /// does not compile on duals. Kinks such as max/min have a one-sided derivative, which is what
@@ -77,18 +83,35 @@ template <class Fn, class T, std::size_t... I>
 struct InvocableN<Fn, T, std::index_sequence<I...>> {
   template <std::size_t>
   using Arg = T;
-  static constexpr bool value = std::is_invocable_r_v<T, const Fn&, Arg<I>...>;
+  /// fn(T, …, T) compiles and its result converts to T.
+  static constexpr bool converts = std::is_invocable_r_v<T, const Fn&, Arg<I>...>;
+  /// fn(T, …, T) compiles and its result is a T (up to cv/reference). Convertible is not enough
+  /// for a dual: a `double` result converts to it as a constant, with the derivatives dropped.
+  static constexpr bool returns_same = [] {
+    if constexpr (std::is_invocable_v<const Fn&, Arg<I>...>) {
+      return std::is_same_v<std::remove_cvref_t<std::invoke_result_t<const Fn&, Arg<I>...>>, T>;
+    } else {
+      return false;
+    }
+  }();
 };
+
+template <int N>
+using ArgumentSequence = std::make_index_sequence<static_cast<std::size_t>(N)>;
 }  // namespace detail
 
-/// A function of N scalars returning a scalar, callable on `double` and on `Dual` (so derivatives
-/// propagate through it). Satisfied by generic lambdas `[](auto y1) {...}` and by functors with a
+/// A function of N scalars returning a scalar, callable on `double` (a result convertible to
+/// double) and on `Dual`, where it must return that very `Dual` type, so derivatives propagate
+/// through it: a result that merely converts to the dual (a `double`, e.g. from `-> double` or
+/// from a double-only function of `value_of(y)`) would carry a zero derivative. Float and the
+/// code generator's traced scalar are not checked here, as before: `evaluate` converts the result
+/// to the window's scalar (`[](auto y) { return y * 2.0; }` returns double on a float). Satisfied by
+/// generic lambdas `[](auto y1) {...}` and by functors with a
 /// `template <class T> T operator()(T...) const`.
 template <class Fn, int N>
 concept RegressorFunction =
-    detail::InvocableN<Fn, double, std::make_index_sequence<static_cast<std::size_t>(N)>>::value &&
-    detail::InvocableN<Fn, detail::ArchetypeDual,
-                       std::make_index_sequence<static_cast<std::size_t>(N)>>::value;
+    detail::InvocableN<Fn, double, detail::ArgumentSequence<N>>::converts &&
+    detail::InvocableN<Fn, detail::ArchetypeDual, detail::ArgumentSequence<N>>::returns_same;
 
 /// One regressor φ(t) = fn(s₁, …, s_n) of the lagged signals `Args...` (`OutputLag`/`InputLag`).
 template <class Fn, class... Args>
@@ -155,11 +178,13 @@ class CustomRegressor {
 };
 
 /// Makes a custom regressor reading the lagged signals `Args...` (e.g. `OutputLag<1>`),
-/// printed as `name` by getreg.
+/// printed as `name` by getreg. Returns `CustomRegressor<Fn, Args...>`; the return type is
+/// deduced so that a rejected `fn` is reported by this function's constraints, which name
+/// `RegressorFunction`, and not as a substitution failure of the class template.
 template <class... Args, class Fn>
   requires(sizeof...(Args) >= 1) && (detail::LagArgument<Args> && ...) &&
           RegressorFunction<Fn, static_cast<int>(sizeof...(Args))>
-CustomRegressor<Fn, Args...> custom_regressor(std::string name, Fn fn) {
+auto custom_regressor(std::string name, Fn fn) {
   return CustomRegressor<Fn, Args...>(std::move(name), std::move(fn));
 }
 
