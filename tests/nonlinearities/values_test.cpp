@@ -2,6 +2,7 @@
 #include <catch2/catch.hpp>
 
 #include <cmath>
+#include <functional>
 #include <span>
 #include <vector>
 
@@ -108,6 +109,82 @@ TEST_CASE("PwLinear interpolates and extrapolates the end segments", "[nonlinear
   const std::string d = f.describe(th);
   CHECK(contains(d, "(3, 3)"));
   CHECK(contains(d, "slope to next: 0.5"));
+}
+
+TEST_CASE("PwLinear stays finite and exact where a log-gap's exp overflows", "[nonlinearities][values]") {
+  // exp(γ) overflows above γ ≈ 709.78. The segment then reaches beyond every finite x, with slope
+  // Δy·e^(−γ): tiny but not zero, and its derivatives finite (Δy/∞ gave NaN ones on a Dual).
+  using D = nlid::Dual<double, 7>;  // θ (6) and x
+  const nlid::PwLinear<3> f;
+  const auto check = [&f](const std::vector<double>& th, double x, double g, const std::vector<double>& dg) {
+    CAPTURE(x);
+    const double v = eval(f, {x}, th);
+    CHECK(v == Approx(g).epsilon(1e-14));
+    const auto p = f.prepare(std::span<const double>(th));
+    CHECK(f.evaluate_prepared(p, x) == v);
+    std::vector<D> thd(6);
+    for (int i = 0; i < 6; ++i) thd[static_cast<std::size_t>(i)] = D::variable(th[static_cast<std::size_t>(i)], i);
+    const D xd = D::variable(x, 6);
+    const D vd = f(std::span<const D>(&xd, 1), std::span<const D>(thd));
+    const D vp = f.evaluate_prepared(f.prepare(std::span<const D>(thd)), xd);
+    CHECK(vd.a == v);
+    CHECK(vp.a == v);
+    REQUIRE(vd.v.allFinite());
+    CHECK((vp.v - vd.v).cwiseAbs().maxCoeff() == 0.0);
+    for (int i = 0; i < 7; ++i) {
+      CAPTURE(i);
+      CHECK(vd.v[i] == Approx(dg[static_cast<std::size_t>(i)]).epsilon(1e-9).margin(1e-300));
+    }
+  };
+  // First gap e^710 = ∞ in double: y0 + (y1 − y0)(x − x0)e^(−710), checked against long double.
+  const double e710 = static_cast<double>(std::exp(-710.0L));  // 4.47e-309, subnormal
+  const std::vector<double> th1{0.0, 710.0, 0.0, 1.0, 3.0, 4.0};
+  const double x = 1e300, t = x * e710;  // position within the segment, 4.5e-9
+  // dg/d[x0, γ1, γ2, y0, y1, y2, x]
+  check(th1, x, 1.0 + 2.0 * t, {-2.0 * e710, -2.0 * t, 0.0, 1.0 - t, t, 0.0, 2.0 * e710});
+  CHECK(eval(f, {x}, th1) - 1.0 == Approx(2.0 * t).epsilon(1e-6));  // not the flat 1 of Δy/∞
+  check(th1, -5.0, 1.0, {-2.0 * e710, 0.0, 0.0, 1.0, 0.0, 0.0, 2.0 * e710});
+  // Last gap e^1000 beyond x1 = 1: the end segment is flat to double precision, derivatives 0.
+  const std::vector<double> th2{0.0, 0.0, 1000.0, 1.0, 3.0, 4.0};
+  check(th2, 5.0, 3.0, {0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0});
+  check(th2, 0.5, 2.0, {-2.0, -1.0, 0.0, 0.5, 0.5, 0.0, 2.0});  // the ordinary first segment
+  // Float: exp(100) overflows float's range already.
+  const std::vector<float> thf{0.0f, 0.0f, 100.0f, 1.0f, 3.0f, 4.0f};
+  const float xf = 5.0f;
+  CHECK(f(std::span<const float>(&xf, 1), std::span<const float>(thf)) == 3.0f);
+}
+
+TEST_CASE("PwLinear refuses a segment whose gap is too small for its slope, naming the log-gap",
+          "[nonlinearities][values]") {
+  // e^(−800) underflows to 0: breakpoints 1 and 2 coincide, and beyond them the last segment's
+  // slope Δy/0 is infinite (the value was ±∞, at x = x1 or with Δy = 0 NaN). The other segments
+  // are still evaluated normally.
+  const nlid::PwLinear<3> f;
+  using D = nlid::Dual<double, 6>;
+  for (const double y2 : {4.0, 3.0}) {  // Δy = 1, and Δy = 0 (0/0)
+    CAPTURE(y2);
+    const std::vector<double> th{0.0, 0.0, -800.0, 1.0, 3.0, y2};
+    std::vector<D> thd(th.begin(), th.end());
+    CHECK(eval(f, {0.5}, th) == 2.0);
+    for (const double x : {1.0, 5.0}) {
+      CAPTURE(x);
+      const auto p = f.prepare(std::span<const double>(th));
+      const auto pd = f.prepare(std::span<const D>(thd));
+      const D xd(x);
+      for (const auto& call : std::vector<std::function<void()>>{
+               [&] { (void)eval(f, {x}, th); }, [&] { (void)f.evaluate_prepared(p, x); },
+               [&] { (void)f(std::span<const D>(&xd, 1), std::span<const D>(thd)); },
+               [&] { (void)f.evaluate_prepared(pd, xd); }}) {
+        try {
+          call();
+          FAIL("no nlid::Error for log_gap[2] = -800");
+        } catch (const nlid::Error& e) {
+          CHECK(e.where().parameter == "log_gap[2]");
+          CHECK(contains(e.what(), "log_gap[2] = -800 puts breakpoints 1 and 2 closer together"));
+        }
+      }
+    }
+  }
 }
 
 TEST_CASE("Saturation clamps to [lower, upper]", "[nonlinearities][values]") {

@@ -23,6 +23,13 @@
 /// they are and estimates only the values, which is a linear problem. `theta_from_breakpoints`
 /// and `breakpoints` convert between θ and the (x, y) table.
 ///
+/// Extreme log-gaps. exp(γₖ) overflows above γₖ ≈ 709.78 (88.7 in float): the segment then
+/// reaches beyond every finite x and its slope is computed as Δy·exp(−γₖ), so values and
+/// derivatives stay finite and right. A γₖ so small that the slope Δy/exp(γₖ) is not a finite
+/// number (exp underflows below about −745, or the quotient overflows) has no representable
+/// value or derivative on that segment: evaluating g there throws `nlid::Error` naming
+/// "log_gap[k]"; the other segments evaluate normally.
+///
 /// Initialisation (deterministic, no random restarts):
 /// 1. positions: given to the constructor, or chosen by forward selection of hinge functions
 ///    max(0, x − c) over candidate knots c at quantiles of x and on a uniform grid (orthogonal
@@ -106,7 +113,8 @@ class PwLinear {
   /// Number of parameters 2n.
   [[nodiscard]] int num_parameters() const { return 2 * n_; }
 
-  /// Interpolates (extrapolates beyond the ends). Throws if a span has the wrong length.
+  /// Interpolates (extrapolates beyond the ends). Throws if a span has the wrong length, or
+  /// naming "log_gap[k]" if x falls on a segment whose slope is not a finite number.
   template <class T>
   [[nodiscard]] T operator()(std::span<const T> x, std::span<const T> theta) const {
     using std::exp;
@@ -121,8 +129,8 @@ class PwLinear {
       const T gap = exp(theta[1 + k]);
       const T xn = xk + gap;
       if (xv < xn || k + 2 == n) {
-        const T slope = (theta[n + k + 1] - theta[n + k]) / gap;
-        return theta[n + k] + slope * (xv - xk);
+        const T slope = segment_slope(theta, k, gap);
+        return segment_value(theta, k, slope, xk, xv);
       }
       xk = xn;
     }
@@ -140,9 +148,12 @@ class PwLinear {
     Values x{};                  ///< breakpoint positions x₀ < … < x_{n−1}
     Values slope{};              ///< slope of segment k (k < n − 1)
     std::span<const T> values;  ///< y₀ … y_{n−1} (a view of θ)
+    std::span<const T> log_gaps;  ///< γ₁ … γ_{n−1} (a view of θ, for the error of a refused segment)
   };
 
   /// Positions and slopes of θ (see `Prepared`). Throws `nlid::Error` if θ has the wrong length.
+  /// (A segment whose slope is not a finite number is refused only when `evaluate_prepared` is
+  /// asked for a value on it, as `operator()` does.)
   template <class T>
   [[nodiscard]] Prepared<T> prepare(std::span<const T> theta) const {
     using std::exp;
@@ -160,19 +171,26 @@ class PwLinear {
     for (std::size_t k = 0; k + 1 < n; ++k) {
       const T gap = exp(theta[1 + k]);
       const T xn = xk + gap;
-      p.slope[k] = (theta[n + k + 1] - theta[n + k]) / gap;
+      p.slope[k] = segment_slope(theta, k, gap);
       p.x[k + 1] = xn;
       xk = xn;
     }
+    p.log_gaps = theta.subspan(1, n - 1);
     return p;
   }
 
-  /// g(x) from a `prepare`d θ; equal to `operator()` with that θ.
+  /// g(x) from a `prepare`d θ; equal to `operator()` with that θ (and refusing what it refuses).
   template <class T>
   [[nodiscard]] T evaluate_prepared(const Prepared<T>& p, const T& xv) const {
+    using std::isfinite;
     const auto n = static_cast<std::size_t>(n_);
     for (std::size_t k = 0; k + 1 < n; ++k) {
-      if (xv < p.x[k + 1] || k + 2 == n) return p.values[k] + p.slope[k] * (xv - p.x[k]);
+      if (xv < p.x[k + 1] || k + 2 == n) {
+        if (!isfinite(p.slope[k])) [[unlikely]] {
+          refuse_slope(k, p.values[k + 1] - p.values[k], p.log_gaps[k]);
+        }
+        return p.values[k] + p.slope[k] * (xv - p.x[k]);
+      }
     }
     return p.values[0];  // unreachable: n ≥ 2
   }
@@ -254,6 +272,63 @@ class PwLinear {
 
   // ---- Implementation details below ----------------------------------------------------------
  private:
+  // Slope (y_{k+1} − y_k)/exp(γ_{k+1}) of segment k, given gap = exp(γ_{k+1}). Above
+  // γ = ln(DBL_MAX) ≈ 709.78 the gap overflows to +∞: the value Δy/∞ = 0 would still be right,
+  // but on a Dual the quotient's derivative is (Δy'·∞ − Δy·∞·γ')/∞² = NaN, and estimation would
+  // stop at "Jacobian not finite" although the model is fine (segment k then reaches beyond every
+  // finite x; the next positions are +∞ and never selected). There the same slope is
+  // Δy·exp(−γ), finite with finite derivatives. Below the threshold the division is kept, so
+  // every ordinary θ gives bitwise the values it always gave (and the C code generated from it,
+  // where γ is a known parameter and the test is decided at generation time, is unchanged).
+  template <class T>
+  static T segment_slope(std::span<const T> theta, std::size_t k, const T& gap) {
+    using std::exp;
+    using std::isfinite;
+    const auto n = theta.size() / 2;
+    if (isfinite(gap)) return (theta[n + k + 1] - theta[n + k]) / gap;
+    return (theta[n + k + 1] - theta[n + k]) * exp(-theta[1 + k]);
+  }
+
+  // y_k + slope·(x − x_k) on segment k. A slope that is not a finite number comes from a gap
+  // too small for it (γ below about −709 + ln|Δy|: exp(γ) underflows, or Δy/exp(γ) overflows):
+  // the breakpoints k and k + 1 coincide in double precision, and the value (∞·0 = NaN at
+  // x = x_k, 0/0 when Δy = 0) and its derivative (∞) cannot be represented — an error naming the
+  // log-gap, instead of a NaN or an infinity in the simulation. (Only for finite θ entries.)
+  template <class T>
+  T segment_value(std::span<const T> theta, std::size_t k, const T& slope, const T& xk, const T& xv) const {
+    using std::isfinite;
+    const auto n = theta.size() / 2;
+    if (!isfinite(slope)) [[unlikely]] refuse_slope(k, theta[n + k + 1] - theta[n + k], theta[1 + k]);
+    return theta[n + k] + slope * (xv - xk);
+  }
+
+  // The number under a double, float, Dual or traced scalar (for messages only).
+  template <class T>
+  static double plain_value(const T& v) {
+    if constexpr (std::is_arithmetic_v<T>) {
+      return static_cast<double>(v);
+    } else if constexpr (requires { v.value(); }) {
+      return static_cast<double>(v.value());  // codegen's TraceScalar: a known parameter's value
+    } else {
+      return static_cast<double>(value_of(v));
+    }
+  }
+
+  // Throws the error of a segment whose slope is not finite although Δy and γ are: the gap is
+  // the culprit. (Non-finite entries of θ are passed through as before: NaN in, NaN out.)
+  template <class T>
+  static void refuse_slope(std::size_t k, const T& dy, const T& log_gap) {
+    const double g = plain_value(log_gap), d = plain_value(dy);
+    if (!std::isfinite(g) || !std::isfinite(d)) return;
+    const std::string gap_name = "log_gap[" + std::to_string(k + 1) + "]";
+    throw Error("PwLinear: the slope of segment " + std::to_string(k) + ", (y[" + std::to_string(k + 1) + "] - y[" +
+                    std::to_string(k) + "]) / exp(" + gap_name + ") = " + detail::format_g(d) + " / exp(" +
+                    detail::format_g(g) + "), is not a finite number: " + gap_name + " = " + detail::format_g(g) +
+                    " puts breakpoints " + std::to_string(k) + " and " + std::to_string(k + 1) +
+                    " closer together than the slope between them can be represented",
+                at_parameter(gap_name));
+  }
+
   std::vector<double> select_positions(const Eigen::VectorXd& x, const Eigen::VectorXd& y) const {
     const double xmin = x.minCoeff();
     const double xmax = x.maxCoeff();
