@@ -428,3 +428,61 @@ TEST_CASE("write_json / read_json round trip through a file, missing file is an 
                                                Catch::Contains("row 1, column 10"));
   std::filesystem::remove_all(dir);
 }
+
+namespace {
+
+// `levels` containers around the number `leaf`, arrays and objects (key "k") alternating from
+// the inside out; the leaf is at depth `levels`.
+nlid::Json nested(int levels, double leaf) {
+  nlid::Json j = leaf;
+  for (int k = 0; k < levels; ++k) {
+    nlid::Json outer;
+    if (k % 2 == 0) {
+      outer.push_back(std::move(j));
+    } else {
+      outer["k"] = std::move(j);
+    }
+    j = std::move(outer);
+  }
+  return j;
+}
+
+}  // namespace
+
+TEST_CASE("Json trees built in code copy, compare and destroy at any depth; dump stops at 512 levels") {
+  // 200 000 levels: each of the old recursive copy, ==, dump and destructor overflowed the stack.
+  const nlid::Json a = nested(200000, 1.0);
+  nlid::Json b = a;
+  CHECK(b == a);
+  nlid::Json* leaf = &b;
+  while (leaf->size() > 0) leaf = leaf->is_array() ? &(*leaf)[0] : &(*leaf)["k"];
+  *leaf = 2.0;
+  CHECK_FALSE(b == a);
+  const nlid::Error e = error_of([&] { (void)a.dump(); });
+  CHECK_THAT(e.message(), Catch::StartsWith("cannot write JSON nested deeper than 512 levels (at k[0].k[0].k") &&
+                              Catch::EndsWith(".k[0]...): Json::parse reads no deeper, so the text could not be read back"));
+  CHECK(e.message().size() < 250);  // not the 2000 characters of the whole path
+  b = a;  // copy assignment over a deep tree
+  CHECK(b == a);
+  b = nlid::Json(3);  // the deep tree it held is destroyed here
+  CHECK(b == nlid::Json(3));
+
+  // dump writes exactly what parse reads: 512 levels round trip, 513 are refused by both.
+  const nlid::Json deepest = nested(512, 1.0);
+  CHECK(nlid::Json::parse(deepest.dump(-1)) == deepest);
+  CHECK(nlid::Json::parse(deepest.dump(2)) == deepest);
+  CHECK_THROWS_WITH(nested(513, 1.0).dump(), Catch::Contains("nested deeper than 512 levels"));
+  CHECK(parse_error(std::string(513, '[') + "1" + std::string(513, ']')).message() ==
+        "JSON parse error: nesting deeper than 512 levels");
+}
+
+TEST_CASE("Json from a null const char* is an nlid::Error, not undefined behaviour") {
+  const char* none = nullptr;
+  const nlid::Error e = error_of([&] { nlid::Json j(none); });
+  CHECK(e.message() ==
+        "Json(const char*) got a null pointer, which is not a string (write nullptr or Json() for JSON null)");
+  nlid::Json j;
+  CHECK_THROWS_AS(j["name"] = none, nlid::Error);
+  CHECK(nlid::Json(nullptr).is_null());  // the literal still means JSON null
+  CHECK(nlid::Json("").as_string().empty());
+}

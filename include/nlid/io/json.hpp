@@ -103,12 +103,21 @@ concept JsonInteger = std::integral<T> && !std::same_as<T, bool> && !std::same_a
                       !std::same_as<T, char16_t> && !std::same_as<T, char32_t>;
 inline std::string json_preview(const Json& value);
 class JsonParser;
+/// Deepest nesting `parse` reads and `dump` writes: the root is level 0, and a value at level
+/// 513 is refused. It bounds the parser's and the writer's recursion; refusing to write what could
+/// not be read back keeps `parse(dump(x)) == x` true for every `x` that `dump` accepts.
+inline constexpr int json_max_depth = 512;
 }  // namespace detail
 
 /// One JSON value: null, boolean, number (double), string, array or object (ordered keys).
 ///
 /// Invariants: numbers held are always finite when they came from `parse`; objects never hold
 /// two members with the same key. Values built in code may hold NaN; `dump()` refuses them.
+///
+/// Depth. A tree built in code may nest arbitrarily deep (a loop wrapping one array in another a
+/// million times). Copying, comparing and destroying it work on an explicit stack instead of
+/// recursing, so they cannot overflow the call stack; `dump()` refuses nesting deeper than
+/// `parse` reads (512 levels) with an `nlid::Error`.
 class Json {
  public:
   /// The six JSON types.
@@ -122,6 +131,22 @@ class Json {
 
   /// `null`.
   Json() noexcept = default;
+  /// A deep copy; iterative, so any depth is safe (see "Depth" above).
+  Json(const Json& other);
+  /// Takes `other`'s value (an array or object is left empty, a string valid but unspecified).
+  Json(Json&& other) noexcept = default;
+  /// A deep copy of `other` (iterative).
+  Json& operator=(const Json& other) {
+    if (this != &other) *this = Json(other);
+    return *this;
+  }
+  /// Takes `other`'s value; the old value is destroyed as by `~Json`.
+  Json& operator=(Json&& other) noexcept = default;
+  /// Dismantles nested arrays and objects on an explicit stack, so destroying a tree of any depth
+  /// does not recurse through it (see "Depth" above).
+  ~Json() {
+    if (has_nested_containers()) dismantle();
+  }
   /// `null`.
   Json(std::nullptr_t) noexcept {}  // NOLINT(google-explicit-constructor): JSON literal syntax
   /// `true` / `false`. (Taking `bool` exactly keeps pointers from decaying into booleans.)
@@ -136,8 +161,9 @@ class Json {
   /// longer hold it exactly (the value would change silently on the way through the file).
   template <detail::JsonInteger I>
   Json(I i) : value_(integer_to_double(i)) {}  // NOLINT(google-explicit-constructor)
-  /// A string (UTF-8).
-  Json(const char* s) : value_(std::string(s)) {}  // NOLINT(google-explicit-constructor)
+  /// A string (UTF-8). A null pointer is not a string: it throws `nlid::Error` (write `nullptr`
+  /// or `Json()` for JSON null).
+  Json(const char* s) : value_(string_from(s)) {}  // NOLINT(google-explicit-constructor)
   /// A string (UTF-8).
   Json(std::string s) : value_(std::move(s)) {}  // NOLINT(google-explicit-constructor)
   /// A string (UTF-8).
@@ -322,22 +348,28 @@ class Json {
 
   /// Structural equality. Objects compare as unordered sets of members (JSON semantics);
   /// numbers compare with `==` (so -0 == 0; compare bits yourself if that matters).
-  /// Source positions are ignored.
-  friend bool operator==(const Json& a, const Json& b) {
-    if (a.type() != b.type()) return false;
-    if (!a.is_object()) return a.value_ == b.value_;
-    const auto& ma = std::get<Object>(a.value_);
-    if (ma.size() != b.size()) return false;
-    for (const Member& m : ma) {
-      const Json* other = b.find(m.first);
-      if (other == nullptr || !(*other == m.second)) return false;
-    }
-    return true;
-  }
+  /// Source positions are ignored. Iterative, so any depth is safe (see "Depth" above).
+  friend bool operator==(const Json& a, const Json& b) { return equal(a, b); }
 
  private:
   friend class JsonView;
   friend class detail::JsonParser;
+
+  static std::string string_from(const char* s) {
+    if (s == nullptr) {
+      throw Error(
+          "Json(const char*) got a null pointer, which is not a string (write nullptr or Json() for "
+          "JSON null)");
+    }
+    return std::string(s);
+  }
+  static bool equal(const Json& a, const Json& b);
+  /// Copies a scalar's value, or gives a container as many null children as `from` has and
+  /// queues their copies on `pending` (scalar children are copied at once).
+  static void copy_node(Json& to, const Json& from, std::vector<std::pair<Json*, const Json*>>& pending);
+  /// Whether a child is a non-empty array or object (then destruction would recurse).
+  bool has_nested_containers() const noexcept;
+  void dismantle() noexcept;
 
   template <class I>
   static double integer_to_double(I i) {
@@ -747,6 +779,16 @@ class JsonWriter {
   explicit JsonWriter(int indent) : indent_(indent) {}
 
   void write(const Json& v, int depth) {
+    if (depth > json_max_depth) {
+      // The path of a value this deep is at least 513 segments long: its start says where.
+      std::string where = path_text();
+      if (where.size() > 80) {
+        const std::size_t cut = where.find_last_of(".[", 80);  // at a segment's start
+        where = where.substr(0, cut == 0 || cut == std::string::npos ? 80 : cut) + "...";
+      }
+      fail("cannot write JSON nested deeper than " + std::to_string(json_max_depth) +
+           " levels (at " + where + "): Json::parse reads no deeper, so the text could not be read back");
+    }
     switch (v.type()) {
       case Json::Type::null:
         out_.append("null");
@@ -878,13 +920,11 @@ class JsonParser {
   }
 
  private:
-  static constexpr int max_depth = 512;  // bounds recursion (stack) on hostile input
-
   // value := object | array | string | number | true | false | null   (RFC 8259 sec. 3).
   // The first byte decides the production, so no backtracking is ever needed. Each value
   // records where it started, for errors raised later by accessors (JsonView::fail).
   Json value(int depth) {
-    if (depth > max_depth) fail("nesting deeper than 512 levels");
+    if (depth > json_max_depth) fail("nesting deeper than " + std::to_string(json_max_depth) + " levels");
     Json v;
     position(v);
     const char c = s_[pos_];
@@ -1300,6 +1340,143 @@ class JsonParser {
 
 inline Json Json::parse(std::string_view text, const std::string& source_name) {
   return detail::JsonParser(text, source_name).run();
+}
+
+inline Json::Json(const Json& other) {
+  std::vector<std::pair<Json*, const Json*>> pending;
+  copy_node(*this, other, pending);
+  while (!pending.empty()) {
+    const auto [to, from] = pending.back();
+    pending.pop_back();
+    copy_node(*to, *from, pending);
+  }
+}
+
+inline void Json::copy_node(Json& to, const Json& from,
+                            std::vector<std::pair<Json*, const Json*>>& pending) {
+  to.line_ = from.line_;
+  to.column_ = from.column_;
+  to.source_ = from.source_;
+  const auto child = [&pending](Json& t, const Json& f) {
+    if (f.is_array() || f.is_object()) {
+      pending.emplace_back(&t, &f);
+    } else {
+      copy_node(t, f, pending);  // a scalar: no further call
+    }
+  };
+  // The children are created first and never moved afterwards, so the queued pointers to
+  // them stay valid.
+  switch (from.type()) {
+    case Type::null:
+      to.value_ = nullptr;
+      break;
+    case Type::boolean:
+      to.value_ = std::get<bool>(from.value_);
+      break;
+    case Type::number:
+      to.value_ = std::get<double>(from.value_);
+      break;
+    case Type::string:
+      to.value_ = std::get<std::string>(from.value_);
+      break;
+    case Type::array: {
+      const Array& src = std::get<Array>(from.value_);
+      Array& dst = to.value_.emplace<Array>(src.size());
+      for (std::size_t i = 0; i < src.size(); ++i) child(dst[i], src[i]);
+      break;
+    }
+    case Type::object: {
+      const Object& src = std::get<Object>(from.value_);
+      Object& dst = to.value_.emplace<Object>();
+      dst.reserve(src.size());
+      for (const Member& m : src) dst.emplace_back(m.first, Json());
+      for (std::size_t i = 0; i < src.size(); ++i) child(dst[i].second, src[i].second);
+      break;
+    }
+  }
+}
+
+inline bool Json::equal(const Json& a, const Json& b) {
+  std::vector<std::pair<const Json*, const Json*>> pending;  // container pairs still to compare
+  // Compares x and y except for their container children, which are queued.
+  const auto shallow = [&pending](const Json& x, const Json& y) {
+    if (x.type() != y.type()) return false;
+    switch (x.type()) {
+      case Type::null:
+        return true;
+      case Type::boolean:
+        return std::get<bool>(x.value_) == std::get<bool>(y.value_);
+      case Type::number:
+        return std::get<double>(x.value_) == std::get<double>(y.value_);
+      case Type::string:
+        return std::get<std::string>(x.value_) == std::get<std::string>(y.value_);
+      case Type::array: {
+        const Array& xa = std::get<Array>(x.value_);
+        const Array& ya = std::get<Array>(y.value_);
+        if (xa.size() != ya.size()) return false;
+        for (std::size_t i = 0; i < xa.size(); ++i) pending.emplace_back(&xa[i], &ya[i]);
+        return true;
+      }
+      case Type::object: {
+        const Object& xo = std::get<Object>(x.value_);
+        if (xo.size() != y.size()) return false;
+        for (const Member& m : xo) {
+          const Json* other = y.find(m.first);
+          if (other == nullptr) return false;
+          pending.emplace_back(&m.second, other);
+        }
+        return true;
+      }
+    }
+    return false;
+  };
+  if (!shallow(a, b)) return false;
+  while (!pending.empty()) {
+    const auto [x, y] = pending.back();
+    pending.pop_back();
+    if (!shallow(*x, *y)) return false;
+  }
+  return true;
+}
+
+inline bool Json::has_nested_containers() const noexcept {
+  // size() is 0 for scalars, so a non-zero size means a non-empty array or object.
+  if (const Array* a = std::get_if<Array>(&value_)) {
+    for (const Json& e : *a) {
+      if (e.size() > 0) return true;
+    }
+  } else if (const Object* o = std::get_if<Object>(&value_)) {
+    for (const Member& m : *o) {
+      if (m.second.size() > 0) return true;
+    }
+  }
+  return false;
+}
+
+// Moves every non-empty container below this value onto a flat stack, one level at a time; a
+// value is destroyed only when its children are scalars or emptied containers (a moved-from
+// vector is empty), so no destructor call reaches more than two levels down. The stack's
+// allocation failing here would terminate (a destructor cannot throw), as a deep recursion's
+// stack overflow would have crashed, but only for a tree of the size of the memory.
+inline void Json::dismantle() noexcept {
+  std::vector<Json> pending;
+  const auto take_children = [&pending](Json& node) {
+    if (Array* a = std::get_if<Array>(&node.value_)) {
+      for (Json& e : *a) {
+        if (e.size() > 0) pending.push_back(std::move(e));
+      }
+    } else if (Object* o = std::get_if<Object>(&node.value_)) {
+      for (Member& m : *o) {
+        if (m.second.size() > 0) pending.push_back(std::move(m.second));
+      }
+    }
+  };
+  take_children(*this);
+  while (!pending.empty()) {
+    Json node = std::move(pending.back());
+    pending.pop_back();
+    take_children(node);
+  }
 }
 
 inline std::string Json::dump(int indent) const {
