@@ -26,13 +26,31 @@
 /// (eq. 16.76: under independence √N R̂_εu(τ) → N(0, P); for a white ε, P = R̂_ε(0) R̂_u(0) and
 /// the bound reduces to z/√N as well).
 ///
+/// The per-lag bands are marginal: each says where one lag's estimate falls with probability
+/// `confidence` under the null hypothesis. Neighbouring lags are not independent — for the
+/// cross test they are strongly correlated whenever the input is coloured (a step-like input
+/// moves all r_εu(τ) of nearby τ together) — so several lags may leave the band together.
+///
 /// Verdict. Each lag outside its band is listed, but with 25 lags about one in four white
 /// residual sequences has *some* lag outside a 99 % band by chance, so the pass/fail decision
 /// uses two joint tests at level α = 1 − confidence:
-///  - the portmanteau statistic Q = N Σ_τ r(τ)²/σ_τ² (σ_τ = the lag's standard deviation; Ljung
-///    1999 eq. 16.72, Box–Pierce) against the χ²(K) quantile (K = number of lags, Wilson–Hilferty
-///    approximation of the quantile), which catches many small correlations;
-///  - the largest |r(τ)|/σ_τ against the Bonferroni bound z_{1−α/(2K)}, which catches one large one.
+///  - a χ² statistic Q against the χ²(K) quantile (Wilson–Hilferty approximation of the quantile,
+///    exact for K ≤ 2), which catches many small correlations. For the whiteness test the lag
+///    estimates are asymptotically independent and Q = N Σ_τ r_ε(τ)² (Ljung 1999 eq. 16.72,
+///    Box–Pierce), K = M. For the cross test they are not, and Σ (r/σ)² would have the right mean
+///    but a much larger spread for a coloured input (with an amplitude-modulated step input,
+///    N = 2000, M = 25: 20 % false rejections at the 99 % level). It uses their full covariance
+///    instead, Q = R̂ᵀ V⁺ R̂ over the vector R̂ of R̂_εu(τ), τ = −M … M (Ljung 1999, Sec. 16.6, for
+///    a white ε; Bartlett's formula for two independent series otherwise): conditional on the
+///    input, and with the sums over exactly the samples each lag uses,
+///        Cov(R̂_εu(τ_i), R̂_εu(τ_j)) = 1/N² Σ_{|k|≤M} w_k R̂_ε(k) Σ_t u(t − τ_i) u(t − k − τ_j),
+///    with the Bartlett lag window w_k = 1 − |k|/(M + 1), which keeps V positive semidefinite.
+///    For a white ε this is the exact covariance (Q is exactly χ² for Gaussian ε); a coloured ε
+///    enters through R̂_ε(k) up to lag M. An input that does not excite all 2M + 1 lag directions
+///    (a sinusoid, a multisine of few lines) makes V singular or nearly so: V⁺ is the pseudo-inverse over the
+///    eigenvalues above 10⁻¹⁰ of the largest, and K is their count (`degrees_of_freedom`);
+///  - the largest |r(τ)|/σ_τ against the Bonferroni bound z_{1−α/(2K)}, which catches one large one
+///    (valid, if conservative, for correlated lags).
 /// A test fails if either rejects; "correlated at lags 1, 2" names the lags outside the band.
 ///
 /// Which residuals. By default the one-step prediction errors, as the toolbox's `resid`: for a
@@ -50,9 +68,11 @@
 #include <cstdio>
 #include <limits>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
+#include <Eigen/Eigenvalues>
 
 #include "nlid/core/error.hpp"
 #include "nlid/core/initial_condition.hpp"
@@ -91,7 +111,8 @@ struct CorrelationTest {
   std::vector<double> value;   ///< r(τ), normalised correlation
   std::vector<double> bound;   ///< half-width of the band at each lag (0 at τ = 0 of the autocorrelation)
   std::vector<int> outside;    ///< lags with |r(τ)| > bound(τ) (τ = 0 of the autocorrelation excluded)
-  double statistic = 0.0;      ///< portmanteau Q = Σ (r/σ)² over the tested lags
+  double statistic = 0.0;      ///< joint χ² statistic Q over the tested lags (see the file comment)
+  int degrees_of_freedom = 0;  ///< K of the χ²(K) reference distribution of Q
   double statistic_limit = 0;  ///< χ²(K) quantile at the confidence level
   double max_normalised = 0;   ///< largest |r(τ)|/σ_τ over the tested lags
   double max_limit = 0;        ///< Bonferroni bound on it
@@ -175,8 +196,14 @@ inline double normal_quantile(double p) {
   return 0.5 * (lo + hi);
 }
 
-/// χ²(k) quantile by the Wilson–Hilferty cube approximation (relative error < 1 % for k ≥ 3).
+/// χ²(k) quantile: exact for k = 1, 2; the Wilson–Hilferty cube approximation (relative error
+/// < 1 % for k ≥ 3) otherwise.
 inline double chi_square_quantile(double p, int k) {
+  if (k == 1) {
+    const double z1 = normal_quantile(0.5 * (1.0 + p));
+    return z1 * z1;
+  }
+  if (k == 2) return -2.0 * std::log1p(-p);
   const double z = normal_quantile(p);
   const double a = 2.0 / (9.0 * k);
   const double c = 1.0 - a + z * std::sqrt(a);
@@ -198,9 +225,10 @@ inline double pooled_lag_product(const std::vector<Eigen::VectorXd>& a, const st
   return s / static_cast<double>(n_total);
 }
 
-/// Fills the joint tests of `t` given the per-lag standard deviations σ_τ (tested lags only).
+/// Fills the bands and joint tests of `t` given the per-lag standard deviations σ_τ (tested lags
+/// only). The χ² statistic is Σ (r/σ)² with K = tested lags unless `joint` gives it (Q, K).
 inline void finish_test(CorrelationTest& t, const std::vector<double>& sigma, const std::vector<bool>& tested,
-                        double confidence, double z) {
+                        double confidence, double z, const std::pair<double, int>* joint = nullptr) {
   int k = 0;
   for (std::size_t i = 0; i < t.value.size(); ++i) {
     t.bound[i] = tested[i] ? z * sigma[i] : 0.0;
@@ -212,9 +240,98 @@ inline void finish_test(CorrelationTest& t, const std::vector<double>& sigma, co
     if (std::abs(t.value[i]) > t.bound[i]) t.outside.push_back(t.lags[i]);
   }
   const double alpha = 1.0 - confidence;
-  t.statistic_limit = chi_square_quantile(confidence, std::max(k, 1));
+  t.degrees_of_freedom = k;
+  if (joint != nullptr) {
+    t.statistic = joint->first;
+    t.degrees_of_freedom = joint->second;
+  }
+  t.statistic_limit = chi_square_quantile(confidence, std::max(t.degrees_of_freedom, 1));
   t.max_limit = normal_quantile(1.0 - alpha / (2.0 * std::max(k, 1)));
   t.passed = t.statistic <= t.statistic_limit && t.max_normalised <= t.max_limit;
+}
+
+/// Joint statistic of the cross test (file comment): Q = Sᵀ V⁺ S, S(τ) = Σ_t ε(t) u(t − τ)
+/// (= N R̂_εu(τ)), V = Σ_{|k|≤M} c(|k|) Σ_t a_t a_{t−k}ᵀ its covariance under independence given
+/// u, where a_t(τ) = u(t − τ) where lag τ uses sample t and 0 elsewhere; c(k) = w_k R̂_ε(k).
+/// Returns (Q, rank of V). `s` holds S(τ) for τ = −m … m; `uc` the centred input per experiment.
+template <int = 0>
+std::pair<double, int> cross_joint_statistic(const Eigen::VectorXd& s, const std::vector<Eigen::VectorXd>& uc,
+                                             const std::vector<double>& c, int m) {
+  const int kk = 2 * m + 1, dmax = 3 * m, edge = 3 * m + 1;
+  Eigen::MatrixXd v = Eigen::MatrixXd::Zero(kk, kk);
+  for (const Eigen::VectorXd& u : uc) {
+    const Eigen::Index n = u.size();
+    // Lag sums Σ_{s=lo}^{hi−1} u(s) u(s − d) in O(1): the full sum minus head and tail partial
+    // sums (the ranges differ from the full one by at most 3M samples at either end).
+    const bool fast = n > dmax + 2 * edge;
+    std::vector<double> full, head, tail;  // [d * (edge + 1) + j]
+    if (fast) {
+      full.assign(static_cast<std::size_t>(dmax + 1), 0.0);
+      head.assign(static_cast<std::size_t>((dmax + 1) * (edge + 1)), 0.0);
+      tail = head;
+      for (int d = 0; d <= dmax; ++d) {
+        double f = 0.0;
+        for (Eigen::Index t = d; t < n; ++t) f += u(t) * u(t - d);
+        full[static_cast<std::size_t>(d)] = f;
+        const std::size_t o = static_cast<std::size_t>(d) * static_cast<std::size_t>(edge + 1);
+        for (int j = 1; j <= edge; ++j) {
+          const std::size_t i = o + static_cast<std::size_t>(j);
+          head[i] = head[i - 1] + u(d + j - 1) * u(j - 1);
+          tail[i] = tail[i - 1] + u(n - j) * u(n - j - d);
+        }
+      }
+    }
+    const auto lag_sum = [&](Eigen::Index d, Eigen::Index lo, Eigen::Index hi) {
+      if (d < 0) {  // Σ u(s) u(s + |d|) = Σ_{s'} u(s' − |d|) u(s'), s' = s + |d|
+        lo -= d;
+        hi -= d;
+        d = -d;
+      }
+      lo = std::max(lo, d);
+      hi = std::min(hi, n);
+      if (hi <= lo) return 0.0;
+      const Eigen::Index a = lo - d, b = n - hi;
+      if (fast && a <= edge && b <= edge) {
+        const std::size_t o = static_cast<std::size_t>(d) * static_cast<std::size_t>(edge + 1);
+        return full[static_cast<std::size_t>(d)] - head[o + static_cast<std::size_t>(a)] -
+               tail[o + static_cast<std::size_t>(b)];
+      }
+      double r = 0.0;
+      for (Eigen::Index t = lo; t < hi; ++t) r += u(t) * u(t - d);
+      return r;
+    };
+    for (int i = 0; i < kk; ++i) {
+      const Eigen::Index ti = i - m;
+      for (int j = i; j < kk; ++j) {
+        const Eigen::Index tj = j - m;
+        double acc = 0.0;
+        for (int k = -m; k <= m; ++k) {
+          const double ck = c[static_cast<std::size_t>(std::abs(k))];
+          if (ck == 0.0) continue;
+          // t uses lag τ_i (0 ≤ t − τ_i < n) and t − k uses lag τ_j; sum over s = t − τ_i.
+          const Eigen::Index tlo = std::max(std::max<Eigen::Index>(0, ti), k + std::max<Eigen::Index>(0, tj));
+          const Eigen::Index thi = std::min(std::min(n, n + ti), k + std::min(n, n + tj));
+          acc += ck * lag_sum(k + tj - ti, tlo - ti, thi - ti);
+        }
+        v(i, j) += acc;
+      }
+    }
+  }
+  v.triangularView<Eigen::StrictlyLower>() = v.transpose().triangularView<Eigen::StrictlyLower>();
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(v);
+  const Eigen::VectorXd& lambda = es.eigenvalues();
+  const double top = lambda.maxCoeff();
+  double q = 0.0;
+  int rank = 0;
+  if (top > 0.0) {
+    const Eigen::VectorXd proj = es.eigenvectors().transpose() * s;
+    for (int l = 0; l < kk; ++l) {
+      if (!(lambda(l) > 1e-10 * top)) continue;
+      q += proj(l) * proj(l) / lambda(l);
+      ++rank;
+    }
+  }
+  return {q, rank};
 }
 
 }  // namespace detail
@@ -319,12 +436,20 @@ inline ResidAnalysis resid(const std::vector<Eigen::VectorXd>& residuals, const 
     const double s_tau = std::sqrt(p) / (sn * norm);
     sigma.assign(static_cast<std::size_t>(2 * m + 1), s_tau);
     tested.assign(static_cast<std::size_t>(2 * m + 1), true);
+    Eigen::VectorXd sums(2 * m + 1);
     for (int tau = -m; tau <= m; ++tau) {
+      const double r_eu = detail::pooled_lag_product(ec, uc, tau, n_total);
+      sums(tau + m) = r_eu * static_cast<double>(n_total);
       t.lags.push_back(tau);
-      t.value.push_back(detail::pooled_lag_product(ec, uc, tau, n_total) / norm);
+      t.value.push_back(r_eu / norm);
       t.bound.push_back(0.0);
     }
-    detail::finish_test(t, sigma, tested, options.confidence, z);
+    // Joint test with the full covariance of the lags (file comment), Bartlett-windowed R̂_ε.
+    std::vector<double> cw(static_cast<std::size_t>(m + 1));
+    for (int k = 0; k <= m; ++k)
+      cw[static_cast<std::size_t>(k)] = (1.0 - k / (m + 1.0)) * re[static_cast<std::size_t>(k)];
+    const std::pair<double, int> joint = detail::cross_joint_statistic(sums, uc, cw, m);
+    detail::finish_test(t, sigma, tested, options.confidence, z, &joint);
     out.inputs.push_back(std::move(t));
   }
   return out;
