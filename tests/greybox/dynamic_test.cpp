@@ -81,6 +81,15 @@ TEST_CASE("The registry knows the catalogue by name", "[greybox][dynamic]") {
   CHECK(p.parameter_info()[5].name == "upper_stop");
 }
 
+TEST_CASE("The runtime throttle refuses crossed stops like the compile-time one", "[greybox][dynamic][errors]") {
+  nlid::DynamicGreyBox d = nlid::make_greybox("throttle");
+  Eigen::VectorXd p = d.parameters();
+  p[4] = 2.0;
+  CHECK_THROWS_WITH(d.set_parameters(p), Catch::Contains("lower_stop = 2 must be below upper_stop = 1"));
+  p[5] = 3.0;
+  CHECK_NOTHROW(d.set_parameters(p));
+}
+
 TEST_CASE("Unknown physics names are reported with the known ones", "[greybox][dynamic][errors]") {
   try {
     (void)nlid::make_physics("trottle");

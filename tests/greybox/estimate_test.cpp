@@ -232,6 +232,31 @@ TEST_CASE("Values set by the user survive data-driven initialisation", "[greybox
   CHECK(m.initialized());
 }
 
+TEST_CASE("Estimation refuses crossed throttle stops at its start, saying what and where", "[greybox][estimate]") {
+  const Dataset d = throttle_data(1.0);
+  GreyBox<physics::Throttle> m;
+  m.set_parameter("lower_stop", 95.0);  // a value the user set, above the stop the data show
+  try {
+    (void)estimate(m, d, quick(1, 1));
+    FAIL("no nlid::Error for crossed stops");
+  } catch (const nlid::Error& e) {
+    INFO(e.what());
+    CHECK(e.where().parameter == "lower_stop");
+    CHECK_THAT(e.what(), Catch::Contains("initialize from the data") && Catch::Contains("lower_stop = 95 must be below upper_stop = 9"));
+  }
+  CHECK(m.parameter("upper_stop") == 1.0);  // the refused initialisation changed nothing
+  nlid::GreyBoxEstimateOptions o = quick(1, 1);
+  o.initialize_from_data = false;
+  try {
+    (void)estimate(m, d, o);
+    FAIL("no nlid::Error for crossed stops");
+  } catch (const nlid::Error& e) {
+    INFO(e.what());
+    CHECK(e.where().parameter == "lower_stop");
+    CHECK_THAT(e.what(), Catch::Contains("grey-box estimation: the start: throttle: lower_stop = 95 must be below upper_stop = 1"));
+  }
+}
+
 TEST_CASE("Data that point outside a parameter's bounds leave no inverted range", "[greybox][estimate]") {
   const Dataset d = throttle_data(1.0);
   GreyBox<physics::Throttle> m;

@@ -103,6 +103,46 @@ TEST_CASE("Parameter errors name the parameter and list the known ones", "[greyb
   CHECK_THROWS_WITH(m.set_integrator(o), Catch::Contains("stability_target"));
 }
 
+TEST_CASE("Crossed throttle stops are refused, naming both stops and their values", "[greybox][errors]") {
+  GreyBox<physics::Throttle> m;  // stops 0 and 1
+  const Eigen::VectorXd p0 = m.parameters();
+  const auto refused = [](auto&& fn, const std::string& what, const std::string& values) {
+    try {
+      fn();
+      FAIL("no nlid::Error for crossed stops");
+    } catch (const nlid::Error& e) {
+      INFO(e.what());
+      CHECK(e.where().parameter == "lower_stop");
+      CHECK_THAT(e.what(), Catch::Contains("grey-box model 'throttle', " + what) && Catch::Contains(values) &&
+                               Catch::Contains("must be below"));
+    }
+  };
+  Eigen::VectorXd p = p0;
+  p[4] = 0.9;
+  p[5] = 0.1;
+  refused([&] { m.set_parameters(p); }, "set_parameters", "lower_stop = 0.9 must be below upper_stop = 0.1 (crossed");
+  CHECK(m.parameters() == p0);  // nothing changed
+  refused([&] { m.update_parameters(p); }, "update_parameters", "lower_stop = 0.9");
+  p[4] = p[5] = 0.5;
+  refused([&] { m.set_parameters(p); }, "set_parameters", "lower_stop = 0.5 must be below upper_stop = 0.5 (equal");
+  // A file is read one value at a time, so set_parameter lets a crossing pass; a simulation
+  // refuses it, and setting the other stop repairs it.
+  const Eigen::MatrixXd u = Eigen::MatrixXd::Zero(5, 1);
+  m.set_parameter("lower_stop", 15.0);
+  refused([&] { (void)m.simulate(u, 0.01, Eigen::Vector2d::Zero()); }, "simulate",
+          "lower_stop = 15 must be below upper_stop = 1");
+  m.set_parameter("upper_stop", 90.0);
+  CHECK(m.simulate(u, 0.01, Eigen::Vector2d(20.0, 0.0)).allFinite());
+  // In estimation a trial step to crossed stops is not evaluable (rejected, like a divergence).
+  const Dataset d(Experiment(Eigen::MatrixXd::Zero(20, 1), Eigen::MatrixXd::Constant(20, 1, 20.0), 0.01));
+  const nlid::GreyBoxProblem<physics::Throttle> problem(m.physics(), m.integrator(), d, InitialCondition::zero);
+  Eigen::VectorXd th = m.parameters();
+  Eigen::VectorXd r(problem.num_residuals());
+  CHECK(problem.evaluate(th, r, nullptr));
+  th[4] = 95.0;
+  CHECK_FALSE(problem.evaluate(th, r, nullptr));
+}
+
 namespace {
 // One-parameter lag whose parameter table the test writes.
 struct TableLag {

@@ -33,7 +33,11 @@
 /// run time (`DynamicGreyBox = GreyBox<AnyPhysics>`, greybox_dynamic.hpp).
 ///
 /// Parameter table invariants: one entry per physics parameter, names unique, lower ≤ value ≤
-/// upper. Setters check these and throw `nlid::Error` naming the parameter.
+/// upper. Setters check these and throw `nlid::Error` naming the parameter. The physics'
+/// relations between values (its optional `check_parameters`, e.g. the throttle's lower_stop <
+/// upper_stop) are checked by the constructor, `set_parameters`, `update_parameters`,
+/// `initialize`, `simulate` and `estimate`, but not by `set_parameter`, which sets one value at
+/// a time.
 
 #include <algorithm>
 #include <cmath>
@@ -134,6 +138,7 @@ class GreyBox {
       params_.push_back(q);
     }
     user_set_.assign(params_.size(), false);
+    check_relations(parameters(), "default values");
     const int nx = detail::physics_states(physics_);
     if constexpr (detail::HasStateInfo<P>) {
       const auto si = physics_.state_info();
@@ -185,11 +190,13 @@ class GreyBox {
     return p;
   }
   /// Sets all parameter values. Throws `nlid::Error` naming the first parameter that is not
-  /// finite or lies outside its bounds (nothing is changed then), or on a size mismatch.
+  /// finite or lies outside its bounds, or the values that violate a relation of the physics
+  /// (`check_parameters`), or on a size mismatch; nothing is changed then.
   void set_parameters(const Eigen::Ref<const Eigen::VectorXd>& p) {
     require(p.size() == num_parameters(), "expected " + std::to_string(num_parameters()) +
                                               " parameter values, got " + std::to_string(p.size()));
     for (int i = 0; i < num_parameters(); ++i) check_value(params_[static_cast<std::size_t>(i)], p[i]);
+    check_relations(p, "set_parameters");
     for (int i = 0; i < num_parameters(); ++i) {
       params_[static_cast<std::size_t>(i)].value = p[i];
       user_set_[static_cast<std::size_t>(i)] = true;
@@ -212,6 +219,9 @@ class GreyBox {
     return params_[static_cast<std::size_t>(parameter_index(name))].value;
   }
   /// Sets a named parameter; throws `nlid::Error` naming it if the value is outside its bounds.
+  /// The physics' relations between values are not checked here: values set one at a time
+  /// (as a model file is read) pass through combinations such as a lower stop of 15 above the
+  /// default upper stop 1; `set_parameters`, `initialize`, `simulate` and `estimate` check them.
   void set_parameter(std::string_view name, double value) {
     const auto i = static_cast<std::size_t>(parameter_index(name));
     check_value(params_[i], value);
@@ -266,6 +276,7 @@ class GreyBox {
   void update_parameters(const Eigen::Ref<const Eigen::VectorXd>& p) {
     require(p.size() == num_parameters(), "parameter count mismatch");
     for (int i = 0; i < num_parameters(); ++i) check_value(params_[static_cast<std::size_t>(i)], p[i]);
+    check_relations(p, "update_parameters");
     for (int i = 0; i < num_parameters(); ++i) params_[static_cast<std::size_t>(i)].value = p[i];
     clear_uncertainty();
   }
@@ -347,6 +358,7 @@ class GreyBox {
     if (static_cast<int>(e0.input_names().size()) == input_dimension()) input_names_ = e0.input_names();
     if (static_cast<int>(e0.output_names().size()) == output_dimension()) output_names_ = e0.output_names();
     if constexpr (detail::HasInitializeHook<P>) {
+      const std::vector<ParameterInfo> before = params_;
       std::vector<ParameterInfo> table = params_;
       physics_.initialize(data, std::span<ParameterInfo>(table));
       for (std::size_t i = 0; i < params_.size(); ++i) {
@@ -363,6 +375,13 @@ class GreyBox {
           if (q.range_lower > q.range_upper) q.range_lower = q.range_upper = q.value;
           q.log_scale = t.log_scale && q.range_lower > 0.0;
         }
+      }
+      // Values the data suggest, combined with values the user set, can contradict each other.
+      try {
+        check_relations(parameters(), "initialize from the data (values set by the user are kept)");
+      } catch (const Error&) {
+        params_ = before;
+        throw;
       }
     }
     initialized_ = true;
@@ -404,6 +423,7 @@ class GreyBox {
     require(u.allFinite(), "input contains non-finite samples; a simulation cannot run through them");
     require(x0.allFinite(), "initial state of grey-box model '" + name() + "' is not finite", at_parameter("x0"));
     const ParameterVector p = parameters();
+    check_relations(p, "simulate");
     StateVector x = x0;
     Eigen::MatrixXd y(u.rows(), output_dimension());
     const Eigen::VectorXd u0 = u.rows() > 0 ? Eigen::VectorXd(u.row(0).transpose())
@@ -601,6 +621,13 @@ class GreyBox {
   // ---- Implementation details below ----------------------------------------------------------
 
  private:
+  // The physics' relations between the values p (`check_parameters`); `what` says which
+  // operation set them.
+  void check_relations(const Eigen::Ref<const Eigen::VectorXd>& p, const std::string& what) const {
+    const Eigen::VectorXd v = p;
+    physics_check_parameters(physics_, v.data(), "grey-box model '" + name() + "', " + what);
+  }
+
   static void check_value(const ParameterInfo& q, double v) {
     require(std::isfinite(v), "value of '" + q.name + "' is not finite", at_parameter(q.name));
     require(q.lower <= v && v <= q.upper,

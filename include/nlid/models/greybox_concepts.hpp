@@ -34,6 +34,13 @@
 ///     double spectral_radius(const double* p) const;      // bound on |eig ∂f/∂x|, drives sub-steps
 ///     void initialize(const Dataset&, std::span<ParameterInfo>) const;  // data-driven start
 ///     bool initial_state(const double* y0, const double* u0, const double* p, double* x0) const;
+///     void check_parameters(const double* p) const;       // throws if the values contradict each other
+///
+/// `check_parameters` states what per-parameter bounds cannot: a relation between parameters
+/// (the throttle's lower_stop < upper_stop). It throws `nlid::Error` naming the parameters and
+/// their values; `GreyBox` calls it where a whole set of values is set or used (see its file
+/// comment), and estimation rejects trial steps that violate it and checks its start and result
+/// (greybox_estimate.hpp).
 ///
 /// A physics with `Dynamic` sizes (the runtime models of greybox_dynamic.hpp) reports them through
 /// `state_dimension()`, `input_dimension()`, `output_dimension()` and `num_parameters()`, and

@@ -121,6 +121,9 @@ class RuntimePhysics {
                              double* /*x0*/) const {
     return false;
   }
+  /// Relations between parameter values (greybox_concepts.hpp): throws `nlid::Error` if p
+  /// violates one (default: none).
+  virtual void check_parameters(const double* /*p*/) const {}
 };
 
 /// CRTP helper: implements the six evaluation overloads of `RuntimePhysics` from the member
@@ -218,6 +221,7 @@ class PhysicsAdapter final : public RuntimePhysicsBase<PhysicsAdapter<P>> {
       return false;
     }
   }
+  void check_parameters(const double* p) const override { physics_check_parameters(p_, p); }
 
   /// The wrapped physics' f.
   template <class T>
@@ -281,6 +285,8 @@ class AnyPhysics {
   bool initial_state(const double* y0, const double* u0, const double* p, double* x0) const {
     return impl_->initial_state(y0, u0, p, x0);
   }
+  /// Relations between parameter values; throws `nlid::Error` if p violates one.
+  void check_parameters(const double* p) const { impl_->check_parameters(p); }
   /// f on double or RuntimeDual (the only scalars a virtual interface can offer).
   template <class T>
     requires(std::same_as<T, double> || std::same_as<T, RuntimeDual> || std::same_as<T, TraceScalar>)

@@ -257,9 +257,13 @@ GreyBoxEstimate estimate(GreyBox<P>& model, const Dataset& data,
   const double inf = std::numeric_limits<double>::infinity();
   const double nan = std::numeric_limits<double>::quiet_NaN();
 
-  // θ₀ = current parameters + initial-state guesses.
+  // θ₀ = current parameters + initial-state guesses. The model's values satisfy the physics'
+  // relations (its setters check them); checked here again so that an estimation never starts
+  // from a meaningless model. Multi-start candidates that violate them (the throttle's stop
+  // ranges can overlap) and LM trial steps there are rejected by GreyBoxProblem::evaluate.
   Eigen::VectorXd theta(n);
   theta.head(np) = model.parameters();
+  physics_check_parameters(model.physics(), theta.data(), "grey-box estimation: the start");
   problem.refresh_initial_states(theta);
 
   MultiStartOptions ms = options.multi_start;
@@ -362,6 +366,8 @@ GreyBoxEstimate estimate(GreyBox<P>& model, const Dataset& data,
   out.summary = best.summary;
   out.cost = best.cost;
 
+  physics_check_parameters(model.physics(), theta.data(),
+                           "grey-box estimation: the result (start " + std::to_string(out.multi_start.best + 1) + ")");
   model.update_parameters(theta.head(np));
   out.parameters = theta.head(np);
   out.parameter_names = model.parameter_names();

@@ -58,8 +58,45 @@ concept HasInitialStateHook = requires(const P& p, const double* y0, const doubl
                                        const double* th, double* x0) {
   { p.initial_state(y0, u0, th, x0) } -> std::convertible_to<bool>;
 };
+template <class P>
+concept HasParameterCheck = requires(const P& p, const double* th) { p.check_parameters(th); };
 
 }  // namespace detail
+
+/// The physics' relations between parameter values (`check_parameters`, greybox_concepts.hpp):
+/// throws its `nlid::Error`, with `context` (e.g. "grey-box estimation start") put before the
+/// message; does nothing for physics without the hook.
+template <Physics P>
+void physics_check_parameters(const P& phys, const double* p, const std::string& context = {}) {
+  if constexpr (detail::HasParameterCheck<P>) {
+    if (context.empty()) {
+      phys.check_parameters(p);
+    } else {
+      try {
+        phys.check_parameters(p);
+      } catch (const Error& e) {
+        throw Error(context + ": " + e.message(), e.where());
+      }
+    }
+  } else {
+    (void)phys, (void)p, (void)context;
+  }
+}
+
+/// True if `physics_check_parameters` accepts p (for trial points, which are rejected, not fatal).
+template <Physics P>
+bool physics_parameters_consistent(const P& phys, const double* p) {
+  if constexpr (detail::HasParameterCheck<P>) {
+    try {
+      phys.check_parameters(p);
+    } catch (const Error&) {
+      return false;
+    }
+  } else {
+    (void)phys, (void)p;
+  }
+  return true;
+}
 
 /// Jacobian ∂f/∂x (n_x × n_x) of a physics at (x, u, p), exact by forward AD in chunks of 8.
 template <Physics P>

@@ -34,6 +34,12 @@
 /// |λ| ≤ max(c, √(k + K)); `spectral_radius` returns that bound and the integrator sub-steps
 /// each sample so that h·|λ| stays inside RK4's stability region (see integrators.hpp).
 ///
+/// The stops must not cross: lower_stop < upper_stop (`check_parameters`). With crossed stops
+/// the contact term pushes from both sides at once and the "travel" has negative length, so no
+/// value of the other parameters makes the model mean anything; `GreyBox` refuses such values
+/// where a set of values is set or used (set_parameters, initialize, simulate, estimate; not
+/// set_parameter, which sets one at a time), and estimation never steps to them.
+///
 /// Initialisation from data (`initialize`): stops where the output is pinned while the input
 /// moves (`detect_stop`), otherwise just beyond the data range; c, k, the static gain b/k and the
 /// rest position from a second-order ARX fit on the samples between the stops (`fit_second_order`);
@@ -48,6 +54,8 @@
 #include <string>
 
 #include "nlid/ad/dual.hpp"
+#include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/data/dataset.hpp"
 #include "nlid/models/greybox_concepts.hpp"
 #include "nlid/models/greybox_init.hpp"
@@ -115,6 +123,17 @@ struct Throttle {
   /// Bound on |eig ∂f/∂x| over both regimes (free and in contact): max(c, √(k + K)).
   [[nodiscard]] double spectral_radius(const double* p) const {
     return std::max(std::abs(p[0]), std::sqrt(std::abs(p[1]) + std::abs(p[2])));
+  }
+
+  /// Throws `nlid::Error` (at parameter "lower_stop", naming both stops and their values) unless
+  /// lower_stop < upper_stop. A box bound per parameter cannot say this.
+  void check_parameters(const double* p) const {
+    if (!(p[4] < p[5])) {
+      throw Error("throttle: lower_stop = " + detail::format_g(p[4]) + " must be below upper_stop = " +
+                      detail::format_g(p[5]) + " (" + (p[4] == p[5] ? "equal" : "crossed") +
+                      " stops leave no travel between them)",
+                  at_parameter("lower_stop"));
+    }
   }
 
   /// Initial-state guess from the first measured sample: at rest at the measured position.
