@@ -7,7 +7,9 @@
 //
 // The record holds whole periods of N samples; the first --skip (default 1) are the transient.
 // Prints `distortion_analysis`'s report (nlid/analysis/distortion.hpp, docs/analysis.md);
-// --json writes the levels, the line lists and the frequency response (atomically). Exit status
+// --json writes the levels, the verdicts, whether each kind of distortion was measurable (an odd
+// multisine leaves no odd lines to measure odd distortion on), the line lists and the frequency
+// response (atomically). Exit status
 // (cli_common.hpp): 0 on success (whatever the verdict), 1 on a bad file or record (too few
 // periods, a constant input), 2 on a bad command line.
 #include <cmath>
@@ -89,6 +91,10 @@ int main(int argc, char** argv) {
       j["odd_db"] = number_or_null(d.odd_db());
       j["even_detected"] = d.even_detected();
       j["odd_detected"] = d.odd_detected();
+      // Whether the input left lines to measure each kind on (an odd multisine has no empty odd
+      // lines): "not detected" means something only where the kind is measurable.
+      j["even_measurable"] = d.even_measurable();
+      j["odd_measurable"] = d.odd_measurable();
       auto lines = [](const std::vector<Eigen::Index>& v) {
         nlid::Json a = nlid::Json::array();
         for (Eigen::Index k : v) a.push_back(static_cast<double>(k));

@@ -6,6 +6,7 @@
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <complex>
+#include <string>
 
 #include "nlid/data/input_design.hpp"
 
@@ -85,6 +86,36 @@ TEST_CASE("Distortion analysis: a square term shows on the even lines, a cube on
   CHECK_FALSE(full.even_detected());
   CHECK_THAT(full.report(),
              Catch::Contains("no empty even lines in the band (use odd or random-odd lines)"));
+}
+
+TEST_CASE("Distortion analysis: an odd multisine cannot measure odd distortion, and says so",
+          "[analysis][distortion]") {
+  // Every odd line excited: a cube's distortion falls on excited lines. The old report read
+  // "not detected" there and concluded "a linear model can explain these data".
+  const nlid::DistortionAnalysis d =
+      nlid::distortion_analysis(wiener(0.0, 0.5, nlid::MultisineLines::odd), kPeriod);
+  CHECK(d.even_measurable());
+  CHECK_FALSE(d.odd_measurable());
+  CHECK(d.odd_lines.empty());
+  CHECK_FALSE(d.odd_detected());
+  CHECK_FALSE(d.even_detected());
+  const std::string r = d.report();
+  CHECK_THAT(r, !Catch::Contains("a linear model can explain"));
+  CHECK_THAT(r, Catch::Contains("odd distortion: not measurable, no empty odd lines in the band (use random-odd lines)"));
+  CHECK_THAT(r, Catch::Contains("no even distortion above the noise, but odd distortion cannot be measured with this "
+                                "input: no verdict on linearity"));
+  // The same system on random-odd lines: both measurable, the cube is found.
+  const nlid::DistortionAnalysis ro = nlid::distortion_analysis(wiener(0.0, 0.5), kPeriod);
+  CHECK(ro.even_measurable());
+  CHECK(ro.odd_measurable());
+  CHECK(ro.odd_detected());
+  // All lines excited: neither kind measurable, no verdict.
+  const nlid::DistortionAnalysis full =
+      nlid::distortion_analysis(wiener(0.0, 0.0, nlid::MultisineLines::all), kPeriod);
+  CHECK_FALSE(full.even_measurable());
+  CHECK_FALSE(full.odd_measurable());
+  CHECK_THAT(full.report(), Catch::Contains("neither kind of distortion can be measured") &&
+                                !Catch::Contains("a linear model can explain"));
 }
 
 TEST_CASE("Distortion analysis of a noise-free (simulated) record compares with the rounding floor",

@@ -1,7 +1,8 @@
 // nlid-distortion end to end: a random-odd multisine written by nlid-input drives a known Wiener
 // system (written here as a CSV record); the tool reports the distortion theory predicts (none
-// for a linear system, even for a square term), writes the levels as JSON, and refuses bad
-// command lines (status 2) and records it cannot analyse (status 1, naming the file).
+// for a linear system, even for a square term; on an odd multisine, that odd distortion is not
+// measurable), writes the levels as JSON, and refuses bad command lines (status 2) and records it
+// cannot analyse (status 1, naming the file).
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <filesystem>
@@ -20,14 +21,15 @@ using tool_test::work_dir;
 
 namespace {
 
-// x(t) = 0.9 x(t-1) + 0.1 u(t), y = x + a2 x² + small deterministic "noise"; u the random-odd
-// multisine of 5 periods of 256 samples that nlid-input writes (read back from its file).
-fs::path record(const std::string& name, double a2) {
+// x(t) = 0.9 x(t-1) + 0.1 u(t), y = x + a2 x² + a3 x³ + small deterministic "noise"; u the
+// (by default random-odd) multisine of 5 periods of 256 samples that nlid-input writes (read
+// back from its file).
+fs::path record(const std::string& name, double a2, double a3 = 0.0,
+                const std::string& lines = "random-odd") {
   const fs::path u = work_dir() / (name + "_u.csv");
   const Run r = tool_test::input(
-      "--signal multisine --period 256 --periods 5 --band 0,0.4 --lines random-odd "
-      "--phases random --seed 3 --ts 0.01 --out " +
-      q(u));
+      "--signal multisine --period 256 --periods 5 --band 0,0.4 --lines " + lines +
+      " --phases random --seed 3 --ts 0.01 --out " + q(u));
   REQUIRE(r.code == 0);
   const Eigen::VectorXd uu = nlid::read_csv_table(u.string()).col("u");  // the tool's own file
   REQUIRE(uu.size() == 5 * 256);
@@ -39,7 +41,8 @@ fs::path record(const std::string& name, double a2) {
   double x = 0.0;
   for (Eigen::Index t = 0; t < uu.size(); ++t) {
     x = 0.9 * x + 0.1 * uu[t];
-    f << static_cast<double>(t) * 0.01 << "," << uu[t] << "," << x + a2 * x * x + noise[t] << "\n";
+    f << static_cast<double>(t) * 0.01 << "," << uu[t] << "," << x + a2 * x * x + a3 * x * x * x + noise[t]
+      << "\n";
   }
   return p;
 }
@@ -63,11 +66,33 @@ TEST_CASE("nlid-distortion reports what theory predicts and writes the levels",
   nlid::Json j = nlid::read_json(js.string());
   CHECK(j["even_detected"].as_bool());
   CHECK_FALSE(j["odd_detected"].as_bool());
+  CHECK(j["even_measurable"].as_bool());
+  CHECK(j["odd_measurable"].as_bool());
   CHECK(j["even_db"].as_number() > 20.0);
   CHECK(j["periods"].as_number() == 4.0);
   CHECK(j["frf"]["frequency_hz"].size() == j["excited_lines"].size());
   CHECK(j["frf"]["frequency_hz"][std::size_t{0}].as_number() ==
         Approx(j["excited_lines"][std::size_t{0}].as_number() / 2.56));
+}
+
+TEST_CASE("nlid-distortion: an odd multisine cannot measure odd distortion and gives no verdict",
+          "[tools][distortion]") {
+  // A cube on odd lines: its distortion falls on excited lines. The tool used to conclude "a
+  // linear model can explain these data"; now it says odd distortion is not measurable.
+  const fs::path cube = record("dist_cube_odd", 0.0, 0.5, "odd"), js = work_dir() / "dist_odd.json";
+  const Run r = tool_test::distortion("--data " + q(cube) + " --period 256 --json " + q(js));
+  INFO(r.err);
+  REQUIRE(r.code == 0);
+  CHECK_THAT(r.out, !Catch::Contains("a linear model can explain") &&
+                        Catch::Contains("odd distortion: not measurable, no empty odd lines in the band "
+                                        "(use random-odd lines)") &&
+                        Catch::Contains("odd distortion cannot be measured with this input"));
+  const nlid::Json j = nlid::read_json(js.string());
+  CHECK(j["even_measurable"].as_bool());
+  CHECK_FALSE(j["odd_measurable"].as_bool());
+  CHECK_FALSE(j["odd_detected"].as_bool());
+  CHECK(j["odd_db"].json().is_null());
+  CHECK(j["odd_lines"].size() == 0);
 }
 
 TEST_CASE("nlid-distortion refuses bad command lines and records it cannot analyse",

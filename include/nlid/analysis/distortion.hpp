@@ -22,7 +22,11 @@
 /// the expectation of |Ȳ(k)|² at a line that carries noise only (for a noise-free record, the
 /// DFT's rounding floor takes its place: `noise_floor`). A detection-line level more than
 /// `threshold_db` (default 6 dB, a factor 4 in power) above the noise level is reported as
-/// distortion. The frequency response at the excited lines, Ȳ(k)/Ū(k), is the best linear
+/// distortion. Only a kind of distortion whose lines the input leaves empty can be measured
+/// (`even_measurable`, `odd_measurable`): an odd multisine excites every odd line, so it shows
+/// even distortion but hides odd distortion under the excited lines; "a linear model can explain
+/// these data" is said only when both kinds were measured and neither found. The frequency
+/// response at the excited lines, Ȳ(k)/Ū(k), is the best linear
 /// approximation of the system for this input class (for a linear system, its transfer function).
 ///
 /// Cost: period²/2 multiply-adds per period (direct DFT with exact integer angles).
@@ -81,6 +85,12 @@ struct DistortionAnalysis {
   /// Even / odd distortion above the threshold (false without detection lines).
   [[nodiscard]] bool even_detected() const { return even_db() > threshold_db; }
   [[nodiscard]] bool odd_detected() const { return odd_db() > threshold_db; }
+  /// True when the input leaves empty even / odd lines in its band, so that this kind of
+  /// distortion can be measured at all. An odd multisine (every odd line excited) has no empty
+  /// odd lines: odd distortion falls on excited lines, where it cannot be told from the linear
+  /// response — "not detected" then says nothing; a random-odd multisine measures both.
+  [[nodiscard]] bool even_measurable() const { return !even_lines.empty(); }
+  [[nodiscard]] bool odd_measurable() const { return !odd_lines.empty(); }
 
   /// True when the excited output stands above the noise by more than the threshold: only then
   /// does "no distortion detected" say something about the system.
@@ -99,8 +109,10 @@ struct DistortionAnalysis {
     if (noise_free()) s += "  no measurable noise (a simulated record?): levels are relative to the DFT's rounding floor\n";
     const auto line = [&](const char* what, const std::vector<Eigen::Index>& lines, double level_db, bool detected) {
       if (lines.empty()) {
-        std::snprintf(buf, sizeof buf, "  %s distortion: no empty %s lines in the band (use odd or random-odd lines)\n",
-                      what, what);
+        // Even lines are left empty by odd and random-odd multisines, odd lines only by random-odd ones.
+        std::snprintf(buf, sizeof buf,
+                      "  %s distortion: not measurable, no empty %s lines in the band (use %s lines)\n", what, what,
+                      what[0] == 'e' ? "odd or random-odd" : "random-odd");
       } else {
         std::snprintf(buf, sizeof buf, "  %s distortion: %.1f dB above the noise on %zu lines: %s\n", what, level_db,
                       lines.size(), detected ? "present" : "not detected");
@@ -115,10 +127,21 @@ struct DistortionAnalysis {
                     "%.1f dB): too noisy, or not a response to this input\n",
                     snr_db(), threshold_db);
       s += buf;
-    } else if (even_detected() || odd_detected())
+    } else if (even_detected() || odd_detected()) {
       s += "  a linear model leaves this distortion unexplained; a nonlinear structure is warranted\n";
-    else if (!even_lines.empty() || !odd_lines.empty())
+    } else if (even_measurable() && odd_measurable()) {
       s += "  no distortion above the noise: a linear model can explain these data\n";
+    } else if (even_measurable() || odd_measurable()) {
+      // Only one kind was measured: the other may be there, hidden on excited lines.
+      std::snprintf(buf, sizeof buf,
+                    "  no %s distortion above the noise, but %s distortion cannot be measured with this input: no "
+                    "verdict on linearity (excite with random-odd lines to measure both)\n",
+                    even_measurable() ? "even" : "odd", even_measurable() ? "odd" : "even");
+      s += buf;
+    } else {
+      s += "  neither kind of distortion can be measured with this input: no verdict on linearity (excite with "
+           "random-odd lines)\n";
+    }
     return s;
   }
 
