@@ -246,6 +246,20 @@ TEST_CASE("trajectory states and equilibria agree with the models' own simulatio
   CHECK(op.y(0) == Approx(0.4 * 0.6 / 0.2).epsilon(1e-12));
 }
 
+TEST_CASE("trajectory_state of an Nlarx needs a sample inside the experiment", "[analysis][linearize]") {
+  // The lag window exists at t = N, but the documented next step, linearize(model, x,
+  // e.u().row(t)), would read past the input's end: t = N is refused like the other models do.
+  using Model = nlid::Nlarx<nlid::LaggedRegressors<2, 1, 0>, nlid::LinearMap<3>>;
+  const Model m(nlid::LaggedRegressors<2, 1, 0>{}, nlid::LinearMap<3>{}, 0.01);
+  Eigen::MatrixXd u(10, 1);
+  for (int t = 0; t < 10; ++t) u(t, 0) = 0.1 * t;
+  const nlid::Experiment e(u, Eigen::VectorXd::LinSpaced(10, 0.0, 1.0), 0.01, "ramp");
+  const Eigen::VectorXd x = nlid::trajectory_state(m, e, 9);
+  CHECK(nlid::linearize(m, x, e.u().row(9).transpose()).point.x == x);
+  CHECK_THROWS_WITH(nlid::trajectory_state(m, e, 10), Catch::Contains("sample 10 is outside the experiment (10 samples)"));
+  CHECK_THROWS_WITH(nlid::trajectory_state(m, e, -1), Catch::Contains("sample -1 is outside the experiment"));
+}
+
 TEST_CASE("linearize rejects bad input with located messages", "[analysis][linearize]") {
   using Model = nlid::Nlarx<nlid::LaggedRegressors<2, 1, 0>, nlid::LinearMap<3>>;
   Model m(nlid::LaggedRegressors<2, 1, 0>{}, nlid::LinearMap<3>{});

@@ -394,10 +394,14 @@ Linearization linearize_at_equilibrium(const GreyBox<P>& model, const Eigen::Vec
 }
 
 /// State of a nonlinear ARX model at sample `t` of a measured experiment: the measured lag
-/// window (a point on the recorded trajectory). Use with `linearize(model, x, e.u().row(t))`.
+/// window (a point on the recorded trajectory). Use with `linearize(model, x, e.u().row(t))`, so
+/// t < N (the lag window itself would exist at t = N, but not the input row it is used with).
 template <class R, class F>
 Eigen::VectorXd trajectory_state(const Nlarx<R, F>& model, const Experiment& e, Eigen::Index t) {
   require(e.num_outputs() >= 1, "trajectory_state: the experiment has no output", at_parameter("e"));
+  require(t >= 0 && t < e.size(), "trajectory_state: sample " + std::to_string(t) + " is outside the experiment (" +
+                                      std::to_string(e.size()) + " samples)",
+          at_parameter("t"));
   return model.measured_state(e.u(), e.y().col(0), t);
 }
 
