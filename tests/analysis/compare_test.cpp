@@ -30,6 +30,15 @@ struct SometimesDiverging {
     return 2.0 * e.u();
   }
 };
+// Returns inf/NaN from sample 4 on (a model that lets an unstable simulation overflow).
+struct Overflowing {
+  Eigen::MatrixXd simulate(const nlid::Experiment& e, nlid::InitialCondition) const {
+    Eigen::MatrixXd y = e.u();
+    y.bottomRows(y.rows() - 4).setConstant(std::numeric_limits<double>::quiet_NaN());
+    y(4, 0) = std::numeric_limits<double>::infinity();
+    return y;
+  }
+};
 struct NotAModel {
   int simulate(int) const { return 0; }
 };
@@ -141,6 +150,20 @@ TEST_CASE("a diverging simulation is a result of compare, other errors are not",
   nlid::FitTable t;
   t.add("m", r);
   CHECK_THAT(t.str(), Catch::Contains("100.0 %") && Catch::Contains("diverged"));
+  // Models that do not throw: a non-finite output is a divergence from its first such row.
+  const nlid::CompareResult o = nlid::compare(Overflowing{}, nlid::Dataset{a});
+  CHECK(o.fit_of(0) == -std::numeric_limits<double>::infinity());
+  CHECK(o.diverged_at == std::vector<long>{4});
+  REQUIRE(o.simulated.size() == 1);
+  CHECK(o.simulated[0].size() == 0);
+  CHECK_THAT(o.table(), Catch::Contains("(diverged at sample 4)"));
+  // An unstable ARX, y(t) = 1e60 y(t-1) + u(t-1), overflows to inf (then NaN) within 10 samples.
+  const nlid::Arx unstable_arx(Eigen::VectorXd::Constant(1, -1e60), {Eigen::VectorXd::Ones(1)}, {1}, 0.1);
+  const nlid::CompareResult ua = nlid::compare(unstable_arx, nlid::Dataset{a});
+  CHECK(ua.fit_of(0) == -std::numeric_limits<double>::infinity());
+  CHECK(ua.diverged_at[0] > 0);
+  CHECK(ua.diverged_at[0] < 10);
+  CHECK(ua.simulated[0].size() == 0);
   const nlid::Experiment broken(ramp(10, 1.0), ramp(10, 2.0), 0.1, "broken");
   CHECK_THROWS_WITH(nlid::compare(SometimesDiverging{}, nlid::Dataset{a, broken}), Catch::Contains("cannot read this record"));
 }

@@ -14,7 +14,9 @@
 ///
 /// A model whose simulation diverges on an experiment is a result, not an error: its fit there
 /// is −∞ (the table prints "diverged at sample k"), as in the toolbox's compare plot, so one
-/// unstable candidate does not abort a comparison of several. Other errors are located: a
+/// unstable candidate does not abort a comparison of several. A diverging simulation is a
+/// `DivergenceError` or, for models that do not check (linear models, most grey boxes), an
+/// output that overflows to inf/NaN: the first such sample is where it diverged. Other errors are located: a
 /// simulation that returns the wrong shape, or an output that is constant in some experiment,
 /// throws `nlid::Error` naming the experiment.
 
@@ -130,7 +132,6 @@ CompareResult compare(const M& model, const Dataset& data,
       r.diverged_at.push_back(d.sample());
       continue;
     }
-    r.diverged_at.push_back(-1);
     if (yhat.rows() != ex.size() || yhat.cols() != ex.num_outputs())
       throw Error("compare: model returned a " + std::to_string(yhat.rows()) + " x " +
                       std::to_string(yhat.cols()) + " output for experiment " +
@@ -138,6 +139,17 @@ CompareResult compare(const M& model, const Dataset& data,
                       std::to_string(ex.size()) + " samples and " +
                       std::to_string(ex.num_outputs()) + " output(s)",
                   at_experiment(static_cast<long>(e)));
+    // Models that do not throw DivergenceError (linear models, most grey boxes) let an unstable
+    // simulation overflow to inf/NaN: the same result as a divergence, from the first such row.
+    Eigen::Index bad = 0;
+    while (bad < yhat.rows() && yhat.row(bad).allFinite()) ++bad;
+    if (bad < yhat.rows()) {
+      r.fit.row(static_cast<Eigen::Index>(e)).setConstant(-std::numeric_limits<double>::infinity());
+      r.simulated.emplace_back();
+      r.diverged_at.push_back(static_cast<long>(bad));
+      continue;
+    }
+    r.diverged_at.push_back(-1);
     try {
       r.fit.row(static_cast<Eigen::Index>(e)) = fit_percent(ex.y(), yhat).transpose();
     } catch (const Error& err) {
