@@ -30,6 +30,7 @@
 
 #include "nlid/codegen.hpp"
 #include "nlid/core/error.hpp"
+#include "nlid/core/sample_time.hpp"
 #include "nlid/io/augmented_serial.hpp"  // repaired models from nlid-diagnose --save
 #include "nlid/models/any_model.hpp"
 #include "nlid/models/spec.hpp"
@@ -177,7 +178,7 @@ int main(int argc, char** argv) {
     stage = "reading " + model;
     nlid::register_series_model_kind();
     const nlid::AnyModel m = nlid::load_model(model);
-    if (ts > 0 && m.ts() > 0 && std::abs(ts - m.ts()) > 1e-9 * m.ts()) {
+    if (ts > 0 && m.ts() > 0 && !nlid::same_sample_time(ts, m.ts())) {
       char buf[160];
       std::snprintf(buf, sizeof buf, "--ts %.10g s differs from the model's sample time %.10g s", ts, m.ts());
       throw nlid::Error(std::string(buf) + " (" + model + "); a sampled model runs at the rate it was estimated at",

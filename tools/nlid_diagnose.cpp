@@ -19,6 +19,7 @@
 #include <string>
 #include <vector>
 
+#include "nlid/core/sample_time.hpp"
 #include "nlid/data/csv.hpp"
 #include "nlid/diagnose.hpp"
 #include "nlid/diagnose/report.hpp"
@@ -144,7 +145,7 @@ int main(int argc, char** argv) {
         stage = "reading " + f;
         if (opt.progress) opt.progress("reading " + f);
         nlid::Experiment e = nlid_tools::read_record(record, f, {input}, {output}, "nlid-diagnose");
-        if (d.size() > 0 && std::abs(e.ts() - d.ts()) > 1e-9 * d.ts()) {
+        if (d.size() > 0 && !nlid::same_sample_time(e.ts(), d.ts())) {
           nlid::Location l;
           l.file = f;
           throw nlid::Error("sample time " + nlid_tools::format_seconds(e.ts()) + " differs from the other records' " +
@@ -162,7 +163,7 @@ int main(int argc, char** argv) {
       nlid_tools::check_inputs_vary(records, est_files, "--est");
     }
     const nlid::Dataset val = read(val_files);
-    if (est.ts() != val.ts() && std::abs(est.ts() - val.ts()) > 1e-9 * est.ts()) {
+    if (!nlid::same_sample_time(val.ts(), est.ts())) {
       throw nlid::Error("estimation records are sampled at " + nlid_tools::format_seconds(est.ts()) +
                         " but validation records at " + nlid_tools::format_seconds(val.ts()));
     }

@@ -10,6 +10,7 @@
 #include "nlid/core/error.hpp"
 #include "nlid/core/format.hpp"
 #include "nlid/core/initial_condition.hpp"
+#include "nlid/core/sample_time.hpp"
 #include "nlid/core/sizes.hpp"
 
 #include "nlid/ad.hpp"

@@ -72,7 +72,7 @@ template <class P>
 GeneratedCode generate_c(const AugmentedModel<P>& model, const CodegenOptions& options = {}) {
   const codegen::PrecisionScope precision(options.precision);
   codegen::check_name(options.name);
-  require(options.ts <= 0 || std::abs(options.ts - model.ts()) <= 1e-9 * model.ts(),
+  require(options.ts <= 0 || same_sample_time(options.ts, model.ts()),
           "codegen: an augmented grey-box model runs at its own sample time " + detail::format_g(model.ts(), 10) +
               " s (its dead time and friction updates are per sample); CodegenOptions::ts was " +
               detail::format_g(options.ts, 10) + " s",

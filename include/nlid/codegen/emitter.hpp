@@ -48,6 +48,7 @@
 #include "nlid/core/atomic_file.hpp"
 #include "nlid/core/error.hpp"
 #include "nlid/core/format.hpp"
+#include "nlid/core/sample_time.hpp"
 
 namespace nlid {
 
@@ -326,7 +327,7 @@ inline std::string ascii_text(const std::string& text) {
 inline double sampled_model_ts(double model_ts, double option) {
   if (!(option > 0)) return model_ts;
   require(std::isfinite(option), "codegen: CodegenOptions::ts must be finite", at_parameter("ts"));
-  require(!(model_ts > 0) || std::abs(option - model_ts) <= 1e-9 * model_ts,
+  require(!(model_ts > 0) || same_sample_time(option, model_ts),
           "codegen: the model was estimated at sample time " + nlid::detail::format_g(model_ts, 10) +
               " s; its code cannot run at CodegenOptions::ts = " + nlid::detail::format_g(option, 10) +
               " s (its coefficients belong to its own sample time)",

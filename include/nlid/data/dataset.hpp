@@ -13,7 +13,7 @@
 ///
 /// For the sum to mean one model, all experiments must share the sample time (delays are counted
 /// in samples) and the channel counts. `Dataset` enforces both when an experiment is added: equal
-/// `ts` within a relative 1e-9, equal n_u and n_y, and no channel that two records name
+/// `ts` within a relative 1e-6 (`sample_time_tolerance`, core/sample_time.hpp), equal n_u and n_y, and no channel that two records name
 /// differently. Errors name the experiment index (0-based, as `operator[]` takes it) and the
 /// record's name.
 
@@ -28,13 +28,15 @@
 
 #include "nlid/core/error.hpp"
 #include "nlid/core/format.hpp"
+#include "nlid/core/sample_time.hpp"
 #include "nlid/data/detail/printable.hpp"
 #include "nlid/data/experiment.hpp"
 
 namespace nlid {
 
-/// Relative tolerance for "same sample time" across the experiments of a `Dataset`.
-inline constexpr double dataset_ts_tolerance = 1e-9;
+/// Relative tolerance for "same sample time" across the experiments of a `Dataset`: the one
+/// tolerance of the library (core/sample_time.hpp says why it is 10⁻⁶).
+inline constexpr double dataset_ts_tolerance = sample_time_tolerance;
 
 /// An ordered collection of experiments with a common sample time and common channel counts.
 /// Invariant: every experiment satisfies `Experiment::validate(true)`; all have the `ts`,
@@ -59,7 +61,7 @@ class Dataset {
   }
 
   /// Appends an experiment. Throws `nlid::Error` (naming the index it would get) if its sample
-  /// time differs from the others by more than a relative 1e-9, its channel counts differ, or a
+  /// time differs from the others by more than a relative 1e-6 (`sample_time_tolerance`), its channel counts differ, or a
   /// channel that both it and the first record name (not a default or empty name) has another name.
   void add(Experiment e) {
     const long index = static_cast<long>(experiments_.size());

@@ -56,7 +56,9 @@
 
 #include "nlid/ad/dual.hpp"
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/core/initial_condition.hpp"
+#include "nlid/core/sample_time.hpp"
 #include "nlid/data/experiment.hpp"
 #include "nlid/diagnose/effects.hpp"
 #include "nlid/estimation/levenberg_marquardt.hpp"
@@ -681,8 +683,8 @@ void AugmentedModel<P>::check_experiment(const Experiment& e, long index) const 
   e.validate(true);  // u() and y() are mutable: a record resized through one would be read past its end
   // The simulation steps by the model's own sample time: a record at another rate would run on
   // a stretched time axis and still look plausible.
-  require(std::abs(e.ts() - ts_) <= 1e-9 * ts_,
-          who + " has sample time " + std::to_string(e.ts()) + " s but the model's is " + std::to_string(ts_) +
+  require(same_sample_time(e.ts(), ts_),
+          who + " has sample time " + detail::format_g(e.ts(), 10) + " s but the model's is " + detail::format_g(ts_, 10) +
               " s (resample the data, e.g. decimate it as for the estimation)",
           where);
 }

@@ -43,7 +43,9 @@
 #include <Eigen/Core>
 
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/core/initial_condition.hpp"
+#include "nlid/core/sample_time.hpp"
 #include "nlid/data/dataset.hpp"
 #include "nlid/data/resample.hpp"
 #include "nlid/diagnose/augmented.hpp"
@@ -233,9 +235,9 @@ Diagnosis<P> diagnose(GreyBox<P> baseline, const Dataset& est_in, const Dataset&
   for (const std::string& n : options.effects) kinds.push_back(effect_kind(n));
   detail::check_diagnosis_data(est_in, "estimation", options.min_samples, options.decimate);
   detail::check_diagnosis_data(val_in, "validation", options.min_samples, options.decimate);
-  require(val_in.ts() > 0 && std::abs(val_in.ts() - est_in.ts()) <= 1e-9 * est_in.ts(),
-          "estimation and validation records have different sample times (" + std::to_string(est_in.ts()) +
-              " s vs " + std::to_string(val_in.ts()) + " s)");
+  require(val_in.ts() > 0 && same_sample_time(val_in.ts(), est_in.ts()),
+          "estimation and validation records have different sample times (" + detail::format_g(est_in.ts(), 10) +
+              " s vs " + detail::format_g(val_in.ts(), 10) + " s)");
   require(est_in.num_inputs() == val_in.num_inputs(),
           "estimation and validation records have different input counts");
   baseline.check_channels(est_in);

@@ -10,6 +10,7 @@
 #include <Eigen/Core>
 
 #include "nlid/core/error.hpp"
+#include "nlid/core/sample_time.hpp"
 #include "nlid/data/experiment.hpp"
 
 namespace nlid::detail {
@@ -43,7 +44,7 @@ inline void check_linear_experiment(const Experiment& e, int nu, int ny, double 
     throw Error(who + ": model has " + std::to_string(ny) + " output(s) but " +
                     linear_experiment_label(e, index, set) + " has " + std::to_string(e.num_outputs()),
                 where);
-  if (ts > 0 && std::abs(e.ts() - ts) > 1e-6 * ts) {
+  if (ts > 0 && !same_sample_time(e.ts(), ts)) {
     char buf[160];
     std::snprintf(buf, sizeof buf, "model sample time %.9g s differs from the sample time %.9g s of ",
                   ts, e.ts());

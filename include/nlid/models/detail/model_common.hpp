@@ -18,6 +18,7 @@
 #include "nlid/core/error.hpp"
 #include "nlid/core/format.hpp"
 #include "nlid/core/initial_condition.hpp"
+#include "nlid/core/sample_time.hpp"
 #include "nlid/data/experiment.hpp"
 
 namespace nlid {
@@ -90,9 +91,10 @@ inline void check_experiment(const Experiment& e, long index, int num_inputs, in
               std::to_string(min_history) + " needed by the model's lags",
           where);
   if (model_ts > 0.0) {
-    require(std::abs(e.ts() - model_ts) <= 1e-9 * model_ts,
-            who + " has sample time " + std::to_string(e.ts()) + " s but the model's is " +
-                std::to_string(model_ts) + " s (resample the data or re-estimate)",
+    // format_g(·, 10): std::to_string's six decimals print 0.0100000002 and 0.01 alike.
+    require(same_sample_time(e.ts(), model_ts),
+            who + " has sample time " + format_g(e.ts(), 10) + " s but the model's is " +
+                format_g(model_ts, 10) + " s (resample the data or re-estimate)",
             where);
   }
 }
