@@ -9,7 +9,11 @@
 
 #include "nlid/analysis/resid.hpp"
 #include "nlid/data/input_design.hpp"
+#include "nlid/linear/arx.hpp"
+#include "nlid/models/any_model.hpp"
+#include "nlid/models/greybox.hpp"
 #include "nlid/models/nlarx.hpp"
+#include "nlid/models/physics/throttle.hpp"
 #include "nlid/nonlinearities/linear.hpp"
 #include "nlid/regressors.hpp"
 
@@ -160,6 +164,58 @@ TEST_CASE("prediction residuals of a true Nlarx are white, a wrong pole makes th
   nlid::ResidOptions o;
   o.source = nlid::ResidualSource::simulation;
   CHECK(nlid::resid(m, ex, o).source == "simulation");
+}
+
+TEST_CASE("resid behind an AnyModel: ARX history skipped, a grey box simulated from the given start",
+          "[analysis][resid]") {
+  // ARX y(t) = 0.8 y(t-1) + 0.5 u(t-1) + v(t): predict copies y(0) from the data, so its residual
+  // is exactly zero and must not enter the analysis (typed Arx and AnyModel alike).
+  const int n = 1000;
+  const Eigen::MatrixXd u = white(n, 21);
+  const Eigen::VectorXd v = white(n, 22, 0.1);
+  Eigen::VectorXd y(n);
+  y(0) = v(0);
+  for (int t = 1; t < n; ++t) y(t) = 0.8 * y(t - 1) + 0.5 * u(t - 1, 0) + v(t);
+  const nlid::Experiment ex(u, y, 0.01, "arx");
+  const nlid::Arx arx(Eigen::VectorXd::Constant(1, -0.8), {Eigen::VectorXd::Constant(1, 0.5)}, {1}, 0.01);
+  const nlid::ResidAnalysis typed = nlid::resid(arx, ex);
+  CHECK(typed.source == "one-step prediction");
+  CHECK(typed.num_samples == n - 1);
+  const nlid::AnyModel any_arx(arx);
+  CHECK(any_arx.history_length() == 1);
+  CHECK(any_arx.has_predictor());
+  const nlid::ResidAnalysis erased = nlid::resid(any_arx, ex);
+  CHECK(erased.num_samples == n - 1);
+  CHECK(erased.residual_rms == Approx(typed.residual_rms).epsilon(1e-14));
+
+  // Grey box: no predictor of its own. Behind an AnyModel (whose default start is zero here) it
+  // must take simulation residuals from ResidOptions::initial_condition, as it does unwrapped.
+  nlid::GreyBox<nlid::physics::Throttle> g;
+  Eigen::VectorXd p(7);
+  p << 20.0, 100.0, 1e4, 7000.0, 15.0, 90.0, 10.0;  // y_eq = 10 + 70 u between the stops
+  g.set_parameters(p);
+  Eigen::MatrixXd ug(300, 1);
+  for (int t = 0; t < 300; ++t) ug(t, 0) = 0.4 + 0.1 * std::sin(0.05 * t);
+  const nlid::Experiment blank(ug, Eigen::VectorXd::Zero(300), 0.01, "throttle");
+  const Eigen::VectorXd yg = g.simulate(blank, nlid::InitialCondition::equilibrium).col(0) + white(300, 23, 0.05);
+  const nlid::Experiment eg(ug, yg, 0.01, "throttle");
+  nlid::ModelFileInfo info;
+  info.initial_condition = nlid::InitialCondition::zero;
+  const nlid::AnyModel any_g(g, info);
+  CHECK_FALSE(any_g.has_predictor());
+  CHECK(any_g.history_length() == 0);
+  nlid::ResidOptions o;
+  o.initial_condition = nlid::InitialCondition::equilibrium;
+  const nlid::ResidAnalysis rg = nlid::resid(g, eg, o);
+  const nlid::ResidAnalysis ra = nlid::resid(any_g, eg, o);
+  CHECK(ra.source == "simulation");
+  CHECK(ra.num_samples == 300);
+  CHECK(ra.residual_rms == Approx(rg.residual_rms).epsilon(1e-12));
+  CHECK(rg.residual_rms == Approx(0.05).epsilon(0.2));  // the noise: the start matters
+  o.initial_condition = nlid::InitialCondition::zero;
+  CHECK(nlid::resid(g, eg, o).residual_rms > 3.0 * rg.residual_rms);
+  o.source = nlid::ResidualSource::prediction;
+  CHECK_THROWS_WITH(nlid::resid(any_g, eg, o), Catch::Contains("no one-step predictor"));
 }
 
 TEST_CASE("resid rejects bad input with located messages", "[analysis][resid]") {

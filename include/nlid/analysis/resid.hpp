@@ -54,7 +54,8 @@
 /// A test fails if either rejects; "correlated at lags 1, 2" names the lags outside the band.
 ///
 /// Which residuals. By default the one-step prediction errors, as the toolbox's `resid`: for a
-/// nonlinear ARX model `predict(e, 1)` (the first n₀ samples, copied from the data, are skipped);
+/// nonlinear ARX or ARX model `predict(e, 1)` (the first n₀ samples, copied from the data, are
+/// skipped — also behind an `AnyModel`, which forwards `history_length()`);
 /// for an output-error structure (Hammerstein–Wiener, grey box, OE) prediction equals simulation,
 /// so the simulation residuals are used. `ResidOptions::source` selects simulation residuals
 /// explicitly. Multi-experiment data are pooled: the sums run within each experiment (no lag
@@ -468,10 +469,38 @@ template <class M>
 concept ExperimentSimulator = requires(const M& m, const Experiment& e, InitialCondition ic) {
   { m.simulate(e, ic) } -> std::convertible_to<Eigen::MatrixXd>;
 };
+/// Leading samples the model's predictor (and measured-start simulation) copies from the data:
+/// `history_length()` (nonlinear ARX, AnyModel), an ARX model's largest lag (recognised by its
+/// `orders().max_lag()` and `na()`), else 0.
+template <class M>
+int copied_samples(const M& m) {
+  if constexpr (HasHistoryLength<M>) {
+    return m.history_length();
+  } else if constexpr (requires { { m.orders().max_lag() } -> std::convertible_to<int>; m.na(); }) {
+    return m.orders().max_lag();
+  } else {
+    return 0;
+  }
+}
+/// True if the model predicts one step ahead: it has `predict(e, 1)` and, for a type-erased
+/// model (AnyModel), the held model has a predictor of its own (`has_predictor()`).
+template <class M>
+bool predicts(const M& m) {
+  if constexpr (!OneStepPredictor<M>) {
+    (void)m;
+    return false;
+  } else if constexpr (requires { { m.has_predictor() } -> std::convertible_to<bool>; }) {
+    return m.has_predictor();
+  } else {
+    return true;
+  }
+}
 }  // namespace detail
 
 /// Residual analysis of a model on data (file comment): any model with
-/// `simulate(const Experiment&, InitialCondition)`; `predict(e, 1)` is used when present.
+/// `simulate(const Experiment&, InitialCondition)`; `predict(e, 1)` is used when present (for an
+/// `AnyModel`, when the held model has a predictor: a grey box behind an AnyModel takes the
+/// simulation path with `ResidOptions::initial_condition`, as it does unwrapped).
 /// Throws `nlid::Error` naming the experiment on bad data or a diverging model.
 template <class M>
   requires detail::ExperimentSimulator<M>
@@ -481,8 +510,7 @@ ResidAnalysis resid(const M& model, const Dataset& data, const ResidOptions& opt
           "resid: output " + std::to_string(options.output) + " does not exist (the data have " +
               std::to_string(data.num_outputs()) + ")",
           at_parameter("output"));
-  bool use_prediction = false;
-  if constexpr (detail::OneStepPredictor<M>) use_prediction = options.source != ResidualSource::simulation;
+  const bool use_prediction = detail::predicts(model) && options.source != ResidualSource::simulation;
   require(use_prediction || options.source != ResidualSource::prediction,
           "resid: the model has no one-step predictor (predict(e, 1)); use ResidualSource::simulation",
           at_parameter("source"));
@@ -492,15 +520,16 @@ ResidAnalysis resid(const M& model, const Dataset& data, const ResidOptions& opt
     const Experiment& e = data[i];
     Eigen::MatrixXd yhat;
     Eigen::Index skip = 0;
+    // The samples predict (or a measured start) copies from the data have exact-zero
+    // residuals: skipped.
     if (use_prediction) {
       if constexpr (detail::OneStepPredictor<M>) yhat = model.predict(e, 1);
-      if constexpr (detail::HasHistoryLength<M>) skip = model.history_length();
+      skip = detail::copied_samples(model);
     } else {
       yhat = model.simulate(e, options.initial_condition);
-      if constexpr (detail::HasHistoryLength<M>) {
-        if (options.initial_condition == InitialCondition::measured) skip = model.history_length();
-      }
+      if (options.initial_condition == InitialCondition::measured) skip = detail::copied_samples(model);
     }
+    skip = std::min<Eigen::Index>(skip, e.size());
     require(yhat.rows() == e.size() && yhat.cols() > options.output,
             "resid: the model returned " + std::to_string(yhat.rows()) + " x " + std::to_string(yhat.cols()) +
                 " outputs for experiment '" + e.name() + "' of " + std::to_string(e.size()) + " samples",

@@ -116,6 +116,15 @@ class AnyModel {
   [[nodiscard]] Eigen::MatrixXd predict(const Experiment& e, int k = 1) const {
     return get().predict(e, k, initial_condition());
   }
+  /// True if the held model has a predictor of its own (nonlinear ARX, ARX, Hammerstein–Wiener,
+  /// the linear models); false where `predict` stands in with the simulation from the default
+  /// initial condition (a grey box, a registered kind without `predict`). `resid` uses it to
+  /// take simulation residuals with its own initial condition instead.
+  [[nodiscard]] bool has_predictor() const { return get().has_predictor(); }
+  /// Leading samples that `predict` (and a simulation from `InitialCondition::measured`) copy
+  /// from the data instead of computing: n₀ of a nonlinear ARX model, the largest lag of an ARX
+  /// model, 0 otherwise. Their residuals are exactly zero; `resid` skips them.
+  [[nodiscard]] int history_length() const { return get().history_length(); }
   /// Sample time in seconds (0: not set, e.g. continuous-time grey-box models).
   [[nodiscard]] double ts() const { return get().ts(); }
   /// Human-readable description of the held model.
@@ -181,6 +190,8 @@ class AnyModel {
     [[nodiscard]] virtual std::string kind() const = 0;
     [[nodiscard]] virtual Eigen::MatrixXd simulate(const Experiment& e, InitialCondition ic) const = 0;
     [[nodiscard]] virtual Eigen::MatrixXd predict(const Experiment& e, int k, InitialCondition ic) const = 0;
+    [[nodiscard]] virtual bool has_predictor() const = 0;
+    [[nodiscard]] virtual int history_length() const = 0;
     [[nodiscard]] virtual double ts() const = 0;
     [[nodiscard]] virtual std::string describe() const = 0;
     [[nodiscard]] virtual Eigen::VectorXd parameters() const = 0;
@@ -209,6 +220,16 @@ class AnyModel {
       } else {
         (void)k;
         return m.simulate(e, ic);  // output-error structure: the predictor is the simulation
+      }
+    }
+    bool has_predictor() const override { return requires(const Experiment& e) { m.predict(e, 1); }; }
+    int history_length() const override {
+      if constexpr (requires { { m.history_length() } -> std::convertible_to<int>; }) {
+        return m.history_length();
+      } else if constexpr (std::is_same_v<M, Arx>) {
+        return m.orders().max_lag();  // Arx::predict copies the first max_lag samples
+      } else {
+        return 0;
       }
     }
     double ts() const override {
