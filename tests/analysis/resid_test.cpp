@@ -45,6 +45,9 @@ TEST_CASE("white residuals independent of the input pass both tests", "[analysis
   // For white e the cross bound reduces to about z/sqrt(N) as well.
   CHECK(r.inputs[0].bound[0] == Approx(2.5758 / std::sqrt(4000.0)).epsilon(0.1));
   CHECK(r.verdict().find("white; independent of u1") != std::string::npos);
+  // Residuals given directly: the verdict names them so (it read "residuals (, N = 4000").
+  CHECK(r.source == "given residuals");
+  CHECK(r.verdict().rfind("residuals (given residuals, N = 4000, 99 % confidence", 0) == 0);
 }
 
 TEST_CASE("white noise passes in (almost) every seed: the joint tests hold their level", "[analysis][resid]") {

@@ -146,7 +146,7 @@ struct ResidAnalysis {
   Eigen::Index num_samples = 0;           ///< N used (pooled over experiments)
   double confidence = 0.99;               ///< level of bounds and verdicts
   double residual_rms = 0.0;              ///< √(R̂_ε(0)), same unit as y
-  std::string source;                     ///< "one-step prediction" or "simulation"
+  std::string source = "given residuals";  ///< "one-step prediction", "simulation" or "given residuals"
 
   /// True if the residuals pass the whiteness test.
   [[nodiscard]] bool white() const { return whiteness.passed; }
