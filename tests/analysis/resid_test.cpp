@@ -244,4 +244,15 @@ TEST_CASE("resid chart: stems and the confidence band as SVG", "[analysis][resid
   CHECK(svg.find("autocorrelation of e") != std::string::npos);
   CHECK(svg.find("99 % confidence") != std::string::npos);
   CHECK(nlid::resid_chart_svg(r.inputs[0]).find("cross-correlation u1") != std::string::npos);
+  // The band carries the level the test ran at (it always said 99 %).
+  nlid::ResidOptions o;
+  o.confidence = 0.95;
+  const nlid::ResidAnalysis r95 = nlid::resid({white(1000, 15)}, {white(1000, 16)}, o);
+  CHECK(r95.whiteness.confidence == 0.95);
+  CHECK(r95.inputs[0].confidence == 0.95);
+  for (const nlid::CorrelationTest* t : {&r95.whiteness, &r95.inputs[0]}) {
+    const std::string s95 = nlid::resid_chart_svg(*t);
+    CHECK(s95.find("95 % confidence") != std::string::npos);
+    CHECK(s95.find("99 % confidence") == std::string::npos);
+  }
 }

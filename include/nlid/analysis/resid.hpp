@@ -117,6 +117,7 @@ struct CorrelationTest {
   double statistic_limit = 0;  ///< χ²(K) quantile at the confidence level
   double max_normalised = 0;   ///< largest |r(τ)|/σ_τ over the tested lags
   double max_limit = 0;        ///< Bonferroni bound on it
+  double confidence = 0.99;    ///< level of the band and of the joint tests
   bool passed = true;          ///< both joint tests accept (see file comment)
 
   /// The lags outside the band, runs of consecutive lags compressed: "1..12, 15, -25..-3".
@@ -241,6 +242,7 @@ inline void finish_test(CorrelationTest& t, const std::vector<double>& sigma, co
     if (std::abs(t.value[i]) > t.bound[i]) t.outside.push_back(t.lags[i]);
   }
   const double alpha = 1.0 - confidence;
+  t.confidence = confidence;
   t.degrees_of_freedom = k;
   if (joint != nullptr) {
     t.statistic = joint->first;
@@ -425,6 +427,7 @@ inline ResidAnalysis resid(const std::vector<Eigen::VectorXd>& residuals, const 
     if (!(ru[0] > 0.0)) {
       // A constant input cannot be correlated with anything: nothing to test, reported as passed.
       t.passed = true;
+      t.confidence = options.confidence;
       out.inputs.push_back(t);
       continue;
     }
@@ -550,9 +553,10 @@ ResidAnalysis resid(const M& model, const Experiment& e, const ResidOptions& opt
   return resid(model, Dataset(e), options);
 }
 
-/// SVG stem chart of one correlation test: r(τ) as stems from 0, the confidence band shaded,
-/// lags outside the band listed in the title. For `HtmlReport` (io/html_report.hpp).
-inline std::string resid_chart_svg(const CorrelationTest& t, double confidence = 0.99) {
+/// SVG stem chart of one correlation test: r(τ) as stems from 0, the confidence band shaded
+/// (labelled with the test's own level, `CorrelationTest::confidence`), lags outside the band
+/// listed in the title. For `HtmlReport` (io/html_report.hpp).
+inline std::string resid_chart_svg(const CorrelationTest& t) {
   LineChart chart(t.name + (t.passed ? "  (passed)" : "  (" + t.verdict() + ")"));
   chart.x_label("lag (samples)").y_label("correlation");
   std::vector<double> x, y;
@@ -565,7 +569,7 @@ inline std::string resid_chart_svg(const CorrelationTest& t, double confidence =
   double b = 0.0;
   for (std::size_t i = 0; i < t.bound.size(); ++i) b = std::max(b, t.bound[i]);
   char label[64];
-  std::snprintf(label, sizeof label, "%g %% confidence", 100.0 * confidence);
+  std::snprintf(label, sizeof label, "%g %% confidence", 100.0 * t.confidence);
   if (b > 0.0) chart.band(-b, b, label);
   double top = 1.5 * b;
   for (double v : t.value) top = std::max(top, 1.1 * std::abs(v));
