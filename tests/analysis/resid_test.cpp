@@ -26,6 +26,15 @@ Eigen::VectorXd white(int n, unsigned seed, double sd = 1.0) {
   return v;
 }
 bool contains(const std::vector<int>& v, int x) { return std::find(v.begin(), v.end(), x) != v.end(); }
+// Copies the first 3 samples of the data at a measured start, and its output is NaN at sample 17.
+struct NanAt17 {
+  [[nodiscard]] int history_length() const { return 3; }
+  [[nodiscard]] Eigen::MatrixXd simulate(const nlid::Experiment& e, nlid::InitialCondition) const {
+    Eigen::MatrixXd y = e.y() * 0.5;
+    y(17, 0) = std::nan("");
+    return y;
+  }
+};
 }  // namespace
 
 TEST_CASE("white residuals independent of the input pass both tests", "[analysis][resid]") {
@@ -233,6 +242,12 @@ TEST_CASE("resid rejects bad input with located messages", "[analysis][resid]") 
   Eigen::VectorXd bad = e;
   bad(17) = std::nan("");
   CHECK_THROWS_WITH(nlid::resid({bad}, {u}), Catch::Contains("not finite at sample 17"));
+  // A measured start skips the copied samples: the message still names the data sample (it said 14).
+  nlid::ResidOptions om;
+  om.source = nlid::ResidualSource::simulation;
+  om.initial_condition = nlid::InitialCondition::measured;
+  const nlid::Experiment ex(u, e, 0.01, "nan");
+  CHECK_THROWS_WITH(nlid::resid(NanAt17{}, ex, om), Catch::Contains("not finite at sample 17 ("));
   CHECK_THROWS_WITH(nlid::resid({e}, {Eigen::MatrixXd(white(90, 1))}), Catch::Contains("experiment 0 has 100 residuals"));
   CHECK_THROWS_WITH(nlid::resid({Eigen::VectorXd::Constant(100, 2.0)}, {u}), Catch::Contains("constant"));
 }

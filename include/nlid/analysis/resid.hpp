@@ -539,6 +539,13 @@ ResidAnalysis resid(const M& model, const Dataset& data, const ResidOptions& opt
             at_experiment(static_cast<long>(i)));
     const Eigen::Index n = e.size() - skip;
     eps.push_back(e.y().col(options.output).tail(n) - yhat.col(options.output).tail(n));
+    // Checked here, not by the residual-level resid: residual k is data sample k + skip.
+    for (Eigen::Index t = 0; t < n; ++t) {
+      require(std::isfinite(eps.back()(t)),
+              "resid: residual of experiment " + std::to_string(i) + " is not finite at sample " +
+                  std::to_string(t + skip) + " (the model diverged or the data have gaps)",
+              at_experiment(static_cast<long>(i)));
+    }
     us.push_back(e.u().bottomRows(n));
   }
   ResidAnalysis r = resid(eps, us, options, data[0].input_names());
