@@ -246,6 +246,20 @@ TEST_CASE("trajectory states and equilibria agree with the models' own simulatio
   CHECK(op.y(0) == Approx(0.4 * 0.6 / 0.2).epsilon(1e-12));
 }
 
+TEST_CASE("Linearization::describe prints the static gain of every output", "[analysis][linearize]") {
+  // x(t+1) = 0.5 x + u, y1 = x, y2 = 3x: gains 2 and 6 (only the first was printed).
+  nlid::Linearization L;
+  L.discrete = nlid::StateSpace(Eigen::MatrixXd::Constant(1, 1, 0.5), Eigen::MatrixXd::Ones(1, 1),
+                                (Eigen::MatrixXd(2, 1) << 1.0, 3.0).finished(), Eigen::MatrixXd::Zero(2, 1), 0.1);
+  L.point = {Eigen::VectorXd::Zero(1), Eigen::VectorXd::Zero(1), Eigen::VectorXd::Zero(2)};
+  const std::string d = L.describe();
+  CHECK_THAT(d, Catch::Contains("static gain dy/du (one row per output, one column per input):\n    y1: [2]\n    y2: [6]\n"));
+  L.discrete = nlid::StateSpace(Eigen::MatrixXd::Constant(1, 1, 0.5), Eigen::MatrixXd::Ones(1, 1),
+                                Eigen::MatrixXd::Ones(1, 1), Eigen::MatrixXd::Zero(1, 1), 0.1);
+  L.point.y = Eigen::VectorXd::Zero(1);
+  CHECK_THAT(L.describe(), Catch::Contains("static gain dy/du: [2]\n"));
+}
+
 TEST_CASE("trajectory_state of an Nlarx needs a sample inside the experiment", "[analysis][linearize]") {
   // The lag window exists at t = N, but the documented next step, linearize(model, x,
   // e.u().row(t)), would read past the input's end: t = N is refused like the other models do.

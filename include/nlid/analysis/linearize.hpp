@@ -126,8 +126,17 @@ struct Linearization {
     s += "  discrete, ts = " + num(discrete.ts()) + " s:\n";
     s += mat("A", discrete.a()) + mat("B", discrete.b()) + mat("C", discrete.c()) + mat("D", discrete.d());
     s += "  discrete poles: " + cplx(discrete.poles()) + "\n";
-    if (discrete.order() > 0 && (Eigen::MatrixXd::Identity(discrete.order(), discrete.order()) - discrete.a()).fullPivLu().isInvertible())
-      s += "  static gain dy/du: " + vec(Eigen::VectorXd(discrete.dc_gain().row(0).transpose())) + "\n";
+    if (discrete.order() > 0 && (Eigen::MatrixXd::Identity(discrete.order(), discrete.order()) - discrete.a()).fullPivLu().isInvertible()) {
+      // One row per output (columns: inputs); a single output keeps the one-line form.
+      const Eigen::MatrixXd gain = discrete.dc_gain();
+      if (gain.rows() == 1) {
+        s += "  static gain dy/du: " + vec(Eigen::VectorXd(gain.row(0).transpose())) + "\n";
+      } else {
+        s += "  static gain dy/du (one row per output, one column per input):\n";
+        for (Eigen::Index i = 0; i < gain.rows(); ++i)
+          s += "    y" + std::to_string(i + 1) + ": " + vec(Eigen::VectorXd(gain.row(i).transpose())) + "\n";
+      }
+    }
     if (continuous) {
       s += "  continuous:\n" + mat("A", continuous->a) + mat("B", continuous->b) + mat("C", continuous->c) +
            mat("D", continuous->d);
