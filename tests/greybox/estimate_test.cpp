@@ -123,6 +123,17 @@ TEST_CASE("Regularization is given in the parameters' own units: a strong pull a
   o.multi_start.lm.regularization.lambda = 1e-9;
   (void)estimate(weak, d, o);
   CHECK(weak.parameter("k") == Approx(150.0).epsilon(0.02));
+  // Without a nominal the pull is towards the start (the physical guess), not towards zero as
+  // in black-box ridge regression: k stays at its start of 170 (it went to 0 before).
+  GreyBox<physics::MassSpringDamper> from_guess;
+  from_guess.set_parameters(Eigen::Vector4d(8.0, 170.0, 3000.0, 40.0));
+  auto g = o;
+  g.initialize_from_data = false;
+  g.multi_start.lm.regularization.lambda = 1e8;
+  g.multi_start.lm.regularization.nominal.resize(0);
+  (void)estimate(from_guess, d, g);
+  CHECK(from_guess.parameter("k") == Approx(170.0).epsilon(1e-5));
+  CHECK(from_guess.parameter("b") == Approx(held.parameter("b")).epsilon(1e-3));
   // Sizes are the model's parameters, not the solver's (which include initial states).
   o.multi_start.lm.regularization.weights = Eigen::VectorXd::Ones(6);
   CHECK_THROWS_WITH(estimate(weak, d, o), Catch::Contains("regularization.weights has 6 entries; the model has 4 parameters"));

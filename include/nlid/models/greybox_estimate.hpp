@@ -57,7 +57,10 @@ struct GreyBoxEstimateOptions {
   /// model's current values. The search box, log spacing, bounds, fixed flags, parameter names
   /// and the candidate hook are filled in from the model; set only counts, threads, tolerances
   /// and `lm.max_iterations` / tolerances / `lm.regularization` here (the last sized to the
-  /// model's parameters and in their own units; initial states are not penalised).
+  /// model's parameters and in their own units; initial states are not penalised). An empty
+  /// `regularization.nominal` is the model's values at the start of the estimation — the
+  /// physical guess, after `initialize` — not zero as for black-box models: pulling a stiffness
+  /// of 10⁵ towards 0 means nothing physically. Give zeros explicitly for a pull towards zero.
   MultiStartOptions multi_start = default_multi_start();
 
   /// Defaults: 24 candidates screened, 6 refined, LM up to 100 iterations.
@@ -330,7 +333,7 @@ GreyBoxEstimate estimate(GreyBox<P>& model, const Dataset& data,
     check(reg.nominal.size(), "regularization.nominal");
     Eigen::VectorXd w = Eigen::VectorXd::Zero(n), nominal = Eigen::VectorXd::Zero(n);
     w.head(np) = reg.weights.size() == np ? reg.weights : Eigen::VectorXd::Ones(np);
-    if (reg.nominal.size() == np) nominal.head(np) = reg.nominal;
+    nominal.head(np) = reg.nominal.size() == np ? reg.nominal : theta.head(np);
     reg.weights = w.cwiseProduct(scale).cwiseProduct(scale);
     reg.nominal = nominal.cwiseQuotient(scale);
   }
