@@ -2,6 +2,7 @@
 // newer-version files with message checks, atomic writes.
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <bit>
 #include <cmath>
 #include <cstdint>
@@ -289,6 +290,21 @@ TEST_CASE("model file: grey-box throttle by catalogue name, parameter table and 
   CHECK_THAT(error_of([&] { (void)load_model<GreyBox<physics::MassSpringDamper>>(path); }),
              Catch::Contains("grey-box physics is \"throttle\""));
 
+  // Crossed stops in a file (each value alone is fine): refused at loading, naming the relation
+  // and the file; before, the file loaded and the first simulation failed.
+  {
+    Json j = Json::parse(read_text(path));
+    Json& values = j["parameters"]["values"];
+    const auto at = [&](const char* n) {
+      return static_cast<std::size_t>(std::find(names.begin(), names.end(), n) - names.begin());
+    };
+    values[at("lower_stop")] = 95.0;
+    values[at("upper_stop")] = 20.0;
+    const std::string crossed = write_text("greybox_crossed_stops.json", j.dump());
+    const std::string msg = error_of([&] { (void)load_model(crossed); });
+    CHECK_THAT(msg, Catch::Contains("lower_stop") && Catch::Contains("upper_stop") &&
+                        Catch::Contains("greybox_crossed_stops.json"));
+  }
   // A file naming physics this program does not know.
   const std::string bad = write_text("greybox_unknown.json",
                                      edited(read_text(path), "\"physics\": \"throttle\"", "\"physics\": \"pendulum\""));

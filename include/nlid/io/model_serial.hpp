@@ -743,6 +743,14 @@ struct ModelSerial<GreyBox<P>> {
       if (std::isfinite(rl) && std::isfinite(ru)) m.set_range(name, rl, ru, q.at("log_scale").as_bool());
       m.fix(name, q.at("fixed").as_bool());
     }
+    // The values were set one by one (set_parameter checks each alone); the relations between
+    // them (the throttle's lower_stop < upper_stop) are checked once all are in, so that a file
+    // with crossed stops is refused here, naming the file, not at its first simulation.
+    try {
+      physics_check_parameters(m.physics(), values.data());
+    } catch (const Error& e) {
+      file.at("parameters").at("values").fail(e.message() + " (at " + file.at("parameters").at("values").path_text() + ")");
+    }
     try {
       m.set_integrator(detail::integrator_from_json(s.at("integrator")));
     } catch (const Error& e) {
