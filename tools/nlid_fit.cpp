@@ -110,7 +110,16 @@ nlid::Experiment load(const std::string& path, const Args& a) {
     s.set_output_names(e.output_names());
     e = s;
   }
-  if (a.decimate > 1) e = nlid::decimate(e, a.decimate);
+  if (a.decimate > 1) {
+    try {
+      e = nlid::decimate(e, a.decimate);
+    } catch (const nlid::Error& err) {
+      // With several --est/--val files the library's message alone does not say which is short.
+      nlid::Location l = nlid::at_parameter("--decimate");
+      l.file = path;
+      throw nlid::Error(err.message(), l);
+    }
+  }
   std::string name = path;
   const auto slash = name.find_last_of('/');
   if (slash != std::string::npos) name = name.substr(slash + 1);
@@ -134,6 +143,14 @@ void print_fit_row(const char* role, const nlid::AnyModel& m, const nlid::Experi
   } catch (const nlid::Error& err) {
     std::printf("%-12s %-30s %10s %14s  (not scored: %s)\n", role, e.name().c_str(), "-", "-", err.message().c_str());
     return;
+  }
+  // Linear and grey-box models do not throw on a diverging free run: their output turns inf/NaN.
+  for (Eigen::Index i = 0; i < y.rows(); ++i) {
+    if (!y.row(i).allFinite()) {
+      std::printf("%-12s %-30s %10s %14s  (free run not finite from sample %ld)\n", role, e.name().c_str(), "diverged",
+                  "-", static_cast<long>(i));
+      return;
+    }
   }
   const Eigen::VectorXd d = y.col(0) - e.y().col(0);
   const double rmse = std::sqrt(d.squaredNorm() / static_cast<double>(d.size()));
@@ -233,6 +250,10 @@ int main(int argc, char** argv) {
     stage = "simulating the saved model";
     std::printf("model %s (%s), %zu parameters, estimated in %.2f s\n", a.model.c_str(), m.kind().c_str(),
                 static_cast<std::size_t>(m.parameters().size()), secs);
+    // The start the table's free runs use (the model's own: measured past outputs for a nonlinear
+    // ARX model, estimated initial states for a grey box, ...): nlid-sim --x0 with it reproduces them.
+    const char* x0 = nlid::to_string(m.initial_condition());
+    std::printf("free-run simulation from x0 %s (nlid-sim --x0 %s gives the same)\n", x0, x0);
     std::printf("%-12s %-30s %10s %14s\n", "data", "experiment", "fit %", "rmse");
     for (const auto& e : est) print_fit_row("estimation", m, e);
     for (const auto& e : val) print_fit_row("validation", m, e);

@@ -1,17 +1,23 @@
 // nlid-sim: free-run simulation of a saved model on an input recording.
 //
-//   nlid-sim --model model.json --input u.csv [--x0 zero|equilibrium] [--column u] [--band]
-//            [--decimate N] [--time t] [--ts T] [--delimiter C] [--decimal C] --out y.csv
+//   nlid-sim --model model.json --input u.csv [--x0 zero|equilibrium|measured|estimate] [--column u[,u2..]]
+//            [--output y[,y2..]] [--band] [--with-input] [--decimate N] [--time t] [--ts T] [--delimiter C]
+//            [--decimal C] --out y.csv
 //
-// The input CSV has a time column t (or --ts) and the model's input column (its name from the
-// model file, or --column); other columns are ignored. --delimiter and --decimal read files
+// The input CSV has a time column t (or --ts) and the model's input columns (their names from the
+// model file, or --column, one name per input); other columns are ignored. --delimiter and --decimal read files
 // written with other separators (record_options.hpp). --decimate N filters and keeps every N-th
 // input sample as nlid-fit does, so a model fitted with `nlid-fit --decimate N` runs on the same
 // raw recordings. The output CSV has columns t,y (the
-// model's output name is not used so that scripts can rely on "y"); with --band a third, y_std:
+// model's output name is not used so that scripts can rely on "y"; a model with several outputs
+// writes y1,y2,..); with --band one more per output, y_std (y1_std,..):
 // the standard deviation of y from the parameter covariance the model file carries (grey-box,
 // nonlinear ARX and Hammerstein-Wiener files written by nlid-fit; simulation_band; other kinds
-// keep no covariance, and --band refuses them). A model whose output is not
+// keep no covariance, and --band refuses them). --with-input writes the inputs the model ran on
+// (after --decimate) between t and y, under their column names: the input to replay through
+// generated C code (nlid-codegen) and compare. --x0 measured (past outputs from the record) and
+// --x0 estimate (the start that fits the record's first samples) read the measured outputs too
+// (the model's output names, or --output): the starts nlid-fit scores its table with. A model whose output is not
 // finite on the input (unstable, diverging) is an error naming the first such sample; nothing is
 // written. Exit status (cli_common.hpp) 0 on success, 1 on a bad file, data or model (missing
 // column, sample-time mismatch, divergence — the message says which), 2 on a bad command line.
@@ -19,9 +25,11 @@
 #include <cstdio>
 #include <iostream>
 #include <string>
+#include <vector>
 
 #include "nlid/core/atomic_file.hpp"
 #include "nlid/core/error.hpp"
+#include "nlid/core/sample_time.hpp"
 #include "nlid/data/csv.hpp"
 #include "nlid/data/resample.hpp"
 #include "nlid/io/augmented_serial.hpp"  // repaired models from nlid-diagnose --save
@@ -34,13 +42,34 @@
 
 namespace {
 constexpr const char* kUsageHead =
-    "usage: nlid-sim --model model.json --input u.csv [--x0 zero|equilibrium] [--column NAME] [--band]\n"
-    "                [--decimate N] [--time t] [--ts T] [--delimiter C] [--decimal C] --out y.csv\n"
+    "usage: nlid-sim --model model.json --input u.csv [--x0 zero|equilibrium|measured|estimate] [--column NAME[,NAME..]]\n"
+    "                [--output NAME[,NAME..]] [--band] [--with-input] [--decimate N] [--time t] [--ts T]\n"
+    "                [--delimiter C] [--decimal C] --out y.csv\n"
+    "  --x0 X           start: zero (default), equilibrium (for the first input), measured (past outputs\n"
+    "                   from the file), estimate (fitted to the file's first outputs): the last two read\n"
+    "                   the measured outputs and give the start nlid-fit's table uses for those models\n"
+    "  --column NAMES   the input columns, one per model input (default: the names in the model file)\n"
+    "  --output NAMES   the measured output columns for --x0 measured|estimate (default: the model's names)\n"
     "  --decimate N     anti-alias filter the input and keep every N-th sample (as nlid-fit --decimate)\n"
     "  --band           add a column y_std: 1 sigma of y from the parameter covariance the model file carries\n"
+    "  --with-input     also write the inputs the model ran on (after --decimate), between t and y\n"
     "Reading the input CSV file:\n";
 std::string usage_text() { return std::string(kUsageHead) + nlid_tools::record_usage; }
+
+// --column's (--output's) comma-separated names; an empty one is a usage error (a CSV column is
+// never unnamed).
+std::vector<std::string> column_list(const std::string& v, const char* flag = "--column") {
+  std::vector<std::string> out;
+  std::size_t start = 0;
+  for (;;) {
+    const std::size_t comma = v.find(',', start);
+    out.push_back(v.substr(start, comma == std::string::npos ? std::string::npos : comma - start));
+    if (out.back().empty()) throw nlid_tools::UsageError(std::string(flag) + " has an empty name in '" + v + "'");
+    if (comma == std::string::npos) return out;
+    start = comma + 1;
+  }
 }
+}  // namespace
 
 int main(int argc, char** argv) {
   std::string stage = "reading the command line", sizes;
@@ -51,16 +80,28 @@ int main(int argc, char** argv) {
         nlid_tools::with_record_options({{"--model"},
                                          {"--input"},
                                          {"--out"},
-                                         {"--x0", nlid_tools::OptionSpec::once, {"zero", "equilibrium"}},
+                                         {"--x0", nlid_tools::OptionSpec::once, {"zero", "equilibrium", "measured", "estimate"}},
+                                         {"--output"},
                                          {"--column"},
                                          {"--band", nlid_tools::OptionSpec::flag},
+                                         {"--with-input", nlid_tools::OptionSpec::flag},
                                          {"--decimate"}}));
     if (a.help) {
       std::cout << usage_text();
       return nlid_tools::exit_ok;
     }
     const std::string model = a.get("--model"), input = a.get("--input"), out = a.get("--out"),
-                      x0 = a.get("--x0", "zero"), column = a.get("--column");
+                      x0 = a.get("--x0", "zero"), column = a.get("--column"),
+                      output_column = a.get("--output");
+    const nlid::InitialCondition ic = x0 == "zero"          ? nlid::InitialCondition::zero
+                                      : x0 == "equilibrium" ? nlid::InitialCondition::equilibrium
+                                      : x0 == "measured"    ? nlid::InitialCondition::measured
+                                                            : nlid::InitialCondition::estimate;
+    // Only these two starts read the record's outputs.
+    const bool reads_outputs = ic == nlid::InitialCondition::measured || ic == nlid::InitialCondition::estimate;
+    if (!output_column.empty() && !reads_outputs)
+      throw UsageError("--output names the measured outputs that --x0 measured or --x0 estimate read; with --x0 " + x0 +
+                       " no output is read");
     const int decimate = a.get_int("--decimate", 1, 1000000, 1);
     const nlid_tools::RecordOptions record = nlid_tools::record_options_from(a);
     if (model.empty() || input.empty() || out.empty()) throw UsageError("--model, --input and --out are required");
@@ -88,22 +129,60 @@ int main(int argc, char** argv) {
                                           "carry it)"));
       }
     }
-    if (m.num_inputs() != 1 && column.empty())
-      throw nlid::Error("the model in " + model + " reads " + std::to_string(m.num_inputs()) +
-                        " inputs; nlid-sim simulates single-input models");
-    const auto names = m.input_names();
-    stage = "reading " + input;
-    nlid::Experiment e = nlid_tools::read_record(
-        record, input, {!column.empty() ? column : (!names.empty() && !names[0].empty() ? names[0] : std::string("u"))},
-        {}, "nlid-sim");
-    if (decimate > 1) {
-      // decimate() filters every channel; the file has no output here, so give it a zero one.
-      nlid::Experiment with_y(e.u(), Eigen::MatrixXd::Zero(e.size(), 1), e.ts());
-      with_y.set_t0(e.t0());
-      with_y.set_input_names(e.input_names());
-      e = nlid::decimate(with_y, decimate);
+    // The input columns: --column's names (one per model input), else the model file's names (a
+    // single-input model without one reads "u").
+    const int nu = m.num_inputs();
+    std::vector<std::string> columns;
+    if (!column.empty()) {
+      columns = column_list(column);
+      if (static_cast<int>(columns.size()) != nu)
+        throw UsageError("--column names " + std::to_string(columns.size()) + " column(s) but the model in " +
+                         model + " reads " + std::to_string(nu) + " input(s): give one name per input, comma-separated");
+    } else {
+      const auto names = m.input_names();
+      for (int j = 0; j < nu; ++j) {
+        const std::string n = static_cast<int>(names.size()) == nu ? names[static_cast<std::size_t>(j)] : std::string();
+        if (!n.empty()) {
+          columns.push_back(n);
+        } else if (nu == 1) {
+          columns.emplace_back("u");
+        } else {
+          throw nlid::Error("the model in " + model + " reads " + std::to_string(nu) +
+                            " inputs but does not name input " + std::to_string(j + 1) +
+                            ": name the columns with --column u1,u2,..");
+        }
+      }
     }
-    if (m.ts() > 0 && std::abs(e.ts() - m.ts()) > 1e-6 * m.ts()) {
+    const int ny = m.num_outputs();
+    std::vector<std::string> outputs;
+    if (reads_outputs) {
+      if (!output_column.empty()) {
+        outputs = column_list(output_column, "--output");
+        if (static_cast<int>(outputs.size()) != ny)
+          throw UsageError("--output names " + std::to_string(outputs.size()) + " column(s) but the model in " + model +
+                           " has " + std::to_string(ny) + " output(s): give one name per output, comma-separated");
+      } else {
+        const auto names = m.output_names();
+        for (int j = 0; j < ny; ++j) {
+          const std::string n = static_cast<int>(names.size()) == ny ? names[static_cast<std::size_t>(j)] : std::string();
+          outputs.push_back(!n.empty() ? n : (ny == 1 ? std::string("y") : "y" + std::to_string(j + 1)));
+        }
+      }
+    }
+    stage = "reading " + input;
+    nlid::Experiment e = nlid_tools::read_record(record, input, columns, outputs, "nlid-sim");
+    if (decimate > 1) {
+      // decimate() filters every channel; without measured outputs give it a zero one.
+      if (reads_outputs) {
+        e = nlid::decimate(e, decimate);
+      } else {
+        nlid::Experiment with_y(e.u(), Eigen::MatrixXd::Zero(e.size(), 1), e.ts());
+        with_y.set_t0(e.t0());
+        with_y.set_input_names(e.input_names());
+        e = nlid::decimate(with_y, decimate);
+      }
+    }
+    if (m.ts() > 0 && !nlid::same_sample_time(e.ts(), m.ts())) {
       // %.10g, not std::to_string's six decimals, which print 20 µs as "0.000020" for both sides
       char buf[192];
       std::snprintf(buf, sizeof buf, " has sample time %.10g s but the model %.10g s (relative difference %.3g)",
@@ -117,11 +196,15 @@ int main(int argc, char** argv) {
       throw nlid::Error("sample-time mismatch: " + input + (decimate > 1 ? " decimated by " + std::to_string(decimate) : "") +
                         std::string(buf) + "; the model is " + model + " - " + hint);
     }
-    // A free run: the simulation needs no output; give it a zero column of the right size.
-    const nlid::Experiment run(e.u(), Eigen::MatrixXd::Zero(e.size(), 1), e.ts());
+    // A free run: from zero or an equilibrium the simulation needs no output (a zero column of
+    // the right size); measured and estimated starts read the record's. Within the tolerance the
+    // run takes the model's sample time, so the model's own check agrees.
+    const nlid::Experiment run(e.u(), reads_outputs ? e.y() : Eigen::MatrixXd::Zero(e.size(), ny),
+                               m.ts() > 0 ? m.ts() : e.ts());
     nlid::Experiment named = run;
     named.set_t0(e.t0());
     named.set_input_names(e.input_names());
+    if (reads_outputs) named.set_output_names(e.output_names());
     // Outside the inputs the model was fitted on it extrapolates (a sigmoid network continues its
     // linear term: the study's nlarx5 gives 950 deg at u = 5). Say so, once, with where and how far.
     for (std::size_t c = 0; c < m.info().input_range.size() && static_cast<Eigen::Index>(c) < e.u().cols(); ++c) {
@@ -161,36 +244,60 @@ int main(int argc, char** argv) {
     };
     Eigen::MatrixXd y;
     try {
-      y = m.simulate(named, x0 == "zero" ? nlid::InitialCondition::zero : nlid::InitialCondition::equilibrium);
+      y = m.simulate(named, ic);
     } catch (const nlid::DivergenceError& d) {
       if (d.sample() < 0 || d.sample() >= static_cast<long>(t.size())) throw;
       throw diverged(d.sample(), "");
     }
     for (Eigen::Index i = 0; i < y.rows(); ++i) {
       if (!y.row(i).allFinite()) {
-        char value[40];
-        std::snprintf(value, sizeof value, " (%g)", y(i, 0));
+        Eigen::Index j = 0;
+        while (std::isfinite(y(i, j))) ++j;
+        char value[60];
+        if (ny == 1) {
+          std::snprintf(value, sizeof value, " (%g)", y(i, j));
+        } else {
+          std::snprintf(value, sizeof value, " (y%ld = %g)", static_cast<long>(j + 1), y(i, j));
+        }
         throw diverged(static_cast<long>(i), value);
       }
     }
-    Eigen::VectorXd y_std;
+    Eigen::MatrixXd y_std;
     if (band) {
       stage = "computing the simulation band of " + model;
       nlid::SimulationBandOptions bo;
-      bo.initial_condition = x0 == "zero" ? nlid::InitialCondition::zero : nlid::InitialCondition::equilibrium;
-      y_std = nlid::simulation_band(m, nlid::Dataset(named), bo).stddev[0].col(0);
+      bo.initial_condition = ic;
+      y_std = nlid::simulation_band(m, nlid::Dataset(named), bo).stddev[0];
     }
     stage = "writing " + out;
-    std::string text = band ? "t,y,y_std\n" : "t,y\n";
-    text.reserve(static_cast<std::size_t>(e.size()) * 60);
-    char buf[128];
-    for (Eigen::Index i = 0; i < y.rows(); ++i) {
-      if (band) {
-        std::snprintf(buf, sizeof buf, "%.17g,%.17g,%.17g\n", t(i), y(i, 0), y_std(i));
-      } else {
-        std::snprintf(buf, sizeof buf, "%.17g,%.17g\n", t(i), y(i, 0));
-      }
+    const bool with_input = a.has("--with-input");
+    std::vector<std::string> header{"t"};
+    if (with_input) header.insert(header.end(), columns.begin(), columns.end());
+    const auto y_name = [&](Eigen::Index j) { return ny == 1 ? std::string("y") : "y" + std::to_string(j + 1); };
+    for (Eigen::Index j = 0; j < ny; ++j) header.push_back(y_name(j));
+    if (band)
+      for (Eigen::Index j = 0; j < ny; ++j) header.push_back(y_name(j) + "_std");
+    for (std::size_t i = 0; i < header.size(); ++i)
+      for (std::size_t k = 0; k < i; ++k)
+        if (header[i] == header[k])
+          throw UsageError("--with-input: the input column '" + header[i] +
+                           "' has the name of an output column of nlid-sim's file; rename it in " + input);
+    std::string text;
+    for (std::size_t i = 0; i < header.size(); ++i) text += (i ? "," : "") + header[i];
+    text += '\n';
+    text.reserve(static_cast<std::size_t>(e.size()) * 26 * header.size());
+    char buf[32];
+    const auto put = [&](double v, bool last) {
+      std::snprintf(buf, sizeof buf, last ? "%.17g\n" : "%.17g,", v);
       text += buf;
+    };
+    for (Eigen::Index i = 0; i < y.rows(); ++i) {
+      put(t(i), false);
+      if (with_input)
+        for (Eigen::Index j = 0; j < e.u().cols(); ++j) put(e.u()(i, j), false);
+      for (Eigen::Index j = 0; j < ny; ++j) put(y(i, j), !band && j + 1 == ny);
+      if (band)
+        for (Eigen::Index j = 0; j < ny; ++j) put(y_std(i, j), j + 1 == ny);
     }
     nlid::write_file_atomically(out, text);
     std::cerr << "nlid-sim: " << y.rows() << " samples simulated (" << m.kind() << ", x0 " << x0 << ") -> " << out << "\n";

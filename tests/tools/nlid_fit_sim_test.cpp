@@ -273,7 +273,7 @@ TEST_CASE("nlid-sim: sample-time mismatch, missing column, bad model file", "[to
   CHECK_THAT(r.err, Catch::Contains("damaged.json"));
   r = sim("--model " + q(model) + " --input " + q(est) + " --x0 warm --out " + q(out));
   CHECK(r.code == 2);
-  CHECK_THAT(r.err, Catch::Contains("--x0 must be zero or equilibrium"));
+  CHECK_THAT(r.err, Catch::Contains("--x0 must be zero, equilibrium, measured or estimate"));
 }
 
 TEST_CASE("nlid-fit + nlid-sim read semicolon-separated decimal-comma files and files without a time column",
