@@ -125,6 +125,34 @@ TEST_CASE("Results do not depend on the number of threads", "[multi_start]") {
   CHECK(rb.threads == 3);
 }
 
+TEST_CASE("start_done reports every refined start once, one call at a time, from any thread", "[multi_start]") {
+  const SineFit s;
+  const auto pb = s.problem();
+  auto o = sine_options();
+  o.num_threads = 3;
+  int calls = 0, inside = 0, most_inside = 0, last_done = 0, total = 0;
+  std::vector<int> candidates;
+  o.start_done = [&](const nlid::StartResult& r, int done, int of) {
+    most_inside = std::max(most_inside, ++inside);  // the lock keeps calls apart
+    ++calls;
+    last_done = done;
+    total = of;
+    candidates.push_back(r.candidate);
+    --inside;
+  };
+  Eigen::VectorXd theta(2);
+  theta << 1.0, 2.0;
+  const auto r = nlid::multi_start(pb, theta, o);
+  CHECK(calls == static_cast<int>(r.starts.size()));
+  CHECK(total == static_cast<int>(r.starts.size()));
+  CHECK(last_done == total);
+  CHECK(most_inside == 1);
+  std::sort(candidates.begin(), candidates.end());
+  std::vector<int> expected;
+  for (const auto& st : r.starts) expected.push_back(st.candidate);
+  CHECK(candidates == expected);
+}
+
 TEST_CASE("Log-spaced sampling, fixed parameters and the prepare hook", "[multi_start]") {
   // Cost (log10 θ0 − 1)² + (θ1 − 3)²: any start converges; we inspect the candidates.
   auto pb = nlid::make_problem<nlid::Dynamic>(

@@ -71,6 +71,8 @@ enum class StartSequence {
   kronecker,  ///< Kronecker / R_d sequence
 };
 
+struct StartResult;
+
 /// Settings of `multi_start`.
 struct MultiStartOptions {
   int num_starts = 8;        ///< Levenberg–Marquardt runs (from the best screened candidates), ≥ 1
@@ -89,6 +91,10 @@ struct MultiStartOptions {
   /// Called on every candidate after sampling and before screening (may adjust unsampled
   /// entries, e.g. initial states that depend on the sampled parameters). Must be thread-safe.
   std::function<void(Eigen::VectorXd&)> prepare;
+  /// Called when a start's refinement has ended (converged, stopped or failed), with how many
+  /// of the `total` starts have ended so far: progress for a caller's user. Calls come one at a
+  /// time (under a lock) but, with several threads, from the workers and in completion order.
+  std::function<void(const StartResult&, int done, int total)> start_done;
 };
 
 /// One refined start.
@@ -352,6 +358,8 @@ MultiStartSummary multi_start(const P& problem, Eigen::Matrix<double, P::num_par
   std::sort(chosen.begin(), chosen.end());
   sum.starts.resize(chosen.size());
   sum.threads = std::min(threads, static_cast<int>(chosen.size()));
+  std::mutex done_mutex;
+  int done = 0;
   detail::parallel_for(static_cast<int>(chosen.size()), threads, [&](int s) {
     StartResult& res = sum.starts[static_cast<std::size_t>(s)];
     const int c = chosen[static_cast<std::size_t>(s)];
@@ -368,6 +376,10 @@ MultiStartSummary multi_start(const P& problem, Eigen::Matrix<double, P::num_par
       res.theta = res.start;
       res.cost = inf;
       res.error = e.what();
+    }
+    if (o.start_done) {
+      const std::lock_guard<std::mutex> lock(done_mutex);
+      o.start_done(res, ++done, static_cast<int>(chosen.size()));
     }
   });
 
