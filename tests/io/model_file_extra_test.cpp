@@ -258,6 +258,47 @@ TEST_CASE("model specs carry nlarx's data-driven starts", "[io]") {
                     Catch::Contains("one data-driven start"));
 }
 
+TEST_CASE("model specs refuse an ic the family's estimator does not use (it would only change the saved model's "
+          "simulation)",
+          "[io][errors]") {
+  using Catch::Contains;
+  // linear:oe estimates from zero or an estimated state; equilibrium and measured were ignored in
+  // estimation but written to the file, so the saved model simulated differently.
+  CHECK_THROWS_WITH(parse_model_spec("linear:oe:nb=2,nf=2,nk=0:ic=measured"),
+                    Contains("ic=measured is not used in estimating linear:oe models") &&
+                        Contains("they take ic=zero or ic=estimate"));
+  CHECK_THROWS_WITH(parse_model_spec("linear:oe:nb=2,nf=2,nk=0:ic=equilibrium"), Contains("linear:oe"));
+  CHECK(parse_model_spec("linear:oe:nb=2,nf=2,nk=0:ic=estimate").initial_condition == InitialCondition::estimate);
+  CHECK(parse_model_spec("linear:oe:nb=2,nf=2,nk=0:ic=zero").initial_condition == InitialCondition::zero);
+  // ARX is least squares on the measured past: no ic at all.
+  for (const char* ic : {"zero", "estimate", "equilibrium", "measured"})
+    CHECK_THROWS_WITH(parse_model_spec(std::string("linear:arx:na=2,nb=1,nk=0:ic=") + ic),
+                      Contains("linear:arx models") && Contains("takes no ic"));
+  // nlarx: simulation focus takes zero, estimate, measured; prediction focus only measured
+  // (in either order of the fields).
+  CHECK_THROWS_WITH(parse_model_spec("nlarx:na=2,nb=2,nk=0:sigmoidnet:3:ic=equilibrium"),
+                    Contains("they take ic=zero, ic=estimate or ic=measured"));
+  CHECK(parse_model_spec("nlarx:na=2,nb=2,nk=0:sigmoidnet:3:ic=zero").initial_condition == InitialCondition::zero);
+  CHECK_THROWS_WITH(parse_model_spec("nlarx:na=2,nb=2,nk=0:sigmoidnet:3:ic=zero,focus=prediction"),
+                    Contains("nlarx models with focus=prediction") && Contains("they take ic=measured"));
+  CHECK_THROWS_WITH(parse_model_spec("nlarx:na=2,nb=2,nk=0:sigmoidnet:3:focus=prediction:ic=estimate"),
+                    Contains("focus=prediction"));
+  CHECK_NOTHROW(parse_model_spec("nlarx:na=2,nb=2,nk=0:sigmoidnet:3:focus=prediction:ic=measured"));
+  // State-space starts: hw, the series families and greybox take zero, estimate, equilibrium.
+  for (const char* spec : {"hw:nb=2,nf=2,nk=0:in=saturation", "wh:nb=2,nf=1,nk=0:poly1d:3:nb=2,nf=1,nk=0",
+                           "hammerstein:poly1d:3:nb=2,nf=2,nk=0", "wiener:nb=2,nf=2,nk=1:saturation", "greybox:throttle"}) {
+    INFO(spec);
+    CHECK_THROWS_WITH(parse_model_spec(std::string(spec) + ":ic=measured"),
+                      Contains("they take ic=zero, ic=estimate or ic=equilibrium"));
+    for (const char* ic : {"zero", "estimate", "equilibrium"}) CHECK_NOTHROW(parse_model_spec(std::string(spec) + ":ic=" + ic));
+  }
+  // A spec built in code is checked by fit_model_spec too, before any estimation.
+  ModelSpec s = parse_model_spec("linear:oe:nb=2,nf=2,nk=0");
+  s.initial_condition = InitialCondition::measured;
+  Eigen::VectorXd u = Eigen::VectorXd::LinSpaced(50, 0.0, 1.0), y = u;
+  CHECK_THROWS_WITH(fit_model_spec(s, Dataset(Experiment(u, y, 0.1))), Contains("ic=measured is not used"));
+}
+
 TEST_CASE("model specs carry a regularization lambda into the estimation", "[io]") {
   using Catch::Contains;
   CHECK(parse_model_spec("nlarx:na=2,nb=2,nk=0:sigmoidnet:3:lambda=0.5").lambda == 0.5);

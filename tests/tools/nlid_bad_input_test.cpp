@@ -415,3 +415,19 @@ TEST_CASE("nlid-fit: a validation record it cannot score gets a row saying why, 
                         Catch::Contains("saved " + model.string()));
   CHECK(fs::exists(model));
 }
+
+TEST_CASE("nlid-fit: a SPEC option the estimator would not use is a command-line error before any data are read",
+          "[tools][fit][bad_input]") {
+  const fs::path missing = work_dir() / "spec_missing.csv", model = work_dir() / "spec_unused.json";
+  auto run = [&](const std::string& spec) { return fit("--model " + spec + " --est " + q(missing) + " --save " + q(model)); };
+  // ic= that linear:oe estimation ignores would be saved and change the model's simulation.
+  Run r = run("linear:oe:nb=2,nf=2,nk=0:ic=measured");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("ic=measured is not used in estimating linear:oe models (they take ic=zero or "
+                                    "ic=estimate)") &&
+                        !Catch::Contains("spec_missing.csv"));
+  r = run("linear:arx:na=1,nb=1,nk=1:ic=zero");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("takes no ic"));
+  CHECK_FALSE(fs::exists(model));
+}

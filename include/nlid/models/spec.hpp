@@ -22,7 +22,11 @@
 /// key=value options (units, breakpoints, degree, depth, linear=0|1). In `hw`, `in=` and `out=`
 /// name the two maps (default unitgain). Options for the whole fit may follow anywhere as
 /// key=value fields: `focus=simulation|prediction` (nlarx; default simulation),
-/// `ic=zero|estimate|equilibrium|measured` (initial condition during estimation), and for nlarx
+/// `ic=zero|estimate|equilibrium|measured` (initial condition during estimation; only the values
+/// the family's estimator uses: nlarx zero, estimate or measured — with focus=prediction only
+/// measured —, linear:oe zero or estimate, hw, the series families and greybox zero, estimate or
+/// equilibrium, linear:arx none; another would be ignored in estimation yet recorded in the model
+/// file, changing how the saved model simulates, and is refused), and for nlarx
 /// `starts=N` / `start_iterations=N` (N data-driven starts of the network, each refined for
 /// `start_iterations`; the best continues — `EstimateOptions::starts`, e.g. the study's nlarx5:
 /// `nlarx:na=3,nb=3,nk=0:sigmoidnet:5:starts=4,start_iterations=30` with `--iterations 90`),
@@ -217,6 +221,43 @@ inline std::string options_of(const std::string& kind) {
   return takes_option(kind, "linear") ? k + ", linear" : k;
 }
 
+/// The `ic=` values the estimator of `s.family` uses (with `s.focus` for nlarx), for the spec's
+/// messages: an `ic` it does not use would be recorded in the model file and change how the
+/// saved model simulates while the estimate stays the same, so it is refused. Empty: none.
+inline std::vector<InitialCondition> spec_initial_conditions(const ModelSpec& s) {
+  using IC = InitialCondition;
+  if (s.family == "linear:arx") return {};  // least squares on the measured past
+  if (s.family == "linear:oe") return {IC::zero, IC::estimate};  // OeOptions::initial_state
+  if (s.family == "nlarx") {
+    // Prediction focus: one-step predictions from the measured past, whatever ic says.
+    if (s.focus == Focus::prediction) return {IC::measured};
+    return {IC::zero, IC::estimate, IC::measured};  // Nlarx estimation refuses equilibrium
+  }
+  // hw, the series families and greybox: a state-space start (measured past outputs do not apply).
+  return {IC::zero, IC::estimate, IC::equilibrium};
+}
+
+/// Refuses an `ic` the family's estimator does not use, naming the family and what it takes.
+inline void check_spec_initial_condition(const ModelSpec& s) {
+  if (!s.initial_condition) return;
+  const auto accepted = spec_initial_conditions(s);
+  if (std::find(accepted.begin(), accepted.end(), *s.initial_condition) != accepted.end()) return;
+  const bool prediction = s.family == "nlarx" && s.focus == Focus::prediction;
+  const std::string who = s.family + " models" + (prediction ? " with focus=prediction" : "");
+  std::string list;
+  for (std::size_t i = 0; i < accepted.size(); ++i)
+    list += std::string(i == 0 ? "" : i + 1 == accepted.size() ? " or " : ", ") + "ic=" + nlid::to_string(accepted[i]);
+  std::string why = "they take " + list;
+  if (s.family == "linear:arx") why = "ARX is estimated by least squares on the measured past: it takes no ic";
+  if (prediction)
+    why = "one-step predictions start from the measured past: they take " + list +
+          "; focus=simulation takes ic=zero, ic=estimate or ic=measured";
+  throw Error("model spec '" + s.text + "': ic=" + nlid::to_string(*s.initial_condition) +
+                  " is not used in estimating " + who + " (" + why +
+                  "); an unused ic would only change how the saved model simulates",
+              at_parameter("ic"));
+}
+
 }  // namespace detail
 
 /// Parses a model spec. Throws `nlid::Error` naming the bad field and listing what is accepted.
@@ -394,6 +435,7 @@ inline ModelSpec parse_model_spec(const std::string& text) {
     }
     if (has_order) s.orders.push_back(o);
   }
+  detail::check_spec_initial_condition(s);
   require(s.starts == 1 || (s.nonlinearities.size() == 1 && s.nonlinearities[0].kind == "sigmoidnet"),
           "model spec '" + text + "': starts > 1 needs a sigmoidnet (the only map with alternative starts)",
           at_parameter("starts"));
@@ -543,6 +585,7 @@ AnyModel fit_model_spec_kind(const ModelSpec& s, const Dataset& data, const Spec
   require(data.size() > 0, "no estimation data", at_parameter("data"));
   const int nu = data.num_inputs();
   (void)make_model(s, nu);  // checks the input count and the component sizes first
+  detail::check_spec_initial_condition(s);  // a spec built in code, not parsed
   ModelFileInfo info;
   info.description = "nlid-fit --model " + s.text;
   if (s.initial_condition) info.initial_condition = s.initial_condition;
@@ -557,7 +600,7 @@ AnyModel fit_model_spec_kind(const ModelSpec& s, const Dataset& data, const Spec
     OeOptions oo;
     if (o.iterations >= 0) oo.lm.max_iterations = o.iterations;
     oo.lm.callback = o.callback;
-    if (s.initial_condition == InitialCondition::estimate) oo.initial_state = InitialCondition::estimate;
+    oo.initial_state = s.initial_condition.value_or(InitialCondition::zero);
     return AnyModel(oe(data, OeOrders(od.nb, od.nf, od.nk), oo), info);
   }
   if (s.family == "nlarx" || s.family == "hw") {
