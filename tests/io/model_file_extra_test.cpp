@@ -239,6 +239,14 @@ TEST_CASE("model specs carry nlarx's data-driven starts", "[io]") {
   CHECK_THROWS_WITH(parse_model_spec("linear:arx:na=1,nb=1,nk=0:starts=2"), Catch::Contains("applies to nlarx models"));
   CHECK_THROWS_WITH(parse_model_spec("nlarx:na=2,nb=2,nk=0:sigmoidnet:3:starts=0"), Catch::Contains("starts must be in 1 ... 64"));
   CHECK_THROWS_WITH(parse_model_spec("nlarx:na=2,nb=2,nk=0:wavenet:3:starts=2"), Catch::Contains("starts > 1 needs a sigmoidnet"));
+  // start_iterations without several starts, or of 0 iterations, would be ignored: refused.
+  CHECK_THROWS_WITH(parse_model_spec("nlarx:na=2,nb=2,nk=0:sigmoidnet:3:start_iterations=30"),
+                    Catch::Contains("start_iterations is the refinement of each of several starts; give starts=N (N > 1)"));
+  CHECK_THROWS_WITH(parse_model_spec("nlarx:na=2,nb=2,nk=0:sigmoidnet:3:starts=1,start_iterations=30"),
+                    Catch::Contains("give starts=N (N > 1)"));
+  CHECK_THROWS_WITH(parse_model_spec("nlarx:na=2,nb=2,nk=0:sigmoidnet:3:starts=4,start_iterations=0"),
+                    Catch::Contains("start_iterations must be >= 1"));
+  CHECK(*parse_model_spec("nlarx:na=2,nb=2,nk=0:sigmoidnet:3:start_iterations=5:starts=2").start_iterations == 5);
   // The run-time network takes the alternative starts like the typed one.
   AnyNonlinearity net(SigmoidNet<Dynamic, Dynamic>(2, 3));
   AnyNonlinearity poly(Poly1d<Dynamic>(3));

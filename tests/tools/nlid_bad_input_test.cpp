@@ -429,5 +429,9 @@ TEST_CASE("nlid-fit: a SPEC option the estimator would not use is a command-line
   r = run("linear:arx:na=1,nb=1,nk=1:ic=zero");
   CHECK(r.code == 2);
   CHECK_THAT(r.err, Catch::Contains("takes no ic"));
+  // start_iterations without starts > 1 would be ignored.
+  r = run("nlarx:na=1,nb=1,nk=1:sigmoidnet:3:start_iterations=20");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("give starts=N (N > 1) with it") && !Catch::Contains("spec_missing.csv"));
   CHECK_FALSE(fs::exists(model));
 }

@@ -28,7 +28,7 @@
 /// equilibrium, linear:arx none; another would be ignored in estimation yet recorded in the model
 /// file, changing how the saved model simulates, and is refused), and for nlarx
 /// `starts=N` / `start_iterations=N` (N data-driven starts of the network, each refined for
-/// `start_iterations`; the best continues — `EstimateOptions::starts`, e.g. the study's nlarx5:
+/// `start_iterations` ≥ 1, given only with starts > 1; the best continues — `EstimateOptions::starts`, e.g. the study's nlarx5:
 /// `nlarx:na=3,nb=3,nk=0:sigmoidnet:5:starts=4,start_iterations=30` with `--iterations 90`),
 /// and for nlarx, hw and the series families `lambda=X` (regularization towards zero,
 /// ½·X·‖θ‖² added to the criterion — `LmOptions::regularization`, the toolbox's
@@ -395,6 +395,11 @@ inline ModelSpec parse_model_spec(const std::string& text) {
         const int x = detail::spec_int(v, k, text);
         require(k != "starts" || (x >= 1 && x <= 64), "model spec '" + text + "': starts must be in 1 ... 64, got " + v,
                 at_parameter(k));
+        // 0 would compare the starts unrefined (from their initial cost): not what the option is for.
+        require(k != "start_iterations" || x >= 1,
+                "model spec '" + text + "': start_iterations must be >= 1 (the iterations each start is refined "
+                "for before the starts are compared), got " + v,
+                at_parameter(k));
         if (k == "starts") s.starts = x;
         else s.start_iterations = x;
       } else if (k == "lambda") {
@@ -436,6 +441,11 @@ inline ModelSpec parse_model_spec(const std::string& text) {
     if (has_order) s.orders.push_back(o);
   }
   detail::check_spec_initial_condition(s);
+  // Without several starts there is nothing to compare and start_iterations would be ignored.
+  require(!s.start_iterations || s.starts > 1,
+          "model spec '" + text + "': start_iterations is the refinement of each of several starts; give starts=N "
+          "(N > 1) with it, or leave it out",
+          at_parameter("start_iterations"));
   require(s.starts == 1 || (s.nonlinearities.size() == 1 && s.nonlinearities[0].kind == "sigmoidnet"),
           "model spec '" + text + "': starts > 1 needs a sigmoidnet (the only map with alternative starts)",
           at_parameter("starts"));
