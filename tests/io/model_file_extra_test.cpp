@@ -307,6 +307,25 @@ TEST_CASE("model specs refuse an ic the family's estimator does not use (it woul
   CHECK_THROWS_WITH(fit_model_spec(s, Dataset(Experiment(u, y, 0.1))), Contains("ic=measured is not used"));
 }
 
+TEST_CASE("model specs refuse a one-input nonlinearity for an nlarx regressor vector, naming what nlarx takes",
+          "[io][errors]") {
+  using Catch::Contains;
+  for (const char* k : {"unitgain", "pwlinear", "saturation", "deadzone", "poly1d:3"}) {
+    INFO(k);
+    CHECK_THROWS_WITH(parse_model_spec(std::string("nlarx:na=3,nb=3,nk=0:") + k),
+                      Contains("has one input, but nlarx feeds its nonlinearity 6 regressors or more") &&
+                          Contains("nlarx takes sigmoidnet, wavenet, treepartition or linear"));
+  }
+  CHECK_THROWS_WITH(parse_model_spec("nlarx:na=1,nb=1,nk=1:poly1d:3"), Contains("2 regressors or more"));
+  CHECK_THROWS_WITH(parse_model_spec("nlarx:na=0,nb=2,nk=1:saturation"), Contains("2 regressors or more"));
+  for (const char* k : {"sigmoidnet:3", "wavenet:3", "treepartition:2", "linear"})
+    CHECK_NOTHROW(parse_model_spec(std::string("nlarx:na=3,nb=3,nk=0:") + k));
+  // One regressor (the lagged input alone) suits a one-input map when there is one input.
+  const ModelSpec one = parse_model_spec("nlarx:na=0,nb=1,nk=1:poly1d:3");
+  CHECK(make_model(one, 1).parameters().size() == 4);  // poly1d of degree 3
+  CHECK_THROWS_WITH(make_model(one, 2), Contains("has one input but 2 regressors/inputs were given"));
+}
+
 TEST_CASE("model specs carry a regularization lambda into the estimation", "[io]") {
   using Catch::Contains;
   CHECK(parse_model_spec("nlarx:na=2,nb=2,nk=0:sigmoidnet:3:lambda=0.5").lambda == 0.5);

@@ -433,5 +433,11 @@ TEST_CASE("nlid-fit: a SPEC option the estimator would not use is a command-line
   r = run("nlarx:na=1,nb=1,nk=1:sigmoidnet:3:start_iterations=20");
   CHECK(r.code == 2);
   CHECK_THAT(r.err, Catch::Contains("give starts=N (N > 1) with it") && !Catch::Contains("spec_missing.csv"));
+  // A one-input map for an nlarx regressor vector failed (status 1) only after all data were read.
+  r = run("nlarx:na=2,nb=2,nk=0:poly1d:3");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("poly1d has one input") &&
+                        Catch::Contains("nlarx takes sigmoidnet, wavenet, treepartition or linear") &&
+                        !Catch::Contains("spec_missing.csv"));
   CHECK_FALSE(fs::exists(model));
 }

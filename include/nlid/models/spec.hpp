@@ -468,7 +468,22 @@ inline ModelSpec parse_model_spec(const std::string& text) {
   };
   if (s.family == "linear:arx") { need(1, 0, "linear:arx:na=2,nb=1,nk=0"); need_keys(s.orders[0], true, false); }
   if (s.family == "linear:oe") { need(1, 0, "linear:oe:nb=2,nf=2,nk=0"); need_keys(s.orders[0], false, true); }
-  if (s.family == "nlarx") { need(1, 1, "nlarx:na=3,nb=3,nk=0:sigmoidnet:units=5"); need_keys(s.orders[0], true, false); }
+  if (s.family == "nlarx") {
+    need(1, 1, "nlarx:na=3,nb=3,nk=0:sigmoidnet:units=5");
+    need_keys(s.orders[0], true, false);
+    // A one-input map cannot take the regressor vector: na past outputs and nb past values of
+    // each input, at least na + nb whatever the input count (exactly that for one input, so
+    // na=0,nb=1 is left to make_model, which knows the input count).
+    const auto& o = s.orders[0];
+    const std::string& k = s.nonlinearities[0].kind;
+    const bool one_input = k == "unitgain" || k == "pwlinear" || k == "saturation" || k == "deadzone" || k == "poly1d";
+    require(!one_input || o.na + o.nb <= 1,
+            "model spec '" + text + "': " + k + " has one input, but nlarx feeds its nonlinearity " +
+                std::to_string(o.na + o.nb) + " regressors or more (na=" + std::to_string(o.na) + " past outputs, nb=" +
+                std::to_string(o.nb) + " past values of each input); nlarx takes sigmoidnet, wavenet, treepartition or "
+                "linear (a one-input map only with na=0,nb=1 and one input)",
+            at_parameter("model"));
+  }
   if (s.family == "hw") {
     if (s.nonlinearities.empty()) s.nonlinearities.resize(2);
     need(1, 2, "hw:nb=3,nf=3,nk=0:in=pwlinear:10:out=saturation");
