@@ -281,6 +281,13 @@ inline std::string translate(std::string s) {
       {"set CodegenOptions::substeps", "give --substeps"},
       {"more than IntegratorOptions::max_substeps = ", "more than the ceiling of "},
       {"CodegenOptions::ts", "--ts"},
+      {"CodegenOptions::substeps = ", "--substeps "},
+      {"CodegenOptions::substeps", "--substeps"},
+      {"CodegenOptions::initial_state", "--x0"},
+      {"CodegenOptions::equilibrium_input", "--u0"},
+      {"CodegenOptions::name", "--name"},
+      {"CodegenOptions::precision", "--precision"},
+      {"CodegenOptions::linear_form", "--linear-form"},
       {"CsvReadOptions::ts", "--ts"},
       {"CsvReadOptions::delimiter", "--delimiter"},
       {"CsvReadOptions::decimal_point", "--decimal"},
@@ -291,7 +298,6 @@ inline std::string translate(std::string s) {
       {"DiagnoseOptions::starts", "--starts"},
       {"LmOptions::max_iterations", "--iterations"},
       {"use InitialCondition::zero or ::estimate", "use --x0 zero"},
-      {"CodegenOptions::equilibrium_input", "--u0"},
       {"equilibrium_input", "--u0"},
   };
   for (const auto& [from, to] : table) {

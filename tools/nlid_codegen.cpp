@@ -17,7 +17,8 @@
 // the estimation data recorded in the model file, or a steady output far outside its output
 // range, is refused (the model extrapolates there) unless --allow-extrapolation is given. Exit status (cli_common.hpp) 0 on success, 1 on a
 // bad file or model (a model kind that is not generated, no or a non-finite equilibrium, a
-// missing --out directory — the message says which), 2 on a bad command line. --precision single writes float code (no double anywhere) for FPUs
+// missing --out directory — the message says which), 2 on a bad command line (an invalid --name
+// included, refused before the model is read). --precision single writes float code (no double anywhere) for FPUs
 // without double arithmetic; it computes the model in float rounding, not nlid's bits, and writes
 // the linear blocks of Hammerstein-Wiener, series, ARX and output-error models in delta-operator
 // form (docs/codegen.md); --linear-form direct keeps their polynomial form (for comparison).
@@ -169,6 +170,16 @@ int main(int argc, char** argv) {
     if (allow_extrapolation && x0 != "equilibrium")
       throw UsageError("--allow-extrapolation permits an equilibrium start (--x0 equilibrium) outside the data range");
     const std::string stem = name.empty() ? identifier_from(model) : name;
+    // A name the generator refuses is a command-line error, found before the model is read.
+    try {
+      nlid::codegen::check_name(stem);
+    } catch (const nlid::Error& e) {
+      std::string why = e.message();
+      if (why.rfind("codegen: ", 0) == 0) why = why.substr(9);
+      throw UsageError(name.empty() ? "the default --name '" + stem + "' (from the model file's name, " + model +
+                                          "): " + why + " - give another --name"
+                                    : "--name: " + why);
+    }
     const std::string h_path = (std::filesystem::path(out) / (stem + ".h")).string();
     const std::string c_path = (std::filesystem::path(out) / (stem + ".c")).string();
     nlid_tools::check_outputs_distinct({{"--out", out}, {"--out (header)", h_path}, {"--out (source)", c_path}},
@@ -254,7 +265,20 @@ int main(int argc, char** argv) {
       g = nlid::generate_c(m, o);
     } catch (const nlid::Error& e) {
       // The library names its option; on this command line the state is --x0.
-      if (x0_state.empty() || e.where().parameter != "initial_state") throw;
+      if (x0_state.empty() || e.where().parameter != "initial_state") {
+        // The other CodegenOptions fields under this tool's option names (the message text is
+        // translated by cli_common.hpp's translate(); this is the "[at parameter ...]" part).
+        static const std::pair<const char*, const char*> options[] = {
+            {"substeps", "--substeps"}, {"ts", "--ts"},       {"equilibrium_input", "--u0"},
+            {"name", "--name"},         {"precision", "--precision"}, {"linear_form", "--linear-form"}};
+        for (const auto& [lib, flag] : options) {
+          if (e.where().parameter != lib) continue;
+          nlid::Location where = e.where();
+          where.parameter = flag;
+          throw nlid::Error(e.message(), where);
+        }
+        throw;
+      }
       std::string text = e.message();
       const std::string lib = "codegen: initial_state";
       text = text.rfind(lib, 0) == 0 ? "--x0 " + x0 + " (" + model + ")" + text.substr(lib.size())

@@ -300,9 +300,19 @@ TEST_CASE("nlid-codegen: a kind it does not generate, a grey box without --ts, a
   r = codegen("--model " + q(nlarx) + " --out " + q(dir) + " --ts 0.02");
   CHECK(r.code == 1);
   CHECK_THAT(r.err, Catch::Contains("--ts 0.02 s differs from the model's sample time 0.01 s"));
+  // A name that is no C identifier is a command-line error, refused before the model is read.
   r = codegen("--model " + q(nlarx) + " --out " + q(dir) + " --name 9lives");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("--name: name '9lives' is not a C identifier"));
+  r = codegen("--model " + q(dir / "nope.json") + " --out " + q(dir) + " --name my-model");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("name 'my-model' is not a C identifier") && !Catch::Contains("nope.json"));
+  // A sub-step count too small for the grey box's stiffness at this sample time names the tool's
+  // option, not the library's CodegenOptions field.
+  r = codegen("--model " + q(grey) + " --out " + q(dir) + " --ts 2 --substeps 1");
   CHECK(r.code == 1);
-  CHECK_THAT(r.err, Catch::Contains("name '9lives' is not a C identifier"));
+  CHECK_THAT(r.err, Catch::Contains("--substeps 1 gives an unstable integrator step") &&
+                        Catch::Contains("[at parameter '--substeps']") && !Catch::Contains("CodegenOptions"));
   r = codegen("--model " + q(nlarx) + " --out " + q(dir / "missing"));
   CHECK(r.code == 1);
   CHECK_THAT(r.err, Catch::Contains("output directory") && Catch::Contains("does not exist"));
