@@ -284,6 +284,24 @@ TEST_CASE("generated C of the throttle grey box (RK4, smoothed stops) matches nl
   check_single_precision(g, o, e3.u(), ref, 1e-4);
 }
 
+TEST_CASE("codegen refuses a name that would write a header shadowing a C standard header", "[codegen]") {
+  for (const char* h : {"assert", "complex", "ctype", "errno", "fenv", "float", "inttypes", "iso646", "limits", "locale",
+                        "math", "setjmp", "signal", "stdarg", "stdbool", "stddef", "stdint", "stdio", "stdlib", "string",
+                        "tgmath", "time", "wchar", "wctype"}) {
+    INFO(h);
+    CHECK_THROWS_WITH(nlid::codegen::check_name(h),
+                      Catch::Contains("is the name of the C standard header <" + std::string(h) + ".h>") &&
+                          Catch::Contains("choose another name"));
+  }
+  // Header names are case-sensitive in C; a prefix or suffix is another file.
+  for (const char* ok : {"Math", "MATH", "math_model", "my_stdio", "timer"}) CHECK_NOTHROW(nlid::codegen::check_name(ok));
+  nlid::GreyBox<nlid::physics::Throttle> g;
+  nlid::CodegenOptions o;
+  o.name = "math";
+  o.ts = 0.01;
+  CHECK_THROWS_WITH(nlid::generate_c(g, o), Catch::Contains("<math.h>"));
+}
+
 TEST_CASE("codegen rejects bad names, missing sample times and the adaptive integrator", "[codegen]") {
   nlid::GreyBox<nlid::physics::Throttle> g;
   nlid::CodegenOptions o;

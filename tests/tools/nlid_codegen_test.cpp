@@ -307,6 +307,21 @@ TEST_CASE("nlid-codegen: a kind it does not generate, a grey box without --ts, a
   r = codegen("--model " + q(dir / "nope.json") + " --out " + q(dir) + " --name my-model");
   CHECK(r.code == 2);
   CHECK_THAT(r.err, Catch::Contains("name 'my-model' is not a C identifier") && !Catch::Contains("nope.json"));
+  // A name equal to a C standard header's would write DIR/math.h, shadowing <math.h>: refused up
+  // front, also as the default name of a model file called math.json (C compares case-sensitively).
+  r = codegen("--model " + q(nlarx) + " --out " + q(dir) + " --name stdio");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("name 'stdio' is the name of the C standard header <stdio.h>"));
+  CHECK_FALSE(fs::exists(dir / "stdio.h"));
+  fs::copy_file(nlarx, dir / "math.json", fs::copy_options::overwrite_existing);
+  r = codegen("--model " + q(dir / "math.json") + " --out " + q(dir));
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("the default --name 'math' (from the model file's name") &&
+                        Catch::Contains("<math.h>") && Catch::Contains("give another --name"));
+  CHECK_FALSE(fs::exists(dir / "math.h"));
+  r = codegen("--model " + q(dir / "math.json") + " --out " + q(dir) + " --name Math");
+  CHECK(r.code == 0);
+  CHECK(fs::exists(dir / "Math.h"));
   // A sub-step count too small for the grey box's stiffness at this sample time names the tool's
   // option, not the library's CodegenOptions field.
   r = codegen("--model " + q(grey) + " --out " + q(dir) + " --ts 2 --substeps 1");

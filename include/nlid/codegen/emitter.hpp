@@ -54,7 +54,8 @@ namespace nlid {
 
 /// Settings of C code generation.
 struct CodegenOptions {
-  /// Prefix of every generated identifier and the file names (a C identifier).
+  /// Prefix of every generated identifier and the file names (a C identifier, not the name of a
+  /// C standard header such as math or stdio, whose NAME.h it would shadow).
   std::string name = "nlid_model";
   /// If set, `NAME_init` starts at the equilibrium for this constant input (one value per
   /// input); otherwise at the zero state (or `initial_state`).
@@ -118,7 +119,8 @@ inline bool use_delta_form(const CodegenOptions& o) {
   return o.precision == Precision::single_precision && o.linear_form != LinearForm::direct;
 }
 
-/// Throws unless `name` is a C identifier that does not start with "nlid_" (reserved for helpers).
+/// Throws unless `name` is a C identifier that does not start with "nlid_" (reserved for helpers)
+/// and is not the base name of a C99/C11 standard header (math, stdio, …: NAME.h would shadow it).
 inline void check_name(const std::string& name) {
   bool ok = !name.empty() && (std::isalpha(static_cast<unsigned char>(name[0])) || name[0] == '_');
   for (char c : name) ok = ok && (std::isalnum(static_cast<unsigned char>(c)) || c == '_');
@@ -126,6 +128,16 @@ inline void check_name(const std::string& name) {
           at_parameter("name"));
   require(name.rfind("nlid_", 0) != 0 || name == "nlid_model",
           "codegen: names starting with 'nlid_' are reserved for generated helpers", at_parameter("name"));
+  // DIR/NAME.h would shadow a standard header of that name wherever DIR is on the include path
+  // (the generated source itself includes <math.h>). C compares header names case-sensitively.
+  for (const char* h : {"assert", "complex", "ctype", "errno", "fenv", "float", "inttypes", "iso646", "limits",
+                        "locale", "math", "setjmp", "signal", "stdarg", "stdbool", "stddef", "stdint", "stdio",
+                        "stdlib", "string", "tgmath", "time", "wchar", "wctype",  // C99
+                        "stdalign", "stdatomic", "stdnoreturn", "threads", "uchar"})  // C11
+    require(name != h,
+            "codegen: name '" + name + "' is the name of the C standard header <" + name + ".h>: the generated " + name +
+                ".h would shadow it wherever its directory is on the include path; choose another name",
+            at_parameter("name"));
 }
 
 /// Upper-case macro prefix of a name.
