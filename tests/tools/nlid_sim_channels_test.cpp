@@ -219,3 +219,25 @@ TEST_CASE("nlid-fit: a linear model whose free run overflows is reported as dive
   CHECK(f.code == 1);
   CHECK_THAT(f.err, Catch::Contains("tiny_record.csv") && Catch::Contains("--decimate"));
 }
+
+TEST_CASE("nlid-fit greybox prints its multi-start progress; the summary times the estimation alone",
+          "[tools][fit]") {
+  // A grey-box fit printed nothing between "estimating" and the table, and "estimated in" also
+  // counted reading the files and the uncertainty that follows the estimation.
+  const fs::path est = tool_test::write_record("grey_progress", 800, 44u, 0);
+  const fs::path model = work_dir() / "grey_progress.json";
+  const Run f = fit("--model greybox:first_order --est " + q(est) + " --save " + q(model));
+  INFO(f.err);
+  REQUIRE(f.code == 0);
+  CHECK_THAT(f.err, Catch::Contains("grey box first_order: 24 start candidates screened, the best 6 refined"));
+  for (int k = 1; k <= 6; ++k) CHECK_THAT(f.err, Catch::Contains("start " + std::to_string(k) + " of 6 (candidate "));
+  CHECK_THAT(f.err, Catch::Contains("iterations, converged"));
+  CHECK_THAT(f.out, Catch::Contains("free-run simulation from x0 estimate"));
+  // An nlarx fit: the uncertainty is computed after the estimation and announced.
+  const Run n = fit("--model nlarx:na=1,nb=1,nk=0:sigmoidnet:2 --iterations 5 --est " + q(est) + " --save " + q(model));
+  INFO(n.err);
+  REQUIRE(n.code == 0);
+  CHECK_THAT(n.err, Catch::Contains("computing the parameters' uncertainty on the estimation data"));
+  // (The split itself is printed only when the uncertainty takes 5 ms or more: not on this small problem.)
+  CHECK(n.err.find("computing the parameters' uncertainty") > n.err.rfind("iteration "));
+}

@@ -122,8 +122,13 @@ struct SpecFitOptions {
   int iterations = -1;  ///< main-stage iterations (−1: the family's default)
   /// Called after each solver step (iteration, cost, …) — for progress output.
   std::function<bool(const IterationReport&)> callback;
-  /// Initialisation stage messages (series models).
+  /// Stage messages: initialisation (nlarx, hw, series models), the grey box's multi-start plan
+  /// and each refined start as it ends, the start of the uncertainty computation.
   std::function<void(const std::string&)> progress;
+  /// Called once the estimator has returned, before the parameter uncertainty and the band are
+  /// computed (a caller times the estimation alone with it; the grey box's uncertainty is part of
+  /// its estimator, so there it comes after both).
+  std::function<void()> estimated;
   /// If set, receives the parameter uncertainty of the estimate on the estimation data (nlarx,
   /// hw: `parameter_uncertainty(model, data)`; greybox: `GreyBoxEstimate::uncertainty`). Not
   /// called for the linear and series families (ARX and OE keep their own deviations), nor when
@@ -517,6 +522,7 @@ AnyModel fit_series_spec(M model, const ModelSpec& s, const Dataset& data, const
   so.solver.max_iterations = o.iterations >= 0 ? o.iterations : 200;
   so.solver.regularization.lambda = s.lambda;
   M m = estimate(std::move(model), data, so);
+  if (o.estimated) o.estimated();
   ModelFileInfo info;
   info.description = "nlid-fit --model " + s.text;
   info.initial_condition = s.initial_condition.value_or(InitialCondition::zero);
@@ -543,7 +549,9 @@ void spec_band(const M& m, const ParameterUncertainty& u, const SpecFitOptions& 
 template <class M>
 std::optional<ParameterUncertainty> spec_uncertainty(const M& m, const Dataset& data, const LmOptions& solver,
                                                      const SpecFitOptions& o, InitialCondition simulated_from) {
+  if (o.estimated) o.estimated();
   if (!o.uncertainty) return std::nullopt;
+  if (o.progress) o.progress("computing the parameters' uncertainty on the estimation data");
   ModelUncertaintyOptions uo;
   uo.uncertainty.caveat = uncertainty_caveat(solver);
   ParameterUncertainty u;
@@ -616,9 +624,10 @@ AnyModel fit_model_spec_kind(const ModelSpec& s, const Dataset& data, const Spec
   if (s.initial_condition) info.initial_condition = s.initial_condition;
   if (s.family == "linear:arx") {
     const auto& od = s.orders[0];
-    return AnyModel(arx(data, ArxOrders(od.na, std::vector<int>(static_cast<std::size_t>(nu), od.nb),
-                                        std::vector<int>(static_cast<std::size_t>(nu), od.nk))),
-                    info);
+    Arx m = arx(data, ArxOrders(od.na, std::vector<int>(static_cast<std::size_t>(nu), od.nb),
+                                std::vector<int>(static_cast<std::size_t>(nu), od.nk)));
+    if (o.estimated) o.estimated();
+    return AnyModel(std::move(m), info);
   }
   if (s.family == "linear:oe") {
     const auto& od = s.orders[0];
@@ -626,7 +635,9 @@ AnyModel fit_model_spec_kind(const ModelSpec& s, const Dataset& data, const Spec
     if (o.iterations >= 0) oo.lm.max_iterations = o.iterations;
     oo.lm.callback = o.callback;
     oo.initial_state = s.initial_condition.value_or(InitialCondition::zero);
-    return AnyModel(oe(data, OeOrders(od.nb, od.nf, od.nk), oo), info);
+    OutputError m = oe(data, OeOrders(od.nb, od.nf, od.nk), oo);
+    if (o.estimated) o.estimated();
+    return AnyModel(std::move(m), info);
   }
   if (s.family == "nlarx" || s.family == "hw") {
     EstimateOptions eo;
@@ -676,7 +687,28 @@ AnyModel fit_model_spec_kind(const ModelSpec& s, const Dataset& data, const Spec
   if (s.initial_condition) go.initial_condition = *s.initial_condition;
   // The refinement of each start is the grey box's main stage (SpecFitOptions::iterations).
   if (o.iterations >= 0) go.multi_start.lm.max_iterations = o.iterations;
+  // Progress: the plan, then each start as its refinement ends (in completion order when several
+  // threads refine). The costs are the solver's ½Σr² of the simulation error.
+  if (o.progress) {
+    const MultiStartOptions& ms = go.multi_start;
+    o.progress("grey box " + s.physics + ": " + std::to_string(ms.num_candidates) + " start candidates screened, the best " +
+               std::to_string(ms.num_starts) + " refined (up to " + std::to_string(ms.lm.max_iterations) +
+               " iterations each)");
+    go.multi_start.start_done = [progress = o.progress](const StartResult& r, int done, int total) {
+      std::string line = "start " + std::to_string(done) + " of " + std::to_string(total) + " (candidate " +
+                         std::to_string(r.candidate) + "): ";
+      if (!r.error.empty()) {
+        line += "failed: " + r.error;
+      } else {
+        line += "cost " + nlid::detail::format_g(r.start_cost, 6) + " -> " + nlid::detail::format_g(r.cost, 7) + " in " +
+                std::to_string(r.summary.iterations) + " iterations, " +
+                (r.summary.converged() ? std::string("converged") : std::string(to_string(r.summary.status)));
+      }
+      progress(line);
+    };
+  }
   const GreyBoxEstimate ge = estimate(g, data, go);
+  if (o.estimated) o.estimated();
   // A grey box holds no report itself: the file keeps the estimation's (it read "estimated":
   // false before, with no iterations, costs or fits).
   info.report = estimation_report(ge);
