@@ -449,7 +449,7 @@ nlid::Json nested(int levels, double leaf) {
 
 }  // namespace
 
-TEST_CASE("Json trees built in code copy, compare and destroy at any depth; dump stops at 512 levels") {
+TEST_CASE("Json trees built in code copy, compare and destroy at any depth, and dump stops at 512 levels") {
   // 200 000 levels: each of the old recursive copy, ==, dump and destructor overflowed the stack.
   const nlid::Json a = nested(200000, 1.0);
   nlid::Json b = a;

@@ -187,7 +187,7 @@ TEST_CASE("nlid-fit names the start of its table's free runs, and nlid-sim --x0 
   CHECK_THAT(bad.err, Catch::Contains("--output names the measured outputs that --x0 measured or --x0 estimate read"));
 }
 
-TEST_CASE("nlid-fit: a linear model whose free run overflows is reported as diverged; a short record names its file",
+TEST_CASE("nlid-fit: a linear model whose free run overflows is reported as diverged, and a short record names its file",
           "[tools][fit]") {
   // y(t+1) = 1.05 y(t) + u(t): an ARX fit on a short record is unstable, and its free run over a
   // long one overflows. Linear models return inf instead of throwing; the table printed -inf.
@@ -220,7 +220,7 @@ TEST_CASE("nlid-fit: a linear model whose free run overflows is reported as dive
   CHECK_THAT(f.err, Catch::Contains("tiny_record.csv") && Catch::Contains("--decimate"));
 }
 
-TEST_CASE("nlid-fit greybox prints its multi-start progress; the summary times the estimation alone",
+TEST_CASE("nlid-fit greybox prints its multi-start progress, and the summary times the estimation alone",
           "[tools][fit]") {
   // A grey-box fit printed nothing between "estimating" and the table, and "estimated in" also
   // counted reading the files and the uncertainty that follows the estimation.
