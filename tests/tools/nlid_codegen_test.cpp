@@ -32,22 +32,9 @@ using tool_test::Run;
 using tool_test::slurp;
 using tool_test::work_dir;
 using tool_test::write_record;
+using tool_test::csv_column;
 
 namespace {
-
-std::vector<double> csv_column(const fs::path& p, int col) {
-  std::ifstream f(p);
-  std::string line;
-  std::getline(f, line);
-  std::vector<double> v;
-  while (std::getline(f, line)) {
-    std::stringstream s(line);
-    std::string cell;
-    for (int c = 0; c <= col; ++c) std::getline(s, cell, ',');
-    v.push_back(std::stod(cell));
-  }
-  return v;
-}
 
 // Compiles DIR/NAME.c with a driver that steps the model over the inputs in u.txt (one per
 // line) from NAME_init and prints the outputs; returns them. The driver uses NAME_real, so it

@@ -25,24 +25,7 @@ using tool_test::slurp;
 using tool_test::work_dir;
 using tool_test::write_record;
 
-namespace {
-
-// Column `col` of a CSV file with a header row.
-std::vector<double> column(const fs::path& p, int col) {
-  std::ifstream f(p);
-  std::string line;
-  std::getline(f, line);
-  std::vector<double> v;
-  while (std::getline(f, line)) {
-    std::stringstream s(line);
-    std::string cell;
-    for (int c = 0; c <= col; ++c) std::getline(s, cell, ',');
-    v.push_back(std::stod(cell));
-  }
-  return v;
-}
-
-}  // namespace
+using tool_test::csv_column;
 
 TEST_CASE("nlid-fit + nlid-sim: a nonlinear ARX model of a known first-order lag round-trips through the model file",
           "[tools][fit][sim]") {
@@ -74,8 +57,8 @@ TEST_CASE("nlid-fit + nlid-sim: a nonlinear ARX model of a known first-order lag
   const Run s = sim("--model " + q(model) + " --input " + q(val) + " --out " + q(out));
   INFO(s.err);
   REQUIRE(s.code == 0);
-  const std::vector<double> t = column(out, 0), yhat = column(out, 1);
-  const std::vector<double> y = column(val, 2);
+  const std::vector<double> t = csv_column(out, 0), yhat = csv_column(out, 1);
+  const std::vector<double> y = csv_column(val, 2);
   REQUIRE(yhat.size() == y.size());
   CHECK(t[1] - t[0] == Approx(0.01));
   // Free-run fit of the simulated output against the noisy measurement after the start-up
@@ -363,7 +346,7 @@ TEST_CASE("nlid-sim --band: the covariance nlid-fit saves gives y_std, models wi
   CHECK(slurp(banded).rfind("t,y,y_std\n", 0) == 0);
   // The same simulation, now with its standard deviation: 0 at the held initial state, then
   // positive and small against the output's range of about 4 (noise 0.01 on 1200 samples).
-  const std::vector<double> y0 = column(plain, 1), y = column(banded, 1), sd = column(banded, 2);
+  const std::vector<double> y0 = csv_column(plain, 1), y = csv_column(banded, 1), sd = csv_column(banded, 2);
   REQUIRE(y.size() == y0.size());
   for (std::size_t k = 0; k < y.size(); ++k) CHECK(y[k] == y0[k]);
   CHECK(sd[0] == 0.0);
@@ -389,7 +372,7 @@ TEST_CASE("nlid-sim --band: the covariance nlid-fit saves gives y_std, models wi
     const Run sr = sim("--model " + q(m) + " --input " + q(val) + " --band --out " + q(yb));
     INFO(sr.err);
     REQUIRE(sr.code == 0);
-    const std::vector<double> a = column(yp, 1), b = column(yb, 1), d = column(yb, 2);
+    const std::vector<double> a = csv_column(yp, 1), b = csv_column(yb, 1), d = csv_column(yb, 2);
     REQUIRE(b.size() == a.size());
     for (std::size_t k = 0; k < b.size(); ++k) CHECK(b[k] == a[k]);
     double most = 0.0;

@@ -13,6 +13,7 @@
 #include "tool_runner.hpp"
 
 namespace fs = std::filesystem;
+using tool_test::csv_column;
 using tool_test::fit;
 using tool_test::q;
 using tool_test::Run;
@@ -127,31 +128,6 @@ TEST_CASE("nlid-fit + nlid-sim: records with jittering time stamps merge and sim
   CHECK(fs::exists(out));
 }
 
-namespace {
-
-// Column `name` of a comma-separated file with a header row.
-std::vector<double> csv_column(const fs::path& p, const std::string& name) {
-  std::ifstream f(p);
-  std::string line;
-  std::getline(f, line);
-  int col = 0;
-  {
-    std::stringstream h(line);
-    std::string cell;
-    for (int c = 0; std::getline(h, cell, ','); ++c)
-      if (cell == name) col = c;
-  }
-  std::vector<double> v;
-  while (std::getline(f, line)) {
-    std::stringstream s(line);
-    std::string cell;
-    for (int c = 0; c <= col; ++c) std::getline(s, cell, ',');
-    v.push_back(std::stod(cell));
-  }
-  return v;
-}
-
-}  // namespace
 
 TEST_CASE("nlid-fit names the start of its table's free runs, and nlid-sim --x0 with it reproduces the fit",
           "[tools][fit][sim]") {

@@ -88,6 +88,34 @@ inline fs::path write_record(const std::string& name, int n, unsigned seed, doub
 /// Quoted path for a shell command line.
 inline std::string q(const fs::path& p) { return "\"" + p.string() + "\""; }
 
+/// Column `col` (0-based) of a comma-separated file with a header row, as numbers.
+inline std::vector<double> csv_column(const fs::path& p, int col) {
+  std::ifstream f(p);
+  std::string line;
+  std::getline(f, line);
+  std::vector<double> v;
+  while (std::getline(f, line)) {
+    std::stringstream s(line);
+    std::string cell;
+    for (int c = 0; c <= col; ++c) std::getline(s, cell, ',');
+    v.push_back(std::stod(cell));
+  }
+  return v;
+}
+
+/// The column named `name` in the header row (the first one if none is).
+inline std::vector<double> csv_column(const fs::path& p, const std::string& name) {
+  std::ifstream f(p);
+  std::string line;
+  std::getline(f, line);
+  std::stringstream h(line);
+  std::string cell;
+  int col = 0;
+  for (int c = 0; std::getline(h, cell, ','); ++c)
+    if (cell == name) col = c;
+  return csv_column(p, col);
+}
+
 // Each tool with its command-line arguments (paths from the build: NLID_<TOOL>_EXE).
 inline Run fit(const std::string& args) { return run_tool(NLID_FIT_EXE, args); }
 inline Run sim(const std::string& args) { return run_tool(NLID_SIM_EXE, args); }
