@@ -149,6 +149,9 @@ class PwLinear {
     Values slope{};              ///< slope of segment k (k < n − 1)
     std::span<const T> values;  ///< y₀ … y_{n−1} (a view of θ)
     std::span<const T> log_gaps;  ///< γ₁ … γ_{n−1} (a view of θ, for the error of a refused segment)
+    /// False if some slope is not a finite number: only then does `evaluate_prepared` test the
+    /// segment it lands on (a test per sample cost nlhw2's simulation 30 %).
+    bool all_slopes_finite = true;
   };
 
   /// Positions and slopes of θ (see `Prepared`). Throws `nlid::Error` if θ has the wrong length.
@@ -157,6 +160,7 @@ class PwLinear {
   template <class T>
   [[nodiscard]] Prepared<T> prepare(std::span<const T> theta) const {
     using std::exp;
+    using std::isfinite;
     if (static_cast<int>(theta.size()) != 2 * n_) detail::check_size(theta.size(), 2 * n_, "theta", "PwLinear");
     const auto n = static_cast<std::size_t>(n_);
     Prepared<T> p;
@@ -172,6 +176,7 @@ class PwLinear {
       const T gap = exp(theta[1 + k]);
       const T xn = xk + gap;
       p.slope[k] = segment_slope(theta, k, gap);
+      if (!isfinite(p.slope[k])) p.all_slopes_finite = false;
       p.x[k + 1] = xn;
       xk = xn;
     }
@@ -182,15 +187,12 @@ class PwLinear {
   /// g(x) from a `prepare`d θ; equal to `operator()` with that θ (and refusing what it refuses).
   template <class T>
   [[nodiscard]] T evaluate_prepared(const Prepared<T>& p, const T& xv) const {
-    using std::isfinite;
+    // The check of a refused segment stays out of the search loop: inside it, even behind the
+    // flag, it cost nlhw2's simulation 30 % (docs/performance.md).
+    if (!p.all_slopes_finite) [[unlikely]] return evaluate_prepared_checked(p, xv);
     const auto n = static_cast<std::size_t>(n_);
     for (std::size_t k = 0; k + 1 < n; ++k) {
-      if (xv < p.x[k + 1] || k + 2 == n) {
-        if (!isfinite(p.slope[k])) [[unlikely]] {
-          refuse_slope(k, p.values[k + 1] - p.values[k], p.log_gaps[k]);
-        }
-        return p.values[k] + p.slope[k] * (xv - p.x[k]);
-      }
+      if (xv < p.x[k + 1] || k + 2 == n) return p.values[k] + p.slope[k] * (xv - p.x[k]);
     }
     return p.values[0];  // unreachable: n ≥ 2
   }
@@ -314,10 +316,26 @@ class PwLinear {
     }
   }
 
-  // Throws the error of a segment whose slope is not finite although Δy and γ are: the gap is
-  // the culprit. (Non-finite entries of θ are passed through as before: NaN in, NaN out.)
+  // evaluate_prepared where some slope is not a finite number: refuses the segment x lands on if
+  // it is one of those.
   template <class T>
-  static void refuse_slope(std::size_t k, const T& dy, const T& log_gap) {
+  [[gnu::noinline]] T evaluate_prepared_checked(const Prepared<T>& p, const T& xv) const {
+    using std::isfinite;
+    const auto n = static_cast<std::size_t>(n_);
+    for (std::size_t k = 0; k + 1 < n; ++k) {
+      if (xv < p.x[k + 1] || k + 2 == n) {
+        if (!isfinite(p.slope[k])) refuse_slope(k, p.values[k + 1] - p.values[k], p.log_gaps[k]);
+        return p.values[k] + p.slope[k] * (xv - p.x[k]);
+      }
+    }
+    return p.values[0];  // unreachable: n ≥ 2
+  }
+
+  // Throws the error of a segment whose slope is not finite although Δy and γ are: the gap is
+  // the culprit. (Non-finite entries of θ are passed through as before: NaN in, NaN out.) Cold
+  // and out of line, so its message building does not weigh on the loops that call it.
+  template <class T>
+  [[gnu::cold, gnu::noinline]] static void refuse_slope(std::size_t k, const T& dy, const T& log_gap) {
     const double g = plain_value(log_gap), d = plain_value(dy);
     if (!std::isfinite(g) || !std::isfinite(d)) return;
     const std::string gap_name = "log_gap[" + std::to_string(k + 1) + "]";
