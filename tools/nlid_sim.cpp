@@ -93,10 +93,8 @@ int main(int argc, char** argv) {
     const std::string model = a.get("--model"), input = a.get("--input"), out = a.get("--out"),
                       x0 = a.get("--x0", "zero"), column = a.get("--column"),
                       output_column = a.get("--output");
-    const nlid::InitialCondition ic = x0 == "zero"          ? nlid::InitialCondition::zero
-                                      : x0 == "equilibrium" ? nlid::InitialCondition::equilibrium
-                                      : x0 == "measured"    ? nlid::InitialCondition::measured
-                                                            : nlid::InitialCondition::estimate;
+    // parse_options has checked the name against the four policies.
+    const nlid::InitialCondition ic = nlid::detail::initial_condition_from_report(x0, nlid::InitialCondition::zero);
     // Only these two starts read the record's outputs.
     const bool reads_outputs = ic == nlid::InitialCondition::measured || ic == nlid::InitialCondition::estimate;
     if (!output_column.empty() && !reads_outputs)
@@ -129,46 +127,43 @@ int main(int argc, char** argv) {
                                           "carry it)"));
       }
     }
-    // The input columns: --column's names (one per model input), else the model file's names (a
-    // single-input model without one reads "u").
-    const int nu = m.num_inputs();
-    std::vector<std::string> columns;
-    if (!column.empty()) {
-      columns = column_list(column);
-      if (static_cast<int>(columns.size()) != nu)
-        throw UsageError("--column names " + std::to_string(columns.size()) + " column(s) but the model in " +
-                         model + " reads " + std::to_string(nu) + " input(s): give one name per input, comma-separated");
-    } else {
-      const auto names = m.input_names();
-      for (int j = 0; j < nu; ++j) {
-        const std::string n = static_cast<int>(names.size()) == nu ? names[static_cast<std::size_t>(j)] : std::string();
+    // The columns of the inputs (and, for measured or estimated starts, of the outputs): the
+    // option's names, one per channel, else the model file's. An unnamed channel of a
+    // single-channel model reads `single` ("u", "y"); an unnamed input of several is an error (a
+    // guess would read the wrong column), an unnamed output of several reads y1, y2, ...
+    const auto channel_columns = [&](const char* flag, const std::string& given, const std::vector<std::string>& names,
+                                     int count, const char* what, const char* single, bool guess_several) {
+      std::vector<std::string> cols;
+      if (!given.empty()) {
+        cols = column_list(given, flag);
+        if (static_cast<int>(cols.size()) != count)
+          throw UsageError(std::string(flag) + " names " + std::to_string(cols.size()) + " column(s) but the model in " +
+                           model + (what[0] == 'i' ? " reads " : " has ") + std::to_string(count) + " " + what +
+                           "(s): give one name per " + what + ", comma-separated");
+        return cols;
+      }
+      for (int j = 0; j < count; ++j) {
+        const std::string n = static_cast<int>(names.size()) == count ? names[static_cast<std::size_t>(j)] : std::string();
         if (!n.empty()) {
-          columns.push_back(n);
-        } else if (nu == 1) {
-          columns.emplace_back("u");
+          cols.push_back(n);
+        } else if (count == 1) {
+          cols.emplace_back(single);
+        } else if (guess_several) {
+          cols.push_back(single + std::to_string(j + 1));
         } else {
-          throw nlid::Error("the model in " + model + " reads " + std::to_string(nu) +
-                            " inputs but does not name input " + std::to_string(j + 1) +
-                            ": name the columns with --column u1,u2,..");
+          throw nlid::Error("the model in " + model + " reads " + std::to_string(count) + " " + what +
+                            "s but does not name " + what + " " + std::to_string(j + 1) + ": name the columns with " +
+                            flag + " " + single + "1," + single + "2,..");
         }
       }
-    }
-    const int ny = m.num_outputs();
-    std::vector<std::string> outputs;
-    if (reads_outputs) {
-      if (!output_column.empty()) {
-        outputs = column_list(output_column, "--output");
-        if (static_cast<int>(outputs.size()) != ny)
-          throw UsageError("--output names " + std::to_string(outputs.size()) + " column(s) but the model in " + model +
-                           " has " + std::to_string(ny) + " output(s): give one name per output, comma-separated");
-      } else {
-        const auto names = m.output_names();
-        for (int j = 0; j < ny; ++j) {
-          const std::string n = static_cast<int>(names.size()) == ny ? names[static_cast<std::size_t>(j)] : std::string();
-          outputs.push_back(!n.empty() ? n : (ny == 1 ? std::string("y") : "y" + std::to_string(j + 1)));
-        }
-      }
-    }
+      return cols;
+    };
+    const int nu = m.num_inputs(), ny = m.num_outputs();
+    const std::vector<std::string> columns =
+        channel_columns("--column", column, m.input_names(), nu, "input", "u", false);
+    const std::vector<std::string> outputs =
+        reads_outputs ? channel_columns("--output", output_column, m.output_names(), ny, "output", "y", true)
+                      : std::vector<std::string>();
     stage = "reading " + input;
     nlid::Experiment e = nlid_tools::read_record(record, input, columns, outputs, "nlid-sim");
     if (decimate > 1) {
