@@ -19,6 +19,7 @@
 
 #include "nlid/analysis/fit.hpp"
 #include "nlid/core/error.hpp"
+#include "nlid/core/sample_time.hpp"
 #include "nlid/data/csv.hpp"
 #include "nlid/data/dataset.hpp"
 #include "nlid/data/resample.hpp"
@@ -198,7 +199,7 @@ int main(int argc, char** argv) {
       for (const auto& e : est) records.push_back(&e);
       nlid_tools::check_inputs_vary(records, a.est, "--est");
     }
-    if (val.size() > 0 && std::abs(val.ts() - est.ts()) > nlid::dataset_ts_tolerance * est.ts()) {
+    if (val.size() > 0 && !nlid::same_sample_time(val.ts(), est.ts())) {
       // %.10g: std::to_string's six decimals printed 20 µs as "0.000020" for both sides
       char buf[160];
       std::snprintf(buf, sizeof buf, "validation data have sample time %.10g s, estimation data %.10g s (relative difference %.3g)",
