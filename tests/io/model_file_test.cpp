@@ -610,6 +610,15 @@ TEST_CASE("model file: linear ARX, OE and state-space models") {
     CHECK(bit_equal(back.parameters(), m.parameters()));
     CHECK(back.parameter_names() == m.parameter_names());
   }
+  // A state-space model keeps its channel names (tools find the input column by them).
+  ss.set_input_names({"command"});
+  ss.set_output_names({"angle"});
+  const std::string ps = temp_path("state_space_named.json");
+  save_model(ps, ss);
+  const StateSpace ss_back = load_model<StateSpace>(ps);
+  CHECK(ss_back.input_names() == std::vector<std::string>{"command"});
+  CHECK(ss_back.output_names() == std::vector<std::string>{"angle"});
+  CHECK(load_model(ps).input_names() == std::vector<std::string>{"command"});
   const std::string p = temp_path("arx_typed.json");
   save_model(p, arx);
   const Arx back = load_model<Arx>(p);

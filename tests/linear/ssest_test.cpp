@@ -66,6 +66,24 @@ TEST_CASE("ssest keeps an exact subspace estimate exact", "[linear][ssest]") {
   CHECK(m.report().num_parameters == 2 * 2 + 2);  // n(m + p) + x0
 }
 
+TEST_CASE("ssest and moesp name the model's channels after the estimation data's", "[linear][ssest]") {
+  const StateSpace truth = siso2();
+  const Eigen::MatrixXd u = nlid_test::random_steps(400, 1, 5, 4);
+  Experiment e(u, truth.simulate(u, Eigen::VectorXd::Zero(2)), 0.01);
+  e.set_input_names({"command"});
+  e.set_output_names({"angle"});
+  for (const StateSpace& m : {nlid::moesp(e, 2), nlid::ssest(e, 2)}) {
+    CHECK(m.input_names() == std::vector<std::string>{"command"});
+    CHECK(m.output_names() == std::vector<std::string>{"angle"});
+    CHECK_THAT(m.describe(), Catch::Contains("inputs u: command") && Catch::Contains("outputs y: angle"));
+  }
+  // A hand-made model names nothing; a wrong count is refused naming it.
+  StateSpace m = truth;
+  CHECK(m.input_names().empty());
+  CHECK_THROWS_WITH(m.set_input_names({"a", "b"}), Catch::Contains("2 inputs named, the model has 1"));
+  CHECK_THROWS_WITH(m.set_output_names({"a", "b"}), Catch::Contains("2 outputs named, the model has 1"));
+}
+
 TEST_CASE("ssest on noisy data: refinement improves the simulation fit", "[linear][ssest]") {
   // Coloured output noise (a slow drift) biases the subspace step; the refinement minimises the
   // simulation error directly and must not be worse than its start.

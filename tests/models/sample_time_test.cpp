@@ -125,8 +125,12 @@ TEST_CASE("with_sample_time: ARX deterministic part, state space, Hammerstein-Wi
   B << 0.3, 1.0;
   C << 1.0, 0.5;
   D << 0.1;
-  const StateSpace ss(A, B, C, D, 0.01);
+  StateSpace ss(A, B, C, D, 0.01);
+  ss.set_input_names({"command"});
+  ss.set_output_names({"angle"});
   const StateSpace ss4 = with_sample_time(ss, 0.0025);
+  CHECK(ss4.input_names() == ss.input_names());
+  CHECK(ss4.output_names() == ss.output_names());
   CHECK(agree(ss.simulate(coarse, InitialCondition::zero), ss4.simulate(fine, InitialCondition::zero)));
 
   DynamicHammersteinWiener hw(AnyNonlinearity(Poly1d<Dynamic>(2)), TransferFunctionBlock<Dynamic, Dynamic, Dynamic>(2, 2, 1),

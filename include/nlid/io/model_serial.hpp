@@ -989,9 +989,11 @@ struct ModelSerial<StateSpace> {
   static constexpr const char* kind = "state_space";
   /// Writes the model's members.
   static void save(Json& j, const StateSpace& m, const ModelFileInfo& info) {
-    std::vector<std::string> out;
-    for (int i = 0; i < m.num_outputs(); ++i) out.push_back("y" + std::to_string(i + 1));
-    detail::write_common(j, m.ts(), default_input_names(m.num_inputs()), out, info, nullptr);
+    std::vector<std::string> out = m.output_names();
+    if (out.empty())
+      for (int i = 0; i < m.num_outputs(); ++i) out.push_back("y" + std::to_string(i + 1));
+    detail::write_common(j, m.ts(), m.input_names().empty() ? default_input_names(m.num_inputs()) : m.input_names(),
+                         out, info, nullptr);
     Json s = Json::object();
     s["A"] = to_json(m.a());
     s["B"] = to_json(m.b());
@@ -1027,6 +1029,8 @@ struct ModelSerial<StateSpace> {
     StateSpace m = detail::located(s, [&] { return StateSpace(A, B, C, D, ts); });
     detail::expect_channel_count(file.at("inputs"), in.size(), m.num_inputs(), "inputs");
     detail::expect_channel_count(file.at("outputs"), out.size(), m.num_outputs(), "outputs");
+    m.set_input_names(in);
+    m.set_output_names(out);
     detail::located(s.at("offset"), [&] {
       m.set_offset(read_vector(s.at("offset"), m.num_outputs()));
       return 0;

@@ -173,6 +173,8 @@ inline StateSpace ssest(const Dataset& data, int order, const SsestOptions& opti
     StateSpace s(detail::stabilize_matrix(start.a()), start.b(), start.c(), start.d(), start.ts());
     s.set_offset(start.offset());
     s.set_report(start.report());
+    s.set_input_names(start.input_names());
+    s.set_output_names(start.output_names());
     start = s;
   }
   if (!options.refine) return start;
@@ -193,6 +195,8 @@ inline StateSpace ssest(const Dataset& data, int order, const SsestOptions& opti
   Eigen::VectorXd theta = problem.pack(start, x0);
   const LmSummary summary = solve_least_squares(problem, theta, options.lm);
   StateSpace model = problem.unpack(theta);
+  model.set_input_names(start.input_names());
+  model.set_output_names(start.output_names());
   Eigen::VectorXd r(problem.num_residuals());
   require(problem.evaluate(theta, r, nullptr),
           "ssest: the refined model cannot be simulated (unstable A)", at_parameter("order"));

@@ -106,6 +106,21 @@ class StateSpace {
             at_parameter("offset"));
     offset_ = std::move(y0);
   }
+  /// Input channel names (from the estimation data or a model file; empty if unknown, and then
+  /// tools and model files call the inputs u1, u2, …).
+  [[nodiscard]] const std::vector<std::string>& input_names() const { return input_names_; }
+  /// Sets the input channel names: one per input, or none. Throws naming the count otherwise.
+  void set_input_names(std::vector<std::string> names) {
+    check_name_count(names, num_inputs(), "input_names", "inputs");
+    input_names_ = std::move(names);
+  }
+  /// Output channel names (empty if unknown: y1, y2, …).
+  [[nodiscard]] const std::vector<std::string>& output_names() const { return output_names_; }
+  /// Sets the output channel names: one per output, or none.
+  void set_output_names(std::vector<std::string> names) {
+    check_name_count(names, num_outputs(), "output_names", "outputs");
+    output_names_ = std::move(names);
+  }
   /// How the model was estimated (empty for a hand-made model).
   [[nodiscard]] const LinearEstimationReport& report() const { return report_; }
   /// Replaces the estimation report (used by the estimators).
@@ -238,7 +253,16 @@ class StateSpace {
     std::ostringstream os;
     const Eigen::IOFormat fmt(4, 0, "  ", "\n", "    [", "]");
     os << "Discrete-time state-space model: " << order() << " state(s), " << num_inputs()
-       << " input(s), " << num_outputs() << " output(s)\n"
+       << " input(s), " << num_outputs() << " output(s)\n";
+    const auto list = [&](const char* what, const std::vector<std::string>& names) {
+      if (names.empty()) return;
+      os << "  " << what << ":";
+      for (std::size_t i = 0; i < names.size(); ++i) os << (i == 0 ? " " : ", ") << names[i];
+      os << "\n";
+    };
+    list("inputs u", input_names_);
+    list("outputs y", output_names_);
+    os
        << "  x(t+Ts) = A x(t) + B u(t)\n"
        << "  y(t)    = C x(t) + D u(t)" << (offset_.isZero() ? "" : " + y0") << " + e(t)\n";
     if (order() > 0) {
@@ -256,6 +280,14 @@ class StateSpace {
   // ---- Implementation details below ----------------------------------------------------------
 
  private:
+  static void check_name_count(const std::vector<std::string>& names, int count, const char* what,
+                               const char* channels) {
+    require(names.empty() || static_cast<int>(names.size()) == count,
+            "StateSpace: " + std::to_string(names.size()) + " " + channels + " named, the model has " +
+                std::to_string(count) + " (give one name per channel, or none)",
+            at_parameter(what));
+  }
+
   void check_pair(int output, int input) const {
     require(output >= 0 && output < num_outputs(),
             "StateSpace: output index " + std::to_string(output) + " out of range (model has " +
@@ -302,6 +334,7 @@ class StateSpace {
   Eigen::VectorXd offset_;
   double ts_ = 1.0;
   LinearEstimationReport report_;
+  std::vector<std::string> input_names_, output_names_;
 };
 
 }  // namespace nlid

@@ -354,6 +354,8 @@ inline StateSpace moesp(const Dataset& data, int order, const SubspaceOptions& o
   r.loss = fit.ssr / static_cast<double>(fit.rows);
   r.set_fit(fit.fit);
   model.set_report(r);
+  model.set_input_names(data[0].input_names());
+  model.set_output_names(data[0].output_names());
   return model;
 }
 

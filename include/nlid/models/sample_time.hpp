@@ -156,6 +156,8 @@ inline std::string fmt_seconds(double s) {
   detail::check_new_ts(new_ts);
   StateSpace out = sys.order() == 0 ? StateSpace(sys.a(), sys.b(), sys.c(), sys.d(), new_ts) : c2d(d2c(sys), new_ts);
   out.set_offset(sys.offset());
+  out.set_input_names(sys.input_names());
+  out.set_output_names(sys.output_names());
   if (report != nullptr) {
     report->old_ts = sys.ts();
     report->new_ts = new_ts;
