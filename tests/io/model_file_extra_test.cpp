@@ -332,7 +332,9 @@ TEST_CASE("model specs carry a regularization lambda into the estimation", "[io]
   CHECK(parse_model_spec("wiener:nb=2,nf=2,nk=1:saturation:lambda=1e-3").lambda == 1e-3);
   CHECK(parse_model_spec("nlarx:na=2,nb=2,nk=0:sigmoidnet:3").lambda == 0.0);
   CHECK_THROWS_WITH(parse_model_spec("linear:arx:na=1,nb=1,nk=0:lambda=1"), Contains("lambda applies to nlarx, hw"));
-  CHECK_THROWS_WITH(parse_model_spec("greybox:throttle:lambda=1"), Contains("lambda applies to nlarx, hw"));
+  CHECK(parse_model_spec("greybox:throttle:lambda=1").lambda == 1.0);
+  CHECK_THROWS_WITH(parse_model_spec("linear:oe:nb=1,nf=1,nk=0:lambda=1"),
+                    Contains("lambda applies to nlarx, hw, wh, hammerstein, wiener and greybox"));
   CHECK_THROWS_WITH(parse_model_spec("nlarx:na=2,nb=2,nk=0:linear:lambda=-1"), Contains("is not a finite number >= 0"));
   CHECK_THROWS_WITH(parse_model_spec("nlarx:na=2,nb=2,nk=0:linear:lambda=inf"), Contains("is not a finite number >= 0"));
   CHECK_THROWS_WITH(parse_model_spec("nlarx:na=2,nb=2,nk=0:linear:lambda=1x"), Contains("is not a finite number >= 0"));
@@ -356,6 +358,35 @@ TEST_CASE("model specs carry a regularization lambda into the estimation", "[io]
   const AnyModel m = fit_model_spec(parse_model_spec("nlarx:na=1,nb=1,nk=1:linear:focus=prediction:lambda=50"), data, fo);
   INFO(m.parameters().transpose() << " vs " << want.transpose());
   CHECK((m.parameters() - want).cwiseAbs().maxCoeff() < 1e-6);
+}
+
+TEST_CASE("model specs: a grey box's lambda pulls the estimate towards the data-driven guess in relative terms", "[io]") {
+  // A second-order system seen through the first-order catalogue model: the data-driven guess
+  // (a one-step ARX fit) and the simulation-error optimum differ, so the pull is visible.
+  const int n = 400;
+  Eigen::MatrixXd u(n, 1), y(n, 1);
+  for (int k = 0; k < n; ++k) u(k, 0) = (k / 40) % 2 ? 1.0 : -0.5;
+  y(0, 0) = y(1, 0) = 0.0;
+  for (int k = 2; k < n; ++k) y(k, 0) = 1.5 * y(k - 1, 0) - 0.56 * y(k - 2, 0) + 0.1 * u(k - 1, 0) + 0.01;
+  const Dataset data(Experiment(u, y, 0.01, "second order"));
+  DynamicGreyBox g = make_greybox("first_order");
+  g.initialize(data);
+  const Eigen::VectorXd guess = g.parameters();
+  SpecFitOptions fo;
+  fo.iterations = 60;
+  const Eigen::VectorXd free = fit_model_spec(parse_model_spec("greybox:first_order"), data, fo).parameters();
+  const Eigen::VectorXd mid = fit_model_spec(parse_model_spec("greybox:first_order:lambda=2"), data, fo).parameters();
+  const Eigen::VectorXd tied = fit_model_spec(parse_model_spec("greybox:first_order:lambda=1e9"), data, fo).parameters();
+  INFO("guess " << guess.transpose() << ", free " << free.transpose() << ", lambda 2 " << mid.transpose()
+                << ", lambda 1e9 " << tied.transpose());
+  // tau and gain (the offset's guess is close to its optimum already) move off the guess freely
+  // and stay on it under a heavy penalty; a moderate one ends in between.
+  for (int i = 0; i < 2; ++i) {
+    REQUIRE(std::abs(free[i] - guess[i]) > 0.01 * std::abs(guess[i]));
+    CHECK(std::abs(tied[i] - guess[i]) < 1e-3 * std::abs(free[i] - guess[i]));
+    CHECK(std::abs(mid[i] - guess[i]) < std::abs(free[i] - guess[i]));
+    CHECK(std::abs(mid[i] - guess[i]) > std::abs(tied[i] - guess[i]));
+  }
 }
 
 TEST_CASE("fit_model_spec: the uncertainty callback carries the regularisation caveat, and a fit whose uncertainty "

@@ -30,9 +30,14 @@
 /// `starts=N` / `start_iterations=N` (N data-driven starts of the network, each refined for
 /// `start_iterations` ≥ 1, given only with starts > 1; the best continues — `EstimateOptions::starts`, e.g. the study's nlarx5:
 /// `nlarx:na=3,nb=3,nk=0:sigmoidnet:5:starts=4,start_iterations=30` with `--iterations 90`),
-/// and for nlarx, hw and the series families `lambda=X` (regularization towards zero,
-/// ½·X·‖θ‖² added to the criterion — `LmOptions::regularization`, the toolbox's
-/// `Regularization.Lambda`).
+/// and `lambda=X`: for nlarx, hw and the series families regularization towards zero,
+/// ½·X·‖θ‖² added to the criterion (`LmOptions::regularization`, the toolbox's
+/// `Regularization.Lambda`); for greybox regularization towards the physical guess in relative
+/// terms, ½·X·Σᵢ((θᵢ − θ̄ᵢ)/sᵢ)² with θ̄ the values the estimation starts from (the catalogue's
+/// guess after the data-driven initialisation) and sᵢ each parameter's magnitude there (|θ̄ᵢ|,
+/// else its search range's width, else 1) —
+/// one X for parameters whose units differ by orders of magnitude (a stop stiffness and a
+/// friction), which a penalty in their own units could not weigh.
 ///
 /// Errors name the field and list what is accepted, e.g. "unknown model family 'wx' in model
 /// spec 'wx:…' (accepted: linear:arx, linear:oe, nlarx, hw, wh, hammerstein, wiener, greybox)".
@@ -409,8 +414,9 @@ inline ModelSpec parse_model_spec(const std::string& text) {
         else s.start_iterations = x;
       } else if (k == "lambda") {
         require(s.family == "nlarx" || s.family == "hw" || s.family == "wh" || s.family == "hammerstein" ||
-                    s.family == "wiener",
-                "model spec '" + text + "': lambda applies to nlarx, hw, wh, hammerstein and wiener models", at_parameter(k));
+                    s.family == "wiener" || s.family == "greybox",
+                "model spec '" + text + "': lambda applies to nlarx, hw, wh, hammerstein, wiener and greybox models",
+                at_parameter(k));
         std::size_t pos = 0;
         double x = -1.0;
         try {
@@ -687,6 +693,22 @@ AnyModel fit_model_spec_kind(const ModelSpec& s, const Dataset& data, const Spec
   if (s.initial_condition) go.initial_condition = *s.initial_condition;
   // The refinement of each start is the grey box's main stage (SpecFitOptions::iterations).
   if (o.iterations >= 0) go.multi_start.lm.max_iterations = o.iterations;
+  if (s.lambda > 0.0) {
+    // Relative deviations (see the file comment): weights 1/s² from the values after the
+    // data-driven initialisation (run here, so the estimator does not repeat it), the nominal
+    // left empty so that the estimator pulls towards those same values.
+    if (go.initialize_from_data && !g.initialized()) g.initialize(data);
+    const std::vector<ParameterInfo>& info = g.parameter_info();
+    Eigen::VectorXd w(static_cast<Eigen::Index>(info.size()));
+    for (std::size_t i = 0; i < info.size(); ++i) {
+      const ParameterInfo& q = info[i];
+      const double width = q.range_upper - q.range_lower;
+      const double mag = q.value != 0.0 ? std::abs(q.value) : (std::isfinite(width) && width > 0.0 ? width : 1.0);
+      w[static_cast<Eigen::Index>(i)] = 1.0 / (mag * mag);
+    }
+    go.multi_start.lm.regularization.lambda = s.lambda;
+    go.multi_start.lm.regularization.weights = w;
+  }
   // Progress: the plan, then each start as its refinement ends (in completion order when several
   // threads refine). The costs are the solver's ½Σr² of the simulation error.
   if (o.progress) {
