@@ -302,6 +302,18 @@ TEST_CASE("codegen refuses a name that would write a header shadowing a C standa
   CHECK_THROWS_WITH(nlid::generate_c(g, o), Catch::Contains("<math.h>"));
 }
 
+TEST_CASE("codegen refuses a grey box whose values break the physics' relations (stops crossed by set_parameter)",
+          "[codegen]") {
+  nlid::GreyBox<nlid::physics::Throttle> g;
+  nlid::CodegenOptions o;
+  o.name = "valve";
+  o.ts = 0.01;
+  REQUIRE_NOTHROW(nlid::generate_c(g, o));
+  g.set_parameter("lower_stop", g.parameter("upper_stop") + 1.0);  // one value at a time: not checked here
+  CHECK_THROWS_WITH(nlid::generate_c(g, o), Catch::Contains("code generation for grey-box model") &&
+                                                Catch::Contains("must be below upper_stop"));
+}
+
 TEST_CASE("codegen rejects bad names, missing sample times and the adaptive integrator", "[codegen]") {
   nlid::GreyBox<nlid::physics::Throttle> g;
   nlid::CodegenOptions o;

@@ -9,6 +9,7 @@
 #include "nlid/diagnose.hpp"
 #include "nlid/models/physics/first_order.hpp"
 #include "nlid/models/physics/mass_spring_damper.hpp"
+#include "nlid/models/physics/throttle.hpp"
 #include "synth.hpp"
 
 using namespace nlid;
@@ -202,6 +203,20 @@ TEST_CASE("augmented model: a record at another sample time is refused, naming i
   CHECK_THAT(msg, Catch::Contains("experiment 'raw' has sample time 0.001") && Catch::Contains("model's is 0.01"));
   // The same samples at the model's rate simulate.
   CHECK(m.simulate(Experiment(u, Eigen::MatrixXd::Zero(50, 1), 0.01), Eigen::VectorXd::Zero(1)).rows() == 50);
+}
+
+TEST_CASE("augmented model: the baseline physics' relations are checked (throttle stops crossed)",
+          "[diagnose][augmented][errors]") {
+  const physics::Throttle th;
+  CHECK_THROWS_WITH((AugmentedModel<physics::Throttle>(th, diag_test::table(th, {{"lower_stop", 2.0}}), 0.01)),
+                    Catch::Contains("the baseline's values") && Catch::Contains("must be below upper_stop"));
+  AugmentedModel<physics::Throttle> m(th, diag_test::table(th, {}), 0.01);
+  Eigen::VectorXd p = m.parameters();
+  const std::vector<ParameterInfo> info = m.parameter_info();
+  for (std::size_t i = 0; i < info.size(); ++i)
+    if (info[i].name == "lower_stop") p[static_cast<Eigen::Index>(i)] = 2.0;
+  CHECK_THROWS_WITH(m.set_parameters(p), Catch::Contains("set_parameters") && Catch::Contains("must be below upper_stop"));
+  CHECK(m.parameters() != p);  // nothing was changed
 }
 
 TEST_CASE("augmented model: exact Jacobian equals central finite differences", "[diagnose][augmented][jacobian]") {

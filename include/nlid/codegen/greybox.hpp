@@ -77,6 +77,9 @@ GeneratedCode generate_c(const GreyBox<P>& model, const CodegenOptions& options)
     m.ny = model.output_dimension();
     m.ts = options.ts;
     const Eigen::VectorXd pv = model.parameters();
+    // set_parameter edits one value at a time without the physics' relations (lower stop below
+    // the upper): code for a model that violates them would run with impossible physics.
+    physics_check_parameters(model.physics(), pv.data(), "code generation for grey-box model '" + model.name() + "'");
     m.parameters = pv;
     m.parameter_names = model.parameter_names();
     m.state_doc = "the physical state x = [";

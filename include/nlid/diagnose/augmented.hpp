@@ -323,6 +323,7 @@ AugmentedModel<P>::AugmentedModel(P physics, std::vector<ParameterInfo> base, do
           at_parameter("ts"));
   std::vector<double> p;
   for (const ParameterInfo& q : base_) p.push_back(q.value);
+  physics_check_parameters(phys_, p.data(), "augmented model: the baseline's values");
   roles_ = find_mechanical_roles(phys_, std::span<const double>(p));
   rebuild_layout();
 }
@@ -448,6 +449,8 @@ void AugmentedModel<P>::set_parameters(const Eigen::Ref<const Eigen::VectorXd>& 
                 std::to_string(q.lower) + ", " + std::to_string(q.upper) + "]",
             at_parameter(q.name));
   }
+  // θ starts with the baseline's values, in the physics' order.
+  physics_check_parameters(phys_, theta.data(), "augmented model: set_parameters");
   Eigen::Index i = 0;
   for (ParameterInfo& q : base_) q.value = theta(i++);
   for (Effect& e : effects_)

@@ -127,6 +127,9 @@ class AugmentedProblem {
   /// diverged or produced non-finite values.
   bool evaluate(const Eigen::VectorXd& z, Eigen::VectorXd& r, Eigen::MatrixXd* J) const {
     const Eigen::VectorXd theta = theta_of(z, model_->parameters());
+    // A trial step that crosses the physics' relations (stops swapped) is rejected, as in the
+    // grey-box estimator; θ starts with the baseline's values.
+    if (!physics_parameters_consistent(model_->physics(), theta.data())) return false;
     if (J) J->setZero();
     Eigen::Index row = 0;
     const int nf = static_cast<int>(free_.size());
