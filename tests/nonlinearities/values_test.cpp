@@ -148,6 +148,11 @@ TEST_CASE("PwLinear stays finite and exact where a log-gap's exp overflows", "[n
   const std::vector<double> th2{0.0, 0.0, 1000.0, 1.0, 3.0, 4.0};
   check(th2, 5.0, 3.0, {0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0});
   check(th2, 0.5, 2.0, {-2.0, -1.0, 0.0, 0.5, 0.5, 0.0, 2.0});  // the ordinary first segment
+  // describe() prints the first table's slope as the evaluation computes it (Δy·e^(−γ), not
+  // Δy/∞ = 0) and the breakpoint beyond reach as such (it printed inf positions, nan slopes).
+  const std::string d1 = f.describe(std::span<const double>(th1));
+  CHECK_THAT(d1, Catch::Contains("slope to next: 8.9") && Catch::Contains("not reached: log_gap[1]"));
+  CHECK_THAT(d1, !Catch::Contains("nan") && !Catch::Contains("inf,"));
   // Float: exp(100) overflows float's range already.
   const std::vector<float> thf{0.0f, 0.0f, 100.0f, 1.0f, 3.0f, 4.0f};
   const float xf = 5.0f;

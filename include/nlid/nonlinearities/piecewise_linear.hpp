@@ -263,9 +263,19 @@ class PwLinear {
     std::string s = "piecewise linear (" + std::to_string(n_) +
                     " breakpoints, linear extrapolation beyond the ends): g(x) through\n";
     for (std::size_t k = 0; k < xs.size(); ++k) {
+      if (!std::isfinite(xs[k])) {
+        // exp(log_gap) overflowed on the way here (see the file comment): the previous segment
+        // reaches beyond every finite x, so this breakpoint and those after it are never met.
+        s += "  (beyond every finite x, " + detail::format_g(ys[k]) + ")   not reached: log_gap[" + std::to_string(k) +
+             "] or an earlier one overflows exp\n";
+        continue;
+      }
       s += "  (" + detail::format_g(xs[k]) + ", " + detail::format_g(ys[k]) + ")";
       if (k + 1 < xs.size()) {
-        s += "   slope to next: " + detail::format_g((ys[k + 1] - ys[k]) / (xs[k + 1] - xs[k]));
+        const double gap = xs[k + 1] - xs[k];
+        // Δy·exp(−γ) where the gap overflows, as the evaluation computes it.
+        const double slope = std::isfinite(gap) ? (ys[k + 1] - ys[k]) / gap : (ys[k + 1] - ys[k]) * std::exp(-theta[k + 1]);
+        s += "   slope to next: " + detail::format_g(slope);
       }
       s += "\n";
     }
