@@ -226,6 +226,13 @@ TEST_CASE("power and min/max with plain scalars", "[ad][dual]") {
   // Plain-number versions, so generic code is uniform.
   CHECK(nlid::max(2.0, 3.0) == 3.0);
   CHECK(nlid::min(2.0f, 3.0f) == 2.0f);
+  // Mixed plain types, as a regressor `max(y, 90)` written once meets them on double and float.
+  CHECK(nlid::max(91.5, 90) == 91.5);
+  CHECK(nlid::max(2.5f, 90.0) == 90.0);
+  CHECK(nlid::min(2.5f, 15.0) == 2.5);
+  CHECK(nlid::min(20, 15.5) == 15.5);
+  static_assert(std::is_same_v<decltype(nlid::max(2.5f, 90.0)), double>);
+  static_assert(std::is_same_v<decltype(nlid::min(1, 2.0f)), float>);
   CHECK(nlid::square(3.0) == 9.0);
 }
 

@@ -128,6 +128,12 @@ TEST_CASE("a regressor function must be generic over the scalar", "[regressors]"
   float out = 0.0f;
   c.evaluate(FloatWindow{&past}, std::span<float>(&out, 1));
   CHECK(out == 10.0f);
+  // The study's hard-stop regressor with integer or double limits compiles on every scalar
+  // (nlid::max(float, double) and nlid::max(double, int) did not).
+  const auto stops = nlid::custom_regressor<nlid::OutputLag<1>>(
+      "", [](auto y) { return nlid::max(y, 90.0) + nlid::min(y, 15) - 105; });
+  stops.evaluate(FloatWindow{&past}, std::span<float>(&out, 1));
+  CHECK(out == 10.0f);  // 100 + 15 - 105
 }
 
 TEST_CASE("history ring buffer keeps the last L values in lag order", "[regressors]") {

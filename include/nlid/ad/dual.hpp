@@ -517,6 +517,23 @@ template <class T, int N> Dual<T, N> min(const std::type_identity_t<T>& s, const
 template <class T> T max(T x, T y) requires std::is_arithmetic_v<T> { return x >= y ? x : y; }
 /// Smaller of two plain numbers, so `min(x, y)` is generic.
 template <class T> T min(T x, T y) requires std::is_arithmetic_v<T> { return x <= y ? x : y; }
+// A regressor written once, `max(y, 90)` or `max(y, 90.0)`, is instantiated on double, float
+// and duals; the dual overloads take any arithmetic limit, so the plain-number ones must too
+// (std::max refuses mixed types). The result has the common type, as arithmetic would.
+/// Larger of two plain numbers of different types (`max(y, 90)` on a double, `max(y, 90.0)` on a float).
+template <class X, class Y>
+  requires std::is_arithmetic_v<X> && std::is_arithmetic_v<Y> && (!std::is_same_v<X, Y>)
+std::common_type_t<X, Y> max(X x, Y y) {
+  using C = std::common_type_t<X, Y>;
+  return C(x) >= C(y) ? C(x) : C(y);
+}
+/// Smaller of two plain numbers of different types.
+template <class X, class Y>
+  requires std::is_arithmetic_v<X> && std::is_arithmetic_v<Y> && (!std::is_same_v<X, Y>)
+std::common_type_t<X, Y> min(X x, Y y) {
+  using C = std::common_type_t<X, Y>;
+  return C(x) <= C(y) ? C(x) : C(y);
+}
 
 // Scalar types defined after this header (the code generator's TraceScalar) take part through
 // the hooks `scalar_max` / `scalar_min`, found by argument-dependent lookup when a model is
