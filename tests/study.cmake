@@ -13,6 +13,7 @@
 
 if(NOT CMAKE_SCRIPT_MODE_FILE)
   if(NLID_BUILD_EXAMPLES AND NOT NLID_SANITIZE)
+    nlid_example_run_by_tests(throttle_study)
     set(NLID_STUDY_OUT "${CMAKE_CURRENT_BINARY_DIR}/study")
     add_test(NAME "study: throttle study runs and its report renders"
       COMMAND ${CMAKE_COMMAND} -DMODE=run
