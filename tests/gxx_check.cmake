@@ -1,7 +1,7 @@
 # g++ compiles the library even when the build uses another compiler: every header at once
 # (JOB=umbrella: nlid/nlid.hpp, -fsyntax-only: parsing and every template instantiated by
 # non-template code) and the minimal example (JOB=minimal: -O2, object code), with the project's
-# warnings as errors. Two ctest entries, so the two compiles run on two cores.
+# warnings as errors. One ctest entry per job.
 #   cmake -DCXX=g++ -DINCLUDES="a;b" -DSOURCE_DIR=... -DWORK=... -DJOB=umbrella|minimal -P gxx_check.cmake
 set(flags -std=c++20 -Wall -Wextra -Wpedantic -Werror)
 foreach(dir IN LISTS INCLUDES)

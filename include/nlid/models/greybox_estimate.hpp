@@ -114,6 +114,17 @@ struct GreyBoxEstimate {
 };
 
 namespace detail {
+
+/// A parameter's own magnitude, the unit of the estimator's scaled coordinates (and of the model
+/// specs' relative `lambda=`): |value|, else the width of its search range (its bounds where no
+/// range is given), else 1.
+inline double parameter_magnitude(const ParameterInfo& q) {
+  if (q.value != 0.0) return std::abs(q.value);
+  const double lo = std::isfinite(q.range_lower) ? q.range_lower : q.lower;
+  const double hi = std::isfinite(q.range_upper) ? q.range_upper : q.upper;
+  const double width = hi - lo;
+  return std::isfinite(width) && width > 0.0 ? width : 1.0;
+}
 // Fit % of one output column, skipping samples where the measurement is missing (NaN).
 inline double fit_percent_skipping_missing(const Eigen::MatrixXd& y, const Eigen::MatrixXd& yhat,
                                            Eigen::Index j) {
@@ -294,18 +305,10 @@ GreyBoxEstimate estimate(GreyBox<P>& model, const Dataset& data,
   }
   ms.lm.fixed = problem.fixed_mask();
 
-  // Scales: a parameter's own magnitude (its value, else its range width, else 1); an initial
-  // state's largest guessed magnitude over the experiments (at least 1).
+  // Scales: a parameter's own magnitude (detail::parameter_magnitude); an initial state's largest
+  // guessed magnitude over the experiments (at least 1).
   Eigen::VectorXd scale = Eigen::VectorXd::Ones(n);
-  for (int i = 0; i < np; ++i) {
-    const ParameterInfo& q = info[static_cast<std::size_t>(i)];
-    const double width = ms.range_upper[i] - ms.range_lower[i];
-    if (q.value != 0.0) {
-      scale[i] = std::abs(q.value);
-    } else if (std::isfinite(width) && width > 0.0) {
-      scale[i] = width;
-    }
-  }
+  for (int i = 0; i < np; ++i) scale[i] = detail::parameter_magnitude(info[static_cast<std::size_t>(i)]);
   if (problem.state_column(0) >= 0) {
     for (int i = 0; i < nx; ++i) {
       double mag = 1.0;

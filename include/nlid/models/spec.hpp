@@ -35,7 +35,8 @@
 /// `Regularization.Lambda`); for greybox regularization towards the physical guess in relative
 /// terms, ½·X·Σᵢ((θᵢ − θ̄ᵢ)/sᵢ)² with θ̄ the values the estimation starts from (the catalogue's
 /// guess after the data-driven initialisation) and sᵢ each parameter's magnitude there (|θ̄ᵢ|,
-/// else its search range's width, else 1) —
+/// else its search range's width — its bounds' where it has no range —, else 1; the estimator's
+/// own scale, so the penalty is uniform in the coordinates the solver works in) —
 /// one X for parameters whose units differ by orders of magnitude (a stop stiffness and a
 /// friction), which a penalty in their own units could not weigh.
 ///
@@ -701,9 +702,7 @@ AnyModel fit_model_spec_kind(const ModelSpec& s, const Dataset& data, const Spec
     const std::vector<ParameterInfo>& info = g.parameter_info();
     Eigen::VectorXd w(static_cast<Eigen::Index>(info.size()));
     for (std::size_t i = 0; i < info.size(); ++i) {
-      const ParameterInfo& q = info[i];
-      const double width = q.range_upper - q.range_lower;
-      const double mag = q.value != 0.0 ? std::abs(q.value) : (std::isfinite(width) && width > 0.0 ? width : 1.0);
+      const double mag = nlid::detail::parameter_magnitude(info[i]);
       w[static_cast<Eigen::Index>(i)] = 1.0 / (mag * mag);
     }
     go.multi_start.lm.regularization.lambda = s.lambda;
