@@ -6,6 +6,7 @@
 // single-precision versions must contain no double and stay within float rounding of it.
 #include <catch2/catch.hpp>
 
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -51,6 +52,25 @@ auto spring() {
       "max(y1(t-1),90)+min(y1(t-1),15)-105",
       [](auto y1) { return nlid::max(y1, 90.0) + nlid::min(y1, 15.0) - 105.0; });
 }
+
+// Equilibrium starts of physics with no input and with two: NAME_init's comment names every input.
+struct Decay {
+  static constexpr int num_states = 1, num_inputs = 0, num_outputs = 1, num_params = 1;
+  std::array<nlid::ParameterInfo, 1> parameter_info() const { return {{{"a", "", "", 2.0, 0.0, INFINITY}}}; }
+  template <class T>
+  void derivative(const T* x, const T*, const T* p, T* dx) const { dx[0] = -p[0] * x[0]; }
+  template <class T>
+  void output(const T* x, const T*, const T*, T* y) const { y[0] = x[0]; }
+};
+
+struct TwoInputLag {
+  static constexpr int num_states = 1, num_inputs = 2, num_outputs = 1, num_params = 1;
+  std::array<nlid::ParameterInfo, 1> parameter_info() const { return {{{"a", "", "", 2.0, 0.0, INFINITY}}}; }
+  template <class T>
+  void derivative(const T* x, const T* u, const T* p, T* dx) const { dx[0] = -p[0] * (x[0] - u[0] - u[1]); }
+  template <class T>
+  void output(const T* x, const T*, const T*, T* y) const { y[0] = x[0]; }
+};
 
 using nlid_test::check_single_precision;
 using nlid_test::max_relative_error;
@@ -282,6 +302,24 @@ TEST_CASE("generated C of the throttle grey box (RK4, smoothed stops) matches nl
   REQUIRE(yc.size() == ref.size());
   CHECK(max_relative_error(yc, ref) <= 1e-12);
   check_single_precision(g, o, e3.u(), ref, 1e-4);
+}
+
+TEST_CASE("grey-box code from an equilibrium names every held input, and none for a physics without inputs",
+          "[codegen]") {
+  nlid::CodegenOptions o;
+  o.name = "decay";
+  o.ts = 0.1;
+  o.equilibrium_input = Eigen::VectorXd(0);  // the only input vector of a physics without inputs
+  const nlid::GeneratedCode none = nlid::generate_c(nlid::GreyBox<Decay>(), o);
+  CHECK(none.header.find("the equilibrium with no input") != std::string::npos);
+  o.equilibrium_input = Eigen::VectorXd::Zero(1);
+  CHECK_THROWS_WITH(nlid::generate_c(nlid::GreyBox<Decay>(), o), Catch::Contains("takes 0 input(s)"));
+
+  o.name = "lag2";
+  o.equilibrium_input = Eigen::Vector2d(1.0, 2.0);
+  const nlid::GeneratedCode two = nlid::generate_c(nlid::GreyBox<TwoInputLag>(), o);
+  CHECK(two.header.find("the equilibrium for u held at [1, 2]") != std::string::npos);
+  CHECK(two.source.find("the equilibrium for u held at [1, 2]") != std::string::npos);
 }
 
 TEST_CASE("codegen refuses a name that would write a header shadowing a C standard header", "[codegen]") {

@@ -135,9 +135,9 @@ GeneratedCode generate_c(const AugmentedModel<P>& model, const CodegenOptions& o
     std::vector<double> p;
     for (const ParameterInfo& q : model.baseline_parameters()) p.push_back(q.value);
     const EquilibriumResult eq = physics_equilibrium(phys, u0.data(), p.data(), xb.data());
-    require(eq.converged, "codegen: no equilibrium of the baseline for u = " + detail::format_g(u0(0), 17),
+    require(eq.converged, "codegen: no equilibrium of the baseline " + codegen::held_input_text(u0.head(nu)),
             at_parameter("equilibrium_input"));
-    m.x0_doc = "the baseline's equilibrium for u held at " + detail::format_g(u0(0), 17) +
+    m.x0_doc = "the baseline's equilibrium " + codegen::held_input_text(u0.head(nu)) +
                "; effect states start from the first sample";
   } else {
     m.x0_doc = "zero baseline state; effect states start from the first sample";

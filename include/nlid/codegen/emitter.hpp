@@ -185,6 +185,16 @@ inline std::optional<Eigen::VectorXd> given_initial_state(const CodegenOptions& 
   return o.initial_state;
 }
 
+/// The held input of an equilibrium start for NAME_init's comment: every input, since a comment
+/// naming u[0] alone misdescribes a multi-input start, and a physics without inputs has none.
+inline std::string held_input_text(const Eigen::VectorXd& u) {
+  if (u.size() == 0) return "with no input";
+  if (u.size() == 1) return "for u held at " + nlid::detail::format_g(u(0), 17);
+  std::string s = "for u held at [";
+  for (Eigen::Index i = 0; i < u.size(); ++i) s += (i ? ", " : "") + nlid::detail::format_g(u(i), 17);
+  return s + "]";
+}
+
 /// Plain ASCII for the generated files: embedded compilers and MSVC under a non-UTF-8 code page
 /// reject or mangle other bytes, and the only non-ASCII text nlid writes is in comments (model
 /// descriptions, equations, units). Common symbols are spelled out (θ → theta, ² → ^2,

@@ -92,7 +92,7 @@ GeneratedCode generate_c(const GreyBox<P>& model, const CodegenOptions& options)
       const OperatingPoint op = equilibrium(model, *options.equilibrium_input);
       m.x0 = op.x;
       u_sub = *options.equilibrium_input;
-      m.x0_doc = "the equilibrium for u held at " + detail::format_g((*options.equilibrium_input)(0), 17);
+      m.x0_doc = "the equilibrium " + codegen::held_input_text(*options.equilibrium_input);
     } else {
       m.x0 = Eigen::VectorXd::Zero(m.nx);
       m.x0_doc = "zero";
