@@ -243,6 +243,24 @@ TEST_CASE("Values set by the user survive data-driven initialisation", "[greybox
   CHECK(m.initialized());
 }
 
+TEST_CASE("A fixed parameter keeps its value through data-driven initialisation, default value included",
+          "[greybox][estimate]") {
+  const Dataset d = throttle_data(1.0);
+  GreyBox<physics::Throttle> free_rest;
+  free_rest.initialize(d);
+  REQUIRE(free_rest.parameter("rest") != 0.0);  // the data would move it
+  GreyBox<physics::Throttle> m;
+  m.fix("rest");  // known: the default 0
+  m.initialize(d);
+  CHECK(m.parameter("rest") == 0.0);
+  CHECK(m.is_fixed("rest"));
+  CHECK(m.parameter("lower_stop") == Approx(15.0).margin(0.3));  // the free ones are still read off the data
+  GreyBox<physics::Throttle> held;
+  held.fix("rest");
+  (void)estimate(held, d, quick(1, 1));
+  CHECK(held.parameter("rest") == 0.0);
+}
+
 TEST_CASE("Estimation refuses crossed throttle stops at its start, saying what and where", "[greybox][estimate]") {
   const Dataset d = throttle_data(1.0);
   GreyBox<physics::Throttle> m;

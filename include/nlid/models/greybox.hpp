@@ -257,7 +257,8 @@ class GreyBox {
     q.log_scale = log_scale;
     user_set_[i] = true;
   }
-  /// Holds a named parameter at its value during estimation (or frees it with `false`).
+  /// Holds a named parameter at its value during estimation (or frees it with `false`); the
+  /// data-driven `initialize` leaves a fixed parameter's value alone too.
   void fix(std::string_view name, bool fixed = true) {
     params_[static_cast<std::size_t>(parameter_index(name))].fixed = fixed;
   }
@@ -346,7 +347,8 @@ class GreyBox {
 
   /// Sets starting values and multi-start ranges of scale-dependent parameters from the data
   /// (physics' `initialize` hook) and records the data's units for `describe`. Values the user
-  /// set explicitly (`set_parameter`, `set_parameters`, `set_range`) are kept. Throws
+  /// set explicitly (`set_parameter`, `set_parameters`, `set_range`) and fixed parameters (`fix`,
+  /// or fixed in the physics' table) are kept. Throws
   /// `nlid::Error` if the data's channel counts do not match the physics.
   void initialize(const Dataset& data) {
     require(data.size() > 0, "initialize: empty data set");
@@ -362,7 +364,9 @@ class GreyBox {
       std::vector<ParameterInfo> table = params_;
       physics_.initialize(data, std::span<ParameterInfo>(table));
       for (std::size_t i = 0; i < params_.size(); ++i) {
-        if (user_set_[i]) continue;
+        // A fixed parameter is held at its value, default or not: the data must not move it
+        // before the estimator holds it there.
+        if (user_set_[i] || params_[i].fixed) continue;
         ParameterInfo& q = params_[i];
         const ParameterInfo& t = table[i];
         if (!std::isfinite(t.value)) continue;
