@@ -52,6 +52,24 @@ double jacobian_error(const Problem& pb, const Eigen::VectorXd& theta, double re
   return worst;
 }
 
+// A stiff lag (k = 1000 1/s) whose spectral_radius says "unknown" (-1), NaN or +inf.
+template <int Mode>
+struct DeclaredRadius {
+  static constexpr int num_states = 1, num_inputs = 1, num_outputs = 1, num_params = 1;
+  std::array<nlid::ParameterInfo, 1> parameter_info() const {
+    return {{{"k", "", "", 1000.0, 0.0, std::numeric_limits<double>::infinity()}}};
+  }
+  double spectral_radius(const double* p) const {
+    if (Mode == 0) return -1.0;
+    if (Mode == 1) return std::numeric_limits<double>::quiet_NaN() * p[0];
+    return std::numeric_limits<double>::infinity();
+  }
+  template <class T>
+  void derivative(const T* x, const T* u, const T* p, T* dx) const { dx[0] = -p[0] * (x[0] - u[0]); }
+  template <class T>
+  void output(const T* x, const T*, const T*, T* y) const { y[0] = x[0]; }
+};
+
 }  // namespace
 
 TEST_CASE("Parameter table: names, values, bounds, ranges, fixed flags", "[greybox]") {
@@ -737,4 +755,32 @@ TEST_CASE("Sub-steps of a fixed-step method: a known answer for Euler and RK4 on
       for (int k = 0; k < 30; ++k) CHECK(y(k, 0) == Approx(ystar + (y0 - ystar) * std::pow(q, n * k)).epsilon(1e-12));
     }
   }
+}
+
+TEST_CASE("A NaN spectral radius falls back to the Gershgorin bound, +inf is refused by name",
+          "[greybox][integrators]") {
+  const double ts = 0.01;  // h*rho = 10: one RK4 step per sample explodes
+  const Eigen::MatrixXd u = Eigen::MatrixXd::Ones(100, 1);
+  const GreyBox<DeclaredRadius<0>> unknown;
+  const GreyBox<DeclaredRadius<1>> nan;
+  REQUIRE(unknown.substeps(ts) == 10);
+  CHECK(nan.substeps(ts) == unknown.substeps(ts));
+  const Eigen::MatrixXd y = nan.simulate(u, ts, Eigen::VectorXd::Zero(1));
+  CHECK(y(99, 0) == Approx(1.0));
+
+  const GreyBox<DeclaredRadius<2>> inf;
+  try {
+    (void)inf.simulate(u, ts, Eigen::VectorXd::Zero(1));
+    FAIL("no nlid::Error for an infinite spectral radius");
+  } catch (const nlid::Error& e) {
+    INFO(e.what());
+    CHECK(e.where().parameter == "spectral_radius");
+    CHECK_THAT(e.what(), Catch::Contains("spectral_radius(p) is +inf"));
+  }
+  CHECK_THROWS_WITH(inf.substeps(ts), Catch::Contains("spectral_radius"));
+  // In estimation such a trial point is rejected like a diverging one, not ended with a throw.
+  const Dataset d(Experiment(u, Eigen::MatrixXd::Ones(100, 1), ts));
+  const nlid::GreyBoxProblem<DeclaredRadius<2>> problem(inf.physics(), inf.integrator(), d, InitialCondition::zero);
+  Eigen::VectorXd r(problem.num_residuals());
+  CHECK_FALSE(problem.evaluate(inf.parameters(), r, nullptr));
 }

@@ -332,7 +332,8 @@ class GreyBox {
   }
   /// Sub-steps per sample the rule gives at the current parameters for sample time `ts`
   /// (initial state and input only matter for physics without a `spectral_radius`). Throws
-  /// `nlid::Error` naming "ts" unless ts is positive and finite.
+  /// `nlid::Error` naming "ts" unless ts is positive and finite, or naming "spectral_radius" if
+  /// the physics returns +inf.
   [[nodiscard]] int substeps(double ts) const {
     require(ts > 0.0 && std::isfinite(ts), "sample time must be positive and finite, got " + detail::format_g(ts),
             at_parameter("ts"));

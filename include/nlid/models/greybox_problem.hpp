@@ -253,14 +253,15 @@ class GreyBoxProblem {
   }
 
   /// Residuals and (if `J` is not null) the Jacobian at θ; false if a simulation diverged, an
-  /// equilibrium start does not exist at θ, or θ violates a relation of the physics
-  /// (`check_parameters`). `r` and `J` must be pre-sized (LeastSquaresProblem).
+  /// equilibrium start does not exist at θ, θ violates a relation of the physics
+  /// (`check_parameters`), or the physics' `spectral_radius` is +inf at θ. `r` and `J` must be pre-sized (LeastSquaresProblem).
   bool evaluate(const Eigen::VectorXd& theta, Eigen::VectorXd& r, Eigen::MatrixXd* J) const {
     if (theta.size() != num_parameters() || !theta.allFinite()) return false;
     const double* p = states_only_ ? p_values_.data() : theta.data();
     // Values that violate a relation of the physics (crossed throttle stops) are not a model:
     // a trial step there is rejected like a diverging one (box bounds cannot keep it out).
     if (!physics_parameters_consistent(phys_, p)) return false;
+    if (!physics_stiffness_finite(phys_, p)) return false;
     const std::size_t ne = data_->size();
     // Experiments in lockstep pairs (simulate_physics_pair): one trajectory is a single chain
     // of dependent operations, and the second one fills the cycles it leaves idle. Same numbers

@@ -125,16 +125,38 @@ Eigen::MatrixXd physics_state_jacobian(const P& phys, const double* x, const dou
 }
 
 /// Upper bound on the spectral radius of ∂f/∂x used by the sub-step rule: the physics' own
-/// `spectral_radius(p)` if it has one and it is not negative ("unknown"), else the Gershgorin
-/// bound max_i Σ_j |∂f_i/∂x_j| at (x, u).
+/// `spectral_radius(p)` if it has one and it is a number ≥ 0, else (negative or NaN: "unknown")
+/// the Gershgorin bound max_i Σ_j |∂f_i/∂x_j| at (x, u). Throws `nlid::Error` naming
+/// `spectral_radius` if the physics returns +inf.
 template <Physics P>
 double physics_spectral_radius(const P& phys, const double* p, const double* x, const double* u) {
   if constexpr (detail::HasSpectralRadius<P>) {
     const double rho = static_cast<double>(phys.spectral_radius(p));
-    if (!(rho < 0.0)) return rho;
+    // An infinitely stiff system has no stable explicit step: the sub-step rule reads a
+    // non-finite radius as unknown and would take the fewest sub-steps, the opposite of what
+    // the physics means.
+    require(rho != std::numeric_limits<double>::infinity(),
+            "the physics' spectral_radius(p) is +inf: no number of explicit integrator sub-steps is stable; return a "
+            "finite bound, or a negative value for unknown",
+            at_parameter("spectral_radius"));
+    if (rho >= 0.0) return rho;
   }
   const Eigen::MatrixXd J = physics_state_jacobian(phys, x, u, p);
   return J.allFinite() ? J.cwiseAbs().rowwise().sum().maxCoeff() : 0.0;
+}
+
+/// False if the physics declares itself infinitely stiff at p (`spectral_radius(p)` = +inf),
+/// where `physics_spectral_radius` throws: an estimator rejects such a trial point like a
+/// diverging one instead of ending the search.
+template <Physics P>
+bool physics_stiffness_finite(const P& phys, const double* p) {
+  if constexpr (detail::HasSpectralRadius<P>) {
+    return static_cast<double>(phys.spectral_radius(p)) != std::numeric_limits<double>::infinity();
+  } else {
+    (void)phys;
+    (void)p;
+    return true;
+  }
 }
 
 namespace detail {
