@@ -7,6 +7,7 @@
 #include <numbers>
 
 #include "nlid/models/greybox_estimate.hpp"
+#include "nlid/models/simulation_band.hpp"
 #include "nlid/models/physics/catalogue.hpp"
 #include "test_data.hpp"
 
@@ -230,6 +231,39 @@ TEST_CASE("An estimate held on a bound is inside the bounds, not one rounding be
   CHECK(m.parameter("tau") == lower);
   CHECK(r.parameters[0] == lower);
   for (const nlid::StartResult& s : r.multi_start.starts) CHECK(s.theta[0] >= lower);
+}
+
+TEST_CASE("A parameter estimated onto its bound has no standard deviation on the model, not a zero one",
+          "[greybox][estimate][uncertainty]") {
+  GreyBox<physics::FirstOrder> truth;
+  truth.set_parameters(Eigen::Vector3d(0.5, 2.0, 1.0));
+  const Dataset d(nlid_test::simulated(truth, nlid_test::steps({0.0, 1.0, 0.3}, 50, 300), 0.02,
+                                       Eigen::VectorXd::Constant(1, 1.0), 0.01, 3, "lag"));
+  GreyBox<physics::FirstOrder> m;
+  m.set_parameter("tau", 2.0);
+  m.set_bounds("tau", 1.0, 100.0);  // the optimum 0.5 lies below
+  const nlid::GreyBoxEstimate r = estimate(m, d, quick(1, 1));
+  REQUIRE(m.parameter("tau") == 1.0);
+  REQUIRE(r.uncertainty.at_bound[0]);
+  CHECK_THAT(r.report(), Catch::Contains("on its bound: no standard deviation"));
+  REQUIRE(m.parameter_stddev().size() == 3);
+  CHECK(std::isnan(m.parameter_stddev()[0]));
+  CHECK(m.parameter_stddev()[1] > 0.0);
+  INFO(m.describe());
+  CHECK_THAT(m.describe(), Catch::Contains("estimated, on its lower bound") && !Catch::Contains("+- 0 ") &&
+                               Catch::Contains("estimated +- "));
+  // The band from what the model carries (as for a loaded model) takes tau as held, like the
+  // band from the estimate's own uncertainty.
+  const nlid::SimulationBand stored = nlid::simulation_band(m, d);
+  const nlid::SimulationBand fresh = nlid::simulation_band(m, d, r.uncertainty);
+  REQUIRE(stored.rms_stddev.allFinite());
+  CHECK(stored.rms_stddev.isApprox(fresh.rms_stddev, 1e-6));
+  const nlid::ParameterUncertainty u = nlid::uncertainty_from_covariance(
+      m.parameter_names(), m.parameters(), m.parameter_covariance(), m.parameter_stddev(), m.fixed_flags());
+  CHECK(u.at_bound[0]);
+  CHECK_FALSE(u.free[0]);
+  CHECK(u.stddev[0] == 0.0);
+  CHECK_THAT(u.report(), Catch::Contains("on its bound: no standard deviation"));
 }
 
 TEST_CASE("Values set by the user survive data-driven initialisation", "[greybox][estimate]") {

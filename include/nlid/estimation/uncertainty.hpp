@@ -534,8 +534,9 @@ ParameterUncertainty parameter_uncertainty(const Pb& problem, const Eigen::Vecto
 /// The uncertainty a stored covariance describes: what a model file keeps of an estimate
 /// (`"uncertainty": {"covariance", "stddev"}`; a grey box's `parameters.covariance`) turned back into the form `simulation_band`
 /// takes. `stddev` (size 0 or n) keeps the deviations as estimated, +∞ for a parameter the data
-/// left undetermined (its covariance row holds the pseudo-inverse's finite values); empty: the
-/// diagonal's square roots. A parameter with zero variance or flagged in `fixed` (size 0 or n) is
+/// left undetermined (its covariance row holds the pseudo-inverse's finite values), NaN for one
+/// estimated onto a bound (`at_bound`, σ 0 in the result); empty: the diagonal's square roots.
+/// A parameter with zero variance or flagged in `fixed` (size 0 or n) is
 /// not free. What the residuals and the data were is not stored: `observations` is 0, the
 /// white-formula deviations are NaN, and `unidentifiable` is empty (an undetermined parameter is
 /// named in `caveat` instead). Throws `nlid::Error` naming the parameter for sizes that do not
@@ -568,8 +569,8 @@ ParameterUncertainty parameter_uncertainty(const Pb& problem, const Eigen::Vecto
   detail::check_covariance("stored uncertainty: ", names, covariance);
   for (Eigen::Index i = 0; i < stddev.size(); ++i) {
     const std::string& q = names[static_cast<std::size_t>(i)];
-    require(stddev[i] >= 0.0,
-            "stored uncertainty: the standard deviation of " + q + " must be >= 0 (or inf), got " +
+    require(stddev[i] >= 0.0 || std::isnan(stddev[i]),
+            "stored uncertainty: the standard deviation of " + q + " must be >= 0 (or inf, or nan for on its bound), got " +
                 detail::format_g(stddev[i]),
             at_parameter(q));
   }
@@ -583,11 +584,19 @@ ParameterUncertainty parameter_uncertainty(const Pb& problem, const Eigen::Vecto
   u.correlation = Eigen::MatrixXd::Constant(n, n, std::numeric_limits<double>::quiet_NaN());
   u.free.resize(static_cast<std::size_t>(n));
   u.at_bound.assign(static_cast<std::size_t>(n), false);
+  // NaN is how a grey box keeps "on its bound" (GreyBox::parameter_stddev); back in the form
+  // `parameter_uncertainty` gives it: σ 0, flagged, so the report says so and no band uses it.
+  for (Eigen::Index i = 0; i < n; ++i) {
+    if (std::isnan(u.stddev[i])) {
+      u.stddev[i] = 0.0;
+      u.at_bound[static_cast<std::size_t>(i)] = true;
+    }
+  }
   std::string undetermined;
   for (Eigen::Index i = 0; i < n; ++i) {
     const auto iu = static_cast<std::size_t>(i);
     // A parameter fixed since the estimation keeps its variance in Σ but is not moved.
-    u.free[iu] = u.covariance(i, i) > 0.0 && !(iu < fixed.size() && fixed[iu]);
+    u.free[iu] = u.covariance(i, i) > 0.0 && !(iu < fixed.size() && fixed[iu]) && !u.at_bound[iu];
     if (u.free[iu] && std::isfinite(u.stddev[i])) ++u.rank;
     if (std::isinf(u.stddev[i])) undetermined += (undetermined.empty() ? "" : ", ") + u.names[iu];
     for (Eigen::Index j = 0; j < n; ++j) {

@@ -283,11 +283,13 @@ class GreyBox {
   }
 
   /// Standard deviations of the parameter values (1σ; 0 for a fixed parameter, +∞ for one the
-  /// data did not determine), as the last estimation left them (`GreyBoxEstimate::uncertainty`);
-  /// empty when unknown. Kept in model files; cleared when a value changes.
+  /// data did not determine, NaN for one the estimation left on a bound, where there is none),
+  /// as the last estimation left them (`GreyBoxEstimate::uncertainty`); empty when unknown.
+  /// Kept in model files; cleared when a value changes.
   [[nodiscard]] const Eigen::VectorXd& parameter_stddev() const { return stddev_; }
-  /// Sets the standard deviations (n_p entries, each >= 0 or +inf; empty clears them). Throws
-  /// `nlid::Error` naming the parameter of a negative or NaN entry, or on a size mismatch.
+  /// Sets the standard deviations (n_p entries, each >= 0, +inf or NaN for on its bound; empty
+  /// clears them). Throws `nlid::Error` naming the parameter of a negative entry, or on a size
+  /// mismatch.
   void set_parameter_stddev(Eigen::VectorXd sd) {
     require(sd.size() == 0 || sd.size() == num_parameters(),
             "grey-box model '" + name() + "': " + std::to_string(sd.size()) + " standard deviations for " +
@@ -295,8 +297,9 @@ class GreyBox {
             at_parameter("stddev"));
     for (Eigen::Index i = 0; i < sd.size(); ++i) {
       const std::string& q = params_[static_cast<std::size_t>(i)].name;
-      require(sd[i] >= 0.0, "grey-box model '" + name() + "': the standard deviation of " + q + " must be >= 0 (or inf), got " +
-                                detail::format_g(sd[i]),
+      require(sd[i] >= 0.0 || std::isnan(sd[i]),
+              "grey-box model '" + name() + "': the standard deviation of " + q + " must be >= 0 (or inf, or nan for on its bound), got " +
+                  detail::format_g(sd[i]),
               at_parameter(q));
     }
     stddev_ = std::move(sd);
@@ -579,7 +582,16 @@ class GreyBox {
       line += q.fixed ? "fixed" : "estimated";
       if (stddev_.size() == num_parameters() && !q.fixed) {
         const double sd = stddev_[&q - params_.data()];
-        line += std::isfinite(sd) ? " +- " + detail::format_g(sd) : std::string(" +- inf (not identifiable)");
+        if (std::isnan(sd)) {
+          // Where the estimate stopped on a bound the linearisation does not hold: no σ, and a
+          // ± 0 would claim the value exactly known.
+          const double tol = 1e-12 * std::max(1.0, std::abs(q.value));  // as the uncertainty's on-bound test
+          line += q.value <= q.lower + tol   ? ", on its lower bound"
+                  : q.value >= q.upper - tol ? ", on its upper bound"
+                                             : ", on a bound (no standard deviation)";
+        } else {
+          line += std::isfinite(sd) ? " +- " + detail::format_g(sd) : std::string(" +- inf (not identifiable)");
+        }
       }
       if (std::isfinite(q.lower) || std::isfinite(q.upper)) {
         line += "  bounds [" + detail::format_g(q.lower) + ", " + detail::format_g(q.upper) + "]";

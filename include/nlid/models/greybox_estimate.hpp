@@ -402,7 +402,12 @@ GreyBoxEstimate estimate(GreyBox<P>& model, const Dataset& data,
   uo.caveat = uncertainty_caveat(options.multi_start.lm);
   try {
     out.uncertainty = detail::greybox_uncertainty(model, problem, data, theta, uo);
-    model.set_parameter_stddev(out.uncertainty.stddev.head(np));
+    // The uncertainty's 0 for an on-bound parameter would read, on the model alone, as exactly
+    // known: the model keeps NaN there ("on its bound: no standard deviation").
+    Eigen::VectorXd sd = out.uncertainty.stddev.head(np);
+    for (Eigen::Index i = 0; i < np; ++i)
+      if (out.uncertainty.at_bound[static_cast<std::size_t>(i)]) sd[i] = std::numeric_limits<double>::quiet_NaN();
+    model.set_parameter_stddev(std::move(sd));
     // Symmetric, and no rounding-negative variance, so storing it cannot fail.
     const Eigen::MatrixXd c = out.uncertainty.covariance.topLeftCorner(np, np);
     Eigen::MatrixXd sym = 0.5 * (c + c.transpose());
