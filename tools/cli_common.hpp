@@ -294,6 +294,8 @@ inline std::string translate(std::string s) {
       {"CsvReadOptions::time_column", "--time"},
       {"IntegratorOptions::substeps / min_substeps, or use the adaptive method", "--substeps (nlid-codegen)"},
       {"IntegratorOptions::substeps", "--substeps (nlid-codegen)"},
+      // No flag sets the adaptive budget: it is part of the model file's integrator.
+      {"IntegratorOptions::max_adaptive_steps", "max_adaptive_steps (the model file's structure.integrator)"},
       {"DiagnoseOptions::decimate", "--decimate"},
       {"DiagnoseOptions::starts", "--starts"},
       {"LmOptions::max_iterations", "--iterations"},

@@ -784,3 +784,26 @@ TEST_CASE("A NaN spectral radius falls back to the Gershgorin bound, +inf is ref
   Eigen::VectorXd r(problem.num_residuals());
   CHECK_FALSE(problem.evaluate(inf.parameters(), r, nullptr));
 }
+
+TEST_CASE("An adaptive run out of its step budget names max_adaptive_steps, not the fixed-step options",
+          "[greybox][integrators]") {
+  GreyBox<DeclaredRadius<0>> m;
+  m.set_parameter("k", 1e6);  // stiff: Dormand-Prince needs thousands of steps per 10 ms sample
+  nlid::IntegratorOptions o;
+  o.method = nlid::IntegratorMethod::dormand_prince;
+  o.max_adaptive_steps = 50;
+  m.set_integrator(o);
+  const Eigen::MatrixXd u = Eigen::MatrixXd::Ones(10, 1);
+  try {
+    (void)m.simulate(u, 0.01, Eigen::VectorXd::Zero(1));
+    FAIL("no nlid::DivergenceError for an exhausted step budget");
+  } catch (const nlid::DivergenceError& e) {
+    INFO(e.what());
+    CHECK_THAT(e.what(), Catch::Contains("diverged at sample 1") && Catch::Contains("adaptive Dormand-Prince") &&
+                             Catch::Contains("IntegratorOptions::max_adaptive_steps = 50") &&
+                             !Catch::Contains("sub-step") && !Catch::Contains("min_substeps"));
+  }
+  o.max_adaptive_steps = 100000;
+  m.set_integrator(o);
+  CHECK(m.simulate(u, 0.01, Eigen::VectorXd::Zero(1))(9, 0) == Approx(1.0));
+}

@@ -443,14 +443,26 @@ class GreyBox {
           for (Eigen::Index j = 0; j < y.cols(); ++j) y(k, j) = yk[j];
         });
     if (got != u.rows()) {
-      throw DivergenceError("simulation of grey-box model '" + name() + "'" +
-                  (label.empty() ? std::string() : " on '" + label + "'") +
-                  " diverged at sample " + std::to_string(got) + " (t = " +
-                  detail::format_g(static_cast<double>(got) * ts) + " s after start) with " +
-                  std::to_string(sub) + " sub-step(s) per sample" + capped_substeps_note(ts, rho, sub) +
-                  "; check the parameters, or raise "
-                  "IntegratorOptions::substeps / min_substeps, or use the adaptive method",
-                  static_cast<long>(got));
+      const std::string head = "simulation of grey-box model '" + name() + "'" +
+                               (label.empty() ? std::string() : " on '" + label + "'") + " diverged at sample " +
+                               std::to_string(got) + " (t = " + detail::format_g(static_cast<double>(got) * ts) +
+                               " s after start)";
+      // The adaptive method takes no sub-step count: it fails when its step budget runs out (a
+      // stiff model needs many steps per sample) or its step shrinks to nothing, and the remedy
+      // is the budget, not the fixed-step options.
+      if (integrator_.method == IntegratorMethod::dormand_prince) {
+        throw DivergenceError(head + " with the adaptive Dormand-Prince method: a sample interval needed more than "
+                                     "IntegratorOptions::max_adaptive_steps = " +
+                                  std::to_string(integrator_.max_adaptive_steps) +
+                                  " steps, or the state left the finite numbers; check the parameters, or raise "
+                                  "IntegratorOptions::max_adaptive_steps",
+                              static_cast<long>(got));
+      }
+      throw DivergenceError(head + " with " + std::to_string(sub) + " sub-step(s) per sample" +
+                                capped_substeps_note(ts, rho, sub) +
+                                "; check the parameters, or raise "
+                                "IntegratorOptions::substeps / min_substeps, or use the adaptive method",
+                            static_cast<long>(got));
     }
     return y;
   }
