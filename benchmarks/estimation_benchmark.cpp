@@ -263,6 +263,24 @@ nlid::LmOptions lm_options(int iterations, nlid::LmScaling scaling = nlid::LmSca
   return o;
 }
 
+// estimate()'s options for the nlhw2 solve: uniform damping of each parameter in its own units,
+// which follow the data's RMS (detail::hw_parameter_scales).
+template <class Model>
+nlid::LmOptions hw_lm_options(const Model& model, int iterations) {
+  nlid::LmOptions o = lm_options(iterations, nlid::LmScaling::levenberg);
+  const nlid::Dataset& d = data12();
+  Eigen::VectorXd u(d.total_samples()), y(d.total_samples());
+  Eigen::Index k = 0;
+  for (std::size_t i = 0; i < d.size(); ++i) {
+    u.segment(k, d[i].size()) = d[i].u().col(0);
+    y.segment(k, d[i].size()) = d[i].y().col(0);
+    k += d[i].size();
+  }
+  o.parameter_scale = nlid::detail::hw_parameter_scales(model, u, y);
+  if (o.parameter_scale.size() != model.num_parameters()) fail("nlhw2: its maps do not know their parameters' units");
+  return o;
+}
+
 // Three complete LM solves of `problem` from `theta0` (one per benchmark iteration).
 template <class Problem, class Theta>
 void run_solve(benchmark::State& state, const std::string& key, const Problem& problem, const Theta& theta0,
@@ -340,7 +358,7 @@ void Nlhw2_Nlid(benchmark::State& state) {
                    nlid::AutoDiffProblem<Nlhw2Functor>(Nlhw2Functor(s.model, s.segs, {}, InitialCondition::zero, s.limit)),
                    s.theta0);
   run_solve(state, "Nlhw2_Nlid", problem, Eigen::Matrix<double, perf::kNlhw2Params, 1>(s.theta0),
-            lm_options(200, nlid::LmScaling::levenberg));
+            hw_lm_options(s.model, 200));
 }
 
 // The same structured problem with Ceres' own damping (Marquardt scaling by the current column
@@ -361,7 +379,7 @@ void Nlhw2_NlidForwardAD(benchmark::State& state) {
   const auto& s = nlhw2_setup();
   const nlid::AutoDiffProblem<Nlhw2Functor> problem(Nlhw2Functor(s.model, s.segs, {}, InitialCondition::zero, s.limit));
   run_solve(state, "Nlhw2_NlidForwardAD", problem, Eigen::Matrix<double, perf::kNlhw2Params, 1>(s.theta0),
-            lm_options(200, nlid::LmScaling::levenberg));
+            hw_lm_options(s.model, 200));
 }
 
 void Throttle_Nlid(benchmark::State& state) {

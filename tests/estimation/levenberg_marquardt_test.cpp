@@ -603,10 +603,12 @@ struct RosenbrockInOtherUnits {
   }
 };
 
-std::vector<double> cost_history(const auto& problem, Eigen::Vector2d x, nlid::LmScaling scaling, nlid::LmSummary& s) {
+std::vector<double> cost_history(const auto& problem, Eigen::Vector2d x, nlid::LmScaling scaling, nlid::LmSummary& s,
+                                 const Eigen::VectorXd& parameter_scale = {}) {
   std::vector<double> costs;
   LmOptions o;
   o.scaling = scaling;
+  o.parameter_scale = parameter_scale;
   o.callback = [&](const nlid::IterationReport& r) {
     costs.push_back(r.cost);
     return true;
@@ -652,6 +654,52 @@ TEST_CASE("LmScaling: the column scalings are invariant to parameter units, all 
     CHECK(x[0] == Approx(1.0).epsilon(1e-7));
     CHECK(x[1] * (units ? 1000.0 : 1.0) == Approx(1.0).epsilon(1e-7));
   }
+}
+
+TEST_CASE("LmScaling::levenberg with parameter_scale: uniform damping in θ/s, the same iterates in any units",
+          "[estimation][lm]") {
+  AutoDiffProblem plain(nlid_test::Rosenbrock<2>{});
+  AutoDiffProblem other(RosenbrockInOtherUnits{});
+  nlid::LmSummary s1, s2, s3;
+  const auto c1 = cost_history(plain, Eigen::Vector2d(-1.2, 1.0), nlid::LmScaling::levenberg, s1);
+  const auto c2 = cost_history(other, Eigen::Vector2d(-1.2, 1e-3), nlid::LmScaling::levenberg, s2,
+                               Eigen::Vector2d(1.0, 1e-3));
+  CHECK(s1.converged());
+  CHECK(s2.converged());
+  CHECK(s1.message().find("parameter_tolerance") == s2.message().find("parameter_tolerance"));
+  REQUIRE(c1.size() == c2.size());
+  for (std::size_t k = 0; k < c1.size(); ++k) CHECK(c2[k] == Approx(c1[k]).epsilon(1e-8).margin(1e-20));
+  // Without the scales the other units take another path (what the scales are for).
+  const auto c3 = cost_history(other, Eigen::Vector2d(-1.2, 1e-3), nlid::LmScaling::levenberg, s3);
+  CHECK(c3.size() != c1.size());
+
+  // A scale that is not a positive number is refused, naming the parameter.
+  LmOptions o;
+  o.parameter_scale = Eigen::Vector2d(1.0, 0.0);
+  o.parameter_names = {"gain", "tau"};
+  Eigen::Vector2d x(-1.2, 1.0);
+  CHECK_THROWS_WITH(nlid::solve_least_squares(plain, x, o),
+                    Catch::Contains("parameter_scale") && Catch::Contains("'tau'"));
+  o.parameter_scale = Eigen::Vector3d(1.0, 1.0, 1.0);
+  CHECK_THROWS_WITH(nlid::solve_least_squares(plain, x, o), Catch::Contains("parameter_scale has 3 entries"));
+}
+
+TEST_CASE("data in tiny units: the gradient test is relative to the start's gradient, the fit is the same",
+          "[estimation][lm]") {
+  // y = a exp(bt) + c in units 10⁻¹² of the usual ones: every gradient is 10⁻¹² of the usual,
+  // below the absolute 10⁻¹⁰ test at the start already (the solve stopped there before).
+  nlid_test::ExpFit<3> usual(2.0, -1.5, 0.5), tiny(2e-12, -1.5, 0.5e-12);
+  AutoDiffProblem pu(usual), pt(tiny);
+  Eigen::Vector3d xu(1.0, -1.0, 0.0), xt(1e-12, -1.0, 0.0);
+  const nlid::LmSummary su = nlid::solve_least_squares(pu, xu, LmOptions{});
+  const nlid::LmSummary st = nlid::solve_least_squares(pt, xt, LmOptions{});
+  INFO(st.message());
+  CHECK(st.converged());
+  CHECK(st.iterations > 3);
+  CHECK(xt[0] == Approx(2e-12).epsilon(1e-6));
+  CHECK(xt[1] == Approx(-1.5).epsilon(1e-6));
+  CHECK(xt[1] == Approx(xu[1]).epsilon(1e-6));
+  CHECK(su.converged());
 }
 
 namespace {

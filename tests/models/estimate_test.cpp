@@ -5,9 +5,12 @@
 #include <cmath>
 #include <limits>
 #include <random>
+#include <utility>
 
 #include "nlid/models/estimate.hpp"
+#include "nlid/linear/polynomial.hpp"
 #include "nlid/nonlinearities/linear.hpp"
+#include "nlid/nonlinearities/piecewise_linear.hpp"
 #include "nlid/nonlinearities/saturation.hpp"
 #include "nlid/nonlinearities/sigmoid_network.hpp"
 #include "nlid/nonlinearities/unit_gain.hpp"
@@ -66,6 +69,42 @@ TEST_CASE("HW started from a given linear block with initialize = false", "[mode
   const Wiener est = nlid::estimate(start, data, o);
   CHECK((est.parameters() - wiener_truth()).cwiseAbs().maxCoeff() < 1e-6);
   CHECK(calls > 1);
+}
+
+TEST_CASE("HW estimation gives the same model whatever units the data are in", "[models][estimate]") {
+  // Data from a Hammerstein–Wiener system whose input map (tanh) PwLinear<4> can only
+  // approximate, so the solve ends at a compromise that depends on the path: a path that
+  // depended on the units would show in the fit.
+  using Hw = nlid::HammersteinWiener<nlid::PwLinear<4>, nlid::TransferFunctionBlock<2, 2, 1>, nlid::Saturation>;
+  const Eigen::MatrixXd u = random_steps(700, -2.0, 2.0, 5);
+  Eigen::VectorXd w = u.col(0).array().tanh();
+  Eigen::VectorXd b(3), f(3);
+  b << 0, 0.3, 0.15;
+  f << 1, -1.2, 0.4;
+  const Eigen::VectorXd y = nlid::filter(b, f, w).cwiseMax(-1.5).cwiseMin(1.8);
+  auto fit_in_units = [&](double ku, double ky, nlid::LmScaling scaling,
+                          nlid::InitialCondition ic = nlid::InitialCondition::zero) {
+    const nlid::Dataset data{nlid::Experiment(Eigen::MatrixXd(ku * u), Eigen::VectorXd(ky * y), 0.01, "e")};
+    nlid::EstimateOptions o;
+    o.solver.scaling = scaling;
+    o.initial_condition = ic;
+    const Hw est = nlid::estimate(Hw{}, data, o);
+    INFO(est.report().status);
+    return est.report().fit_percent[0];
+  };
+  const double reference = fit_in_units(1.0, 1.0, nlid::LmScaling::automatic);
+  CHECK(reference > 90.0);
+  for (const auto& [ku, ky] : {std::pair{1000.0, 1.0}, std::pair{1.0, 1e-3}, std::pair{1.0, 1e6}, std::pair{1e-4, 1e5}}) {
+    CAPTURE(ku, ky);
+    CHECK(fit_in_units(ku, ky, nlid::LmScaling::automatic) == Approx(reference).margin(0.01));
+  }
+  // Uniform damping without the parameters' units (explicit levenberg): the units change the path.
+  CHECK(std::abs(fit_in_units(1.0, 1e6, nlid::LmScaling::levenberg) - reference) > 0.1);
+  // Estimated initial states are unknowns of the solve too, with the block's (y's) units.
+  const double with_x0 = fit_in_units(1.0, 1.0, nlid::LmScaling::automatic, nlid::InitialCondition::estimate);
+  CHECK(with_x0 > 90.0);
+  CHECK(fit_in_units(1e3, 1e-3, nlid::LmScaling::automatic, nlid::InitialCondition::estimate) ==
+        Approx(with_x0).margin(0.01));
 }
 
 TEST_CASE("sigmoid-net NARX: the estimated model fits fresh noise-free data > 99 %", "[models][estimate]") {
@@ -166,6 +205,83 @@ TEST_CASE("multi-experiment simulation focus with estimated initial states", "[m
   REQUIRE(est.report().initial_states.size() == 2);
   for (int i = 0; i < 2; ++i) CHECK((est.report().initial_states[i] - x0s[i]).cwiseAbs().maxCoeff() < 1e-5);
   CHECK(est.report().fit_percent[1] > 99.9999);
+}
+
+TEST_CASE("Hammerstein input saturation: the limits are found from the library's own start", "[models][estimate]") {
+  // The input map starts as the identity; a saturation with its limits at the input's extremes
+  // would clamp nothing and get no gradient, so its limits must start inside the data.
+  using H = nlid::HammersteinWiener<nlid::Saturation, nlid::TransferFunctionBlock<2, 1, 1>, nlid::UnitGain>;
+  H truth;
+  Eigen::VectorXd p(5);
+  p << -1.0, 1.2, 0.5, 0.3, -0.7;  // lower upper | b1 b2 | f1
+  truth.set_parameters(p);
+  const Eigen::MatrixXd u = random_steps(1000, -2.0, 2.0, 21);
+  REQUIRE((u.array() < -1.0).count() > 50);
+  REQUIRE((u.array() > 1.2).count() > 50);
+  Eigen::VectorXd y(1000);
+  REQUIRE(truth.simulate<double>(u, nlid::detail::as_const_span(p), {}, nlid::detail::as_span(y)));
+  const H est = nlid::estimate(H{}, nlid::Dataset{nlid::Experiment(u, y, 1.0, "e")});
+  INFO(est.report().status);
+  CHECK((est.parameters() - p).cwiseAbs().maxCoeff() < 1e-6);
+  CHECK(est.report().fit_percent[0] > 99.999);
+}
+
+TEST_CASE("fixed parameters keep the caller's values when the start is data-driven", "[models][estimate]") {
+  SECTION("Hammerstein-Wiener: b1, b2 held at the values set") {
+    Wiener truth;
+    truth.set_parameters(wiener_truth());
+    const nlid::Dataset data{simulate_truth(truth, random_steps(600, -2.0, 2.0, 7), "f")};
+    Wiener start;
+    Eigen::VectorXd th = Eigen::VectorXd::Zero(6);
+    th(0) = wiener_truth()(0);
+    th(1) = wiener_truth()(1);
+    start.set_parameters(th);
+    nlid::EstimateOptions o;  // initialize = true: the data-driven start sets the other four
+    o.solver.fixed = {true, true, false, false, false, false};
+    const Wiener est = nlid::estimate(start, data, o);
+    CHECK(est.parameters()(0) == wiener_truth()(0));
+    CHECK(est.parameters()(1) == wiener_truth()(1));
+    CHECK((est.parameters() - wiener_truth()).cwiseAbs().maxCoeff() < 1e-6);
+  }
+  SECTION("nonlinear ARX: L[0] held at 0.3 while the rest is fitted") {
+    using Model = nlid::Nlarx<nlid::LaggedRegressors<2, 1, 0>, nlid::LinearMap<3>>;
+    Model truth;
+    Eigen::VectorXd th(4);
+    th << 1.3, -0.45, 0.2, 0.7;
+    truth.set_parameters(th);
+    const Eigen::MatrixXd u = random_steps(300, -3.0, 3.0, 9);
+    Eigen::VectorXd y(300);
+    REQUIRE(truth.simulate<double>(u, nlid::detail::as_const_span(th), nlid::detail::as_const_span(Eigen::Vector2d(0.0, 0.0)),
+                                   nlid::detail::as_span(y)));
+    Model start;
+    Eigen::VectorXd th0 = Eigen::VectorXd::Zero(4);
+    th0(0) = 0.3;
+    start.set_parameters(th0);
+    nlid::EstimateOptions o;
+    o.focus = nlid::Focus::prediction;
+    o.solver.fixed = {true, false, false, false};
+    const Model est = nlid::estimate(start, nlid::Dataset{nlid::Experiment(u, y, 1.0, "g")}, o);
+    CHECK(est.parameters()(0) == 0.3);
+    CHECK(std::abs(est.parameters()(1) + 0.45) > 0.01);  // the others compensate as they can
+  }
+}
+
+TEST_CASE("EstimateOptions counts that mean nothing are refused, naming the option", "[models][estimate][errors]") {
+  Wiener truth;
+  truth.set_parameters(wiener_truth());
+  const nlid::Dataset data{simulate_truth(truth, random_steps(300, -2.0, 2.0, 8), "h")};
+  using Model = nlid::Nlarx<nlid::LaggedRegressors<2, 1, 0>, nlid::LinearMap<3>>;
+  auto refused = [&](auto set, const char* name) {
+    nlid::EstimateOptions o;
+    o.focus = nlid::Focus::simulation;
+    set(o);
+    CHECK_THROWS_WITH(nlid::estimate(Model{}, data, o), Catch::Contains(std::string("EstimateOptions::") + name));
+    CHECK_THROWS_WITH(nlid::estimate(Wiener{}, data, o), Catch::Contains(std::string("EstimateOptions::") + name));
+  };
+  refused([](nlid::EstimateOptions& o) { o.prediction_iterations = -1; }, "prediction_iterations");
+  refused([](nlid::EstimateOptions& o) { o.linear_iterations = -2; }, "linear_iterations");
+  refused([](nlid::EstimateOptions& o) { o.starts = 0; }, "starts");
+  refused([](nlid::EstimateOptions& o) { o.start_iterations = -1; }, "start_iterations");
 }
 
 TEST_CASE("regularized prediction focus is the ridge estimate of the regressors", "[models][estimate]") {

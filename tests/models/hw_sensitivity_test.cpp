@@ -158,14 +158,22 @@ TEST_CASE("Hammerstein-Wiener estimation damps uniformly (LmScaling::levenberg) 
     for (Eigen::Index t = 0; t < y.rows(); ++t) y(t, 0) += 0.02 * std::sin(0.7 * t);  // a misfit floor
     measured.add(nlid::Experiment(e.u(), y, 0.01));
   }
-  auto cost_with = [&](nlid::LmScaling scaling) {
+  auto cost_with = [&](nlid::LmScaling scaling, const Eigen::VectorXd& parameter_scale = {}) {
     nlid::EstimateOptions o;
     o.initial_condition = nlid::InitialCondition::zero;
     o.solver.max_iterations = 15;
     o.solver.scaling = scaling;
+    o.solver.parameter_scale = parameter_scale;
     return nlid::estimate(Hw{}, measured, o).report().final_cost;
   };
+  // Each parameter in its own units: those of the input (RMS) for f, of the output for h.
+  Eigen::VectorXd u_all(1000), y_all(1000);
+  u_all << measured[0].u().col(0), measured[1].u().col(0);
+  y_all << measured[0].y().col(0), measured[1].y().col(0);
+  const Eigen::VectorXd scales = nlid::detail::hw_parameter_scales(Hw{}, u_all, y_all);
+  REQUIRE(scales.size() == Hw{}.num_parameters());
   const double automatic = cost_with(nlid::LmScaling::automatic);
-  CHECK(automatic == cost_with(nlid::LmScaling::levenberg));  // the same solve, bit for bit
+  CHECK(automatic == cost_with(nlid::LmScaling::levenberg, scales));  // the same solve, bit for bit
+  CHECK(automatic != cost_with(nlid::LmScaling::levenberg));
   CHECK(automatic != cost_with(nlid::LmScaling::running_max));
 }

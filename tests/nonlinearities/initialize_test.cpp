@@ -174,21 +174,28 @@ TEST_CASE("Saturation initialisation recovers the limits of clamped data", "[non
   CHECK(th[0] == Approx(15.0).margin(0.2));
   CHECK(th[1] == Approx(90.0).margin(0.2));
 
-  // Only one side saturated: the other limit goes to the edge of the data (inactive).
+  // Only one side saturated: the other limit goes 1 % of the x range inside the edge of the
+  // data — nearly inactive, but a limit exactly at the edge would clamp nothing and have no
+  // gradient to move by.
   const Eigen::VectorXd y1 = X.col(0).array().min(70.0).matrix();
   const auto t1 = init(f, X, y1);
+  const double range = X.maxCoeff() - X.minCoeff();
   CHECK(t1[1] == Approx(70.0).margin(1e-9));
-  CHECK(t1[0] <= X.minCoeff() + 1e-9);
+  CHECK(t1[0] == Approx(X.minCoeff() + 0.01 * range).margin(1e-9));
+  // Neither side saturated (the identity, the start of a Hammerstein input map): both inset.
+  const auto ti = init(f, X, Eigen::VectorXd(X.col(0)));
+  CHECK(ti[0] == Approx(X.minCoeff() + 0.01 * range).margin(1e-9));
+  CHECK(ti[1] == Approx(X.maxCoeff() - 0.01 * range).margin(1e-9));
 
-  // Data no saturation explains (y = −x): the least-squares scans give crossed limits (lower
-  // 0.35 above upper −0.35), which collapse to their midpoint — the constant map g = 0, the
-  // mean of y and the best constant fit.
+  // Data no saturation explains (y = −x + 1000): the least-squares scans give crossed limits,
+  // which collapse to the best constant map, g = mean(y) (the midpoint of the crossed limits
+  // was a constant far from the data).
   Eigen::MatrixXd Xd(21, 1);
   for (int i = 0; i < 21; ++i) Xd(i, 0) = -1.0 + 0.1 * i;
-  const Eigen::VectorXd yd = -Xd.col(0);
+  const Eigen::VectorXd yd = (1000.0 - Xd.col(0).array()).matrix();
   const auto td = init(f, Xd, yd);
-  CHECK(td[0] == Approx(0.0).margin(1e-12));
-  CHECK(td[1] == Approx(0.0).margin(1e-12));
+  CHECK(td[0] == Approx(1000.0).margin(1e-9));
+  CHECK(td[1] == Approx(1000.0).margin(1e-9));
 
   // Given initial limits (prior knowledge) are used as they are.
   nlid::Saturation g(15, 90);

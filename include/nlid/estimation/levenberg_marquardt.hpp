@@ -97,7 +97,8 @@ struct IterationReport {
 /// How the damping term λ‖Dδ‖² scales the parameters (file comment: "Scaling D").
 enum class LmScaling {
   /// The caller's default: `solve_least_squares` takes `running_max`; `estimate` takes
-  /// `levenberg` for Hammerstein–Wiener models and `running_max` for every other structure
+  /// `levenberg` with each parameter's unit from the data (`parameter_scale`) for
+  /// Hammerstein–Wiener models and `running_max` for every other structure
   /// (docs/estimation.md, "Scaling D", has the evidence).
   automatic,
   /// d_k = the largest column norm ‖J̃_k‖ seen so far in this solve (Moré 1978): invariant to
@@ -108,7 +109,9 @@ enum class LmScaling {
   /// Levenberg–Marquardt strategy (its Jacobi-scaled diagonal clamped at 10⁻⁶).
   current,
   /// D = √(max_k A_kk)·I, the running maximum over the solve (Levenberg 1944, made
-  /// dimensionless): not invariant to parameter units.
+  /// dimensionless): not invariant to parameter units — unless `LmOptions::parameter_scale`
+  /// gives each parameter's unit, then D = c·diag(1/s_k) with c the running maximum of
+  /// s_k·√A_kk: uniform damping of θ_k/s_k.
   levenberg,
 };
 
@@ -138,6 +141,12 @@ struct LmOptions {
   std::function<bool(const IterationReport&)> callback;
   /// Optional names of the n parameters, used in error messages (default "theta[k]").
   std::vector<std::string> parameter_names;
+  /// Empty (all 1) or n finite entries > 0: the unit of each parameter, e.g. the output's
+  /// RMS for a parameter measured in output units. `levenberg` damping and the
+  /// parameter-tolerance test then work on θ_k/s_k, which makes them independent of the units
+  /// the data are in when the scales follow the data (Hammerstein–Wiener estimation sets them;
+  /// the other scalings are unit-invariant without them).
+  Eigen::VectorXd parameter_scale;
 };
 
 namespace detail {
@@ -187,12 +196,17 @@ double lm_cost(const LmOptions& o, const Eigen::MatrixBase<RDerived>& r, const E
 /// Why the solver stopped. Each comment states the exact criterion (n_free = non-fixed count;
 /// norms over non-fixed parameters; ε-terms as written).
 enum class LmStatus {
-  /// ‖θ − P_[l,u](θ − ∇F(θ))‖∞ ≤ gradient_tolerance at the current θ: first-order optimal.
+  /// ‖θ − P_[l,u](θ − ∇F(θ))‖∞ ≤ gradient_tolerance·min(1, G₀) at the current θ, G₀ that
+  /// norm at the start (with `LmOptions::parameter_scale` s, the same in θ_k/s_k:
+  /// ‖(θ − P(θ − s²∘∇F))/s‖∞): first-order optimal. (The factor keeps a problem whose data are in
+  /// small units — a cost of 10⁻¹⁸ has gradients to match — from stopping at its start; for
+  /// G₀ ≥ 1 the test is the absolute one.)
   gradient_tolerance_reached,
   /// An accepted step decreased the cost by F_old − F_new ≤ function_tolerance · F_old.
   function_tolerance_reached,
   /// The step just tried satisfies ‖Δθ‖₂ ≤ parameter_tolerance·(‖θ‖₂ + parameter_tolerance)
-  /// (Δθ after projection onto the bounds, θ before the step). An accepted step is taken
+  /// (Δθ after projection onto the bounds, θ before the step; both divided entry by entry by
+  /// `LmOptions::parameter_scale` when it is given). An accepted step is taken
   /// first; after a rejected one θ stays (a larger λ would only shorten the step further).
   /// If no step at all was accepted, θ is the start and nothing certifies it: `converged()`
   /// is false and the message says the solve stalled (typically exploding sensitivities, e.g.
@@ -440,6 +454,7 @@ class LmEngine {
     double nu = 2.0;
     build_normal_equations();
     double gnorm = projected_gradient_norm();
+    const double gradient_tolerance = options_.gradient_tolerance * std::min(1.0, std::isnan(gnorm) ? 1.0 : gnorm);
     int n_free = 0;
     for (int k = 0; k < n_; ++k) n_free += fixed_[k] ? 0 : 1;
 
@@ -447,7 +462,7 @@ class LmEngine {
     if (n_free == 0) {
       sum.status = LmStatus::all_parameters_fixed;
       done = true;
-    } else if (gnorm <= options_.gradient_tolerance) {
+    } else if (gnorm <= gradient_tolerance) {
       sum.status = LmStatus::gradient_tolerance_reached;
       done = true;
     }
@@ -461,7 +476,7 @@ class LmEngine {
       compute_step(lambda, sum);  // x_trial_ = P(x + δ)
       const double step_norm = (x_trial_ - x_).norm();
       const bool tiny_step =
-          step_norm <= options_.parameter_tolerance * (free_norm(x_) + options_.parameter_tolerance);
+          scaled_step_norm() <= options_.parameter_tolerance * (free_norm(x_) + options_.parameter_tolerance);
       sum.iterations = iter;
       // Model decrease of the projected step: m(0) − m(δ) = −(gᵀδ + ½ δᵀAδ).
       y_ = x_trial_ - x_;
@@ -500,7 +515,7 @@ class LmEngine {
         } else if (tiny_step) {
           sum.status = LmStatus::parameter_tolerance_reached;
           done = true;
-        } else if (gnorm <= options_.gradient_tolerance) {
+        } else if (gnorm <= gradient_tolerance) {
           sum.status = LmStatus::gradient_tolerance_reached;
           done = true;
         }
@@ -582,6 +597,15 @@ class LmEngine {
     check_size(o.lower_bounds.size(), "lower_bounds");
     check_size(o.upper_bounds.size(), "upper_bounds");
     check_size(static_cast<Eigen::Index>(o.fixed.size()), "fixed");
+    check_size(o.parameter_scale.size(), "parameter_scale");
+    for (Eigen::Index k = 0; k < o.parameter_scale.size(); ++k) {
+      const double v = o.parameter_scale[k];
+      if (!(std::isfinite(v) && v > 0)) {
+        throw Error("LmOptions::parameter_scale is " + num(v) + " for parameter '" + param_name(static_cast<int>(k)) +
+                        "' (index " + std::to_string(k) + "); each scale must be finite and > 0",
+                    at_parameter(param_name(static_cast<int>(k))));
+      }
+    }
     const double inf = std::numeric_limits<double>::infinity();
     for (int k = 0; k < n; ++k) {
       const double lo = o.lower_bounds.size() ? o.lower_bounds[k] : -inf;
@@ -648,6 +672,7 @@ class LmEngine {
       x_[k] = p;
     }
     d_.setZero();
+    unit_damping_ = 0.0;
     bad_detail_.clear();
     bad_param_.clear();
   }
@@ -725,6 +750,12 @@ class LmEngine {
         const double c = std::sqrt(A_(k, k));
         d_[k] = std::max(c, 1e-3 * (1.0 + c));
       }
+    } else if (options_.parameter_scale.size() == n_) {
+      // Uniform damping of θ_k/s_k: D = c·diag(1/s_k), c the running maximum of s_k·√A_kk.
+      double c = 0.0;
+      for (int k = 0; k < n_; ++k) c = std::max(c, options_.parameter_scale[k] * std::sqrt(A_(k, k)));
+      if (c > unit_damping_) unit_damping_ = c;
+      for (int k = 0; k < n_; ++k) d_[k] = unit_damping_ / options_.parameter_scale[k];
     } else {
       const double dmax = std::sqrt(A_.diagonal().maxCoeff());
       if (dmax > d_[0]) d_.setConstant(dmax);  // running maximum, like the scaled case
@@ -742,11 +773,15 @@ class LmEngine {
 
   // NaN if a free component is NaN (JᵀJ and Jᵀr overflow for Jacobian entries beyond ~1e154):
   // std::max would drop it and report 0, i.e. "converged" at a point nothing was computed for.
+  // With `parameter_scale` it is the projected gradient in θ_k/s_k, (θ − P(θ − s²∘g))/s, whose
+  // entries are all in units of the cost.
   double projected_gradient_norm() const {
+    const bool scaled = options_.parameter_scale.size() == n_;
     double gn = 0;
     for (int k = 0; k < n_; ++k) {
       if (fixed_[k]) continue;
-      const double p = x_[k] - std::clamp(x_[k] - g_[k], lower_[k], upper_[k]);
+      const double sk = scaled ? options_.parameter_scale[k] : 1.0;
+      const double p = (x_[k] - std::clamp(x_[k] - sk * sk * g_[k], lower_[k], upper_[k])) / sk;
       if (std::isnan(p)) return std::numeric_limits<double>::quiet_NaN();
       gn = std::max(gn, std::abs(p));
     }
@@ -755,12 +790,21 @@ class LmEngine {
 
   // ‖θ‖₂ over the non-fixed parameters: the scale of the parameter-tolerance test, which a large
   // held value must not loosen for the parameters being estimated.
+  // With `parameter_scale` both norms of the parameter-tolerance test are taken of θ_k/s_k.
   double free_norm(const Vector& x) const {
+    const bool scaled = options_.parameter_scale.size() == n_;
     double s = 0;
     for (int k = 0; k < n_; ++k) {
-      if (!fixed_[k]) s += x[k] * x[k];
+      const double v = scaled ? x[k] / options_.parameter_scale[k] : x[k];
+      if (!fixed_[k]) s += v * v;
     }
     return std::sqrt(s);
+  }
+
+  // ‖x_trial − x‖₂ of the step just computed, in the units of `free_norm`.
+  double scaled_step_norm() const {
+    if (options_.parameter_scale.size() != n_) return (x_trial_ - x_).norm();
+    return ((x_trial_ - x_).array() / options_.parameter_scale.array()).matrix().norm();
   }
 
   // Solves the scaled damped system for y, sets x_trial_ = P(x + D⁻¹y).
@@ -866,6 +910,7 @@ class LmEngine {
   Eigen::VectorXd r_, r_trial_, rw_, w_;
   JacobianMatrix<num_params> J_;
   double cost_ = 0;
+  double unit_damping_ = 0;  // c of `levenberg` damping with parameter scales (running maximum)
   bool qr_ready_ = false;
   std::string bad_detail_, bad_param_;
 };

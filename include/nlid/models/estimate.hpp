@@ -107,7 +107,9 @@ struct EstimateOptions {
   /// Solver options of the main stage: `max_iterations`, `loss` (robust), `callback`,
   /// `lower_bounds`/`upper_bounds`/`fixed` and `regularization` (sized to the model's
   /// parameters; entries for estimated initial states are added automatically — free, not
-  /// penalised), tolerances. `regularization` applies to the prediction stage too.
+  /// penalised), tolerances. `regularization` applies to the prediction stage too. A `fixed`
+  /// parameter keeps the value the model has on entry, also when `initialize` is true (the
+  /// data-driven start then sets only the free ones).
   LmOptions solver;
   /// Nlarx: receives one line as each stage begins ("start 2 of 4: prediction stage …"), so
   /// that a `solver.callback` printing costs can be read: the prediction stage's costs are of
@@ -218,9 +220,11 @@ LmSummary solve_problem(const Problem& problem, Eigen::VectorXd& theta, const Lm
   return s;
 }
 
-/// Solver options extended by `extra` free parameters (initial states): no bounds, not fixed.
-/// Throws `nlid::Error` if bounds/fixed are not sized to the model's `np` parameters.
-inline LmOptions extend_options(LmOptions o, int np, int extra, const std::vector<std::string>& names) {
+/// Solver options extended by `extra` free parameters (initial states): no bounds, not fixed,
+/// unit `state_scale` where parameter units are given. Throws `nlid::Error` if bounds/fixed are
+/// not sized to the model's `np` parameters.
+inline LmOptions extend_options(LmOptions o, int np, int extra, const std::vector<std::string>& names,
+                                double state_scale = 1.0) {
   auto check = [np](Eigen::Index n, const char* what) {
     require(n == 0 || n == np,
             std::string(what) + " has " + std::to_string(n) + " entries; the model has " + std::to_string(np) +
@@ -232,6 +236,11 @@ inline LmOptions extend_options(LmOptions o, int np, int extra, const std::vecto
   check(static_cast<Eigen::Index>(o.fixed.size()), "fixed");
   check(o.regularization.weights.size(), "regularization.weights");
   check(o.regularization.nominal.size(), "regularization.nominal");
+  check(o.parameter_scale.size(), "parameter_scale");
+  if (o.parameter_scale.size() > 0) {
+    o.parameter_scale.conservativeResize(np + extra);
+    o.parameter_scale.tail(extra).setConstant(state_scale);
+  }
   // Appended unknowns (initial states) are not penalised: weight 0.
   if (extra > 0 && o.regularization.lambda > 0) {
     if (o.regularization.weights.size() == 0) o.regularization.weights = Eigen::VectorXd::Ones(np);
@@ -254,6 +263,28 @@ inline LmOptions extend_options(LmOptions o, int np, int extra, const std::vecto
   if (!o.fixed.empty()) o.fixed.resize(static_cast<std::size_t>(np + extra), false);
   if (o.parameter_names.empty()) o.parameter_names = names;
   return o;
+}
+
+/// Refuses EstimateOptions counts that mean nothing (negative iterations, no start), naming the
+/// option; the solver's own options are checked by the solver.
+inline void check_estimate_options(const EstimateOptions& o) {
+  auto at_least = [](int v, int lo, const char* name) {
+    require(v >= lo, std::string("EstimateOptions::") + name + " must be >= " + std::to_string(lo) + ", got " +
+                         std::to_string(v),
+            at_parameter(name));
+  };
+  at_least(o.prediction_iterations, 0, "prediction_iterations");
+  at_least(o.linear_iterations, 0, "linear_iterations");
+  at_least(o.starts, 1, "starts");
+  at_least(o.start_iterations, 0, "start_iterations");
+}
+
+/// Puts the parameters marked `fixed` back to the values `entry` had: a data-driven start must
+/// not replace what the caller holds.
+inline void hold_fixed(const std::vector<bool>& fixed, const Eigen::VectorXd& entry, Eigen::VectorXd& theta) {
+  if (static_cast<Eigen::Index>(fixed.size()) != theta.size() || entry.size() != theta.size()) return;
+  for (Eigen::Index k = 0; k < theta.size(); ++k)
+    if (fixed[static_cast<std::size_t>(k)]) theta[k] = entry[k];
 }
 
 /// Seconds since `t0`.
@@ -311,13 +342,13 @@ std::vector<int> append_initial_states(const M& model, std::vector<EstimationSeg
 template <class M>
 LmSummary simulation_stage(const M& model, std::vector<EstimationSegment>& segs, InitialCondition ic,
                            Eigen::VectorXd& theta, const LmOptions& solver, double limit,
-                           bool structured_jacobian = true) {
+                           bool structured_jacobian = true, double state_scale = 1.0) {
   const int np = model.num_parameters();
   std::vector<int> free;
   std::vector<std::string> names = model.parameter_names();
   Eigen::VectorXd full = theta;
   if (ic == InitialCondition::estimate) free = append_initial_states(model, segs, full, names);
-  const LmOptions o = extend_options(solver, np, static_cast<int>(full.size()) - np, names);
+  const LmOptions o = extend_options(solver, np, static_cast<int>(full.size()) - np, names, state_scale);
   LmSummary summary;
   bool done = false;
   if constexpr (HasStructuredSimulationJacobian<M>) {
@@ -421,6 +452,7 @@ template <Regressor R, Nonlinearity F>
 [[nodiscard]] Nlarx<R, F> estimate(Nlarx<R, F> model, const Dataset& data, const EstimateOptions& options = {}) {
   using M = Nlarx<R, F>;
   const auto t0 = std::chrono::steady_clock::now();
+  detail::check_estimate_options(options);
   detail::adopt_data(model, data, model.history_length(), "nonlinear ARX");
   detail::require_enough_samples("nonlinear ARX",
                                  model.num_parameters() - detail::count_fixed(options.solver.fixed, model.num_parameters()),
@@ -447,6 +479,7 @@ template <Regressor R, Nonlinearity F>
   const double limit = detail::divergence_limit(y_all);
 
   Eigen::VectorXd theta = model.parameters();
+  const Eigen::VectorXd theta_entry = theta;
   Eigen::MatrixXd x;
   Eigen::VectorXd yr;
   if (options.initialize) {
@@ -462,6 +495,7 @@ template <Regressor R, Nonlinearity F>
       k += len;
     }
     model.nonlinearity().initialize(x, yr, detail::as_span(theta));
+    detail::hold_fixed(options.solver.fixed, theta_entry, theta);
   }
 
   EstimationReport report;
@@ -546,7 +580,10 @@ template <Regressor R, Nonlinearity F>
       for (int k = 0; k < options.starts; ++k) {
         start_costs.push_back(std::numeric_limits<double>::infinity());
         Eigen::VectorXd th = theta;
-        if (k > 0) model.nonlinearity().initialize(x, yr, detail::as_span(th), k);
+        if (k > 0) {
+          model.nonlinearity().initialize(x, yr, detail::as_span(th), k);
+          detail::hold_fixed(options.solver.fixed, theta_entry, th);
+        }
         start_label = "start " + std::to_string(k + 1) + " of " + std::to_string(options.starts) + ": ";
         const Eigen::VectorXd th0 = th;
         iterations = 0;
@@ -629,6 +666,41 @@ template <Regressor R, Nonlinearity F>
   return model;
 }
 
+namespace detail {
+
+// RMS of a signal as its unit of size (1 for an all-zero or non-finite one).
+inline double signal_unit(const Eigen::VectorXd& v) {
+  const double r = v.size() ? std::sqrt(v.squaredNorm() / static_cast<double>(v.size())) : 0.0;
+  return std::isfinite(r) && r > 0 ? r : 1.0;
+}
+
+// Each parameter's unit in a Hammerstein–Wiener model initialised as `estimate` does it: f maps u
+// to a signal in u's units (it starts as the identity), the block maps that to one in y's units
+// (its first fit is to y), h maps that to y. Empty if a component does not know its units.
+template <class Model>
+Eigen::VectorXd hw_parameter_scales(const Model& model, const Eigen::VectorXd& u, const Eigen::VectorXd& y) {
+  const double su = signal_unit(u), sy = signal_unit(y);
+  const auto pf = static_cast<std::size_t>(model.input_nonlinearity().num_parameters());
+  const auto pl = static_cast<std::size_t>(model.linear_block().num_parameters());
+  const auto ph = static_cast<std::size_t>(model.output_nonlinearity().num_parameters());
+  Eigen::VectorXd s = Eigen::VectorXd::Ones(static_cast<Eigen::Index>(pf + pl + ph));
+  const std::span<double> all(s.data(), pf + pl + ph);
+  const auto known = [](const auto& part, double in, double out, std::span<double> ss) {
+    if constexpr (requires { part.parameter_scales(in, out, ss); }) {
+      return static_cast<bool>(part.parameter_scales(in, out, ss));
+    } else {
+      return false;
+    }
+  };
+  if (!known(model.input_nonlinearity(), su, su, all.subspan(0, pf)) ||
+      !known(model.linear_block(), su, sy, all.subspan(pf, pl)) ||
+      !known(model.output_nonlinearity(), sy, sy, all.subspan(pf + pl, ph)))
+    return {};
+  return s;
+}
+
+}  // namespace detail
+
 /// Estimates a Hammerstein–Wiener model on `data` by simulation error (see file comment for
 /// the initialisation). Returns the model with θ, sample time, channel names and `report()`.
 /// Throws `nlid::Error` naming the experiment for data that do not fit the model, and for
@@ -637,6 +709,7 @@ template <ScalarNonlinearity In, LinearBlock L, ScalarNonlinearity Out>
 [[nodiscard]] HammersteinWiener<In, L, Out> estimate(HammersteinWiener<In, L, Out> model, const Dataset& data,
                                        const EstimateOptions& options = {}) {
   const auto t0 = std::chrono::steady_clock::now();
+  detail::check_estimate_options(options);
   detail::adopt_data(model, data, 0, "Hammerstein-Wiener");
   detail::require_enough_samples("Hammerstein-Wiener",
                                  model.num_parameters() - detail::count_fixed(options.solver.fixed, model.num_parameters()),
@@ -661,6 +734,7 @@ template <ScalarNonlinearity In, LinearBlock L, ScalarNonlinearity Out>
   }
   const double limit = detail::divergence_limit(y_all);
   Eigen::VectorXd theta = model.parameters();
+  const Eigen::VectorXd theta_entry = theta;
   const auto pf = static_cast<std::size_t>(model.input_nonlinearity().num_parameters());
   const auto pl = static_cast<std::size_t>(model.linear_block().num_parameters());
   const auto ph = static_cast<std::size_t>(model.output_nonlinearity().num_parameters());
@@ -707,6 +781,7 @@ template <ScalarNonlinearity In, LinearBlock L, ScalarNonlinearity Out>
       for (Eigen::Index t = 0; t < w[i].size(); ++t) x_all(k++) = lin.step(std::span<double>(s), w[i](t), std::span<const double>(th_l));
     }
     model.output_nonlinearity().initialize(Eigen::MatrixXd(x_all), y_all, th_h);
+    detail::hold_fixed(options.solver.fixed, theta_entry, theta);
   }
 
   for (auto& s : segs) {
@@ -730,9 +805,18 @@ template <ScalarNonlinearity In, LinearBlock L, ScalarNonlinearity Out>
   // large steps the data barely determine; uniform damping keeps them near their data-driven
   // start. Lower final costs in fewer iterations on every Hammerstein-Wiener problem measured
   // (docs/estimation.md).
+  // Uniform damping compares parameters in their own units, so it is applied to θ_k/s_k with s_k
+  // the unit each parameter has in the data's units (a breakpoint in input units, a value in
+  // output units): the same data in degrees or radians, volts or millivolts, then give the
+  // same model. Maps that do not know their units (the networks) leave θ unscaled.
   LmOptions solver = options.solver;
-  if (solver.scaling == LmScaling::automatic) solver.scaling = LmScaling::levenberg;
-  const LmSummary summary = detail::simulation_stage(model, segs, ic, theta, solver, limit, options.structured_jacobian);
+  if (solver.scaling == LmScaling::automatic) {
+    solver.scaling = LmScaling::levenberg;
+    if (solver.parameter_scale.size() == 0) solver.parameter_scale = detail::hw_parameter_scales(model, u_all, y_all);
+  }
+  // The block's states are in y's units like its output (see hw_parameter_scales).
+  const LmSummary summary = detail::simulation_stage(model, segs, ic, theta, solver, limit, options.structured_jacobian,
+                                                     detail::signal_unit(y_all));
   iterations += summary.iterations;
   model.set_parameters(theta);
 

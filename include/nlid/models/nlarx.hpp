@@ -406,6 +406,18 @@ class Nlarx {
       }
       return yhat;
     }
+    if (k >= n - n0 && n > n0) {
+      // Every window then starts at n0: the k-step predictions are one free run from the
+      // measured state there (the loop below would re-run it for every t, O(N²)). A run that
+      // diverges takes the loop, which names the sample.
+      const Eigen::VectorXd x0 = measured_state(e.u(), y, n0);
+      Eigen::VectorXd run(n - n0);
+      if (simulate(e.u().middleRows(n0, n - n0), detail::as_const_span(theta_), detail::as_const_span(x0),
+                   std::span<double>(run.data(), static_cast<std::size_t>(n - n0)))) {
+        yhat.col(0).tail(n - n0) = run;
+        return yhat;
+      }
+    }
     Eigen::VectorXd buf(std::min<Eigen::Index>(k, n));
     for (Eigen::Index t = n0; t < n; ++t) {
       const Eigen::Index s = std::max<Eigen::Index>(n0, t - k + 1);  // first simulated sample

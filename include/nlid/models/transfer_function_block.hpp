@@ -188,6 +188,15 @@ class TransferFunctionBlock {
     for (Eigen::Index i = 0; i < nf; ++i) theta[static_cast<std::size_t>(nb + i)] = f(i + 1);
   }
 
+  /// The unit of each parameter when w is measured in units of size `in` and x in units of size
+  /// `out`: out/in for the b's, 1 for the f's (estimation uses them to damp steps alike whatever
+  /// units the data are in).
+  bool parameter_scales(double in, double out, std::span<double> s) const {
+    for (int i = 0; i < nb_; ++i) s[static_cast<std::size_t>(i)] = out / in;
+    for (int i = 0; i < nf_; ++i) s[static_cast<std::size_t>(nb_ + i)] = 1.0;
+    return true;
+  }
+
   /// "b1" … "b<nb>", "f1" … "f<nf>".
   [[nodiscard]] std::vector<std::string> parameter_names() const {
     std::vector<std::string> n;

@@ -127,6 +127,20 @@ class AnyNonlinearity {
         },
         v_);
   }
+  /// The held map's parameter units for input units `in` and output units `out` (see e.g.
+  /// PwLinear::parameter_scales); false, leaving `s` as it was, for a map that does not know
+  /// them (the networks, whose inputs are standardised inside).
+  bool parameter_scales(double in, double out, std::span<double> s) const {
+    return std::visit(
+        [&](const auto& f) {
+          if constexpr (requires { f.parameter_scales(in, out, s); }) {
+            return static_cast<bool>(f.parameter_scales(in, out, s));
+          } else {
+            return false;
+          }
+        },
+        v_);
+  }
   /// Parameter names of the held map.
   [[nodiscard]] std::vector<std::string> parameter_names() const {
     return std::visit([](const auto& f) { return f.parameter_names(); }, v_);

@@ -107,6 +107,13 @@ class DeadZone {
     theta[1] = hi;
   }
 
+  /// The unit of each parameter when x is measured in units of size `in` and g(x) in units of
+  /// size `out` (estimation uses them to damp steps alike whatever units the data are in).
+  bool parameter_scales(double in, double /*out*/, std::span<double> s) const {
+    s[0] = s[1] = in;
+    return true;
+  }
+
   /// "lower", "upper".
   [[nodiscard]] std::vector<std::string> parameter_names() const { return {"lower", "upper"}; }
 

@@ -71,6 +71,14 @@ class LinearMap {
     for (int j = 0; j <= m_; ++j) theta[static_cast<std::size_t>(j)] = w(j);
   }
 
+  /// The unit of each parameter when x is measured in units of size `in` and g(x) in units of
+  /// size `out` (estimation uses them to damp steps alike whatever units the data are in).
+  bool parameter_scales(double in, double out, std::span<double> s) const {
+    for (int k = 0; k < m_; ++k) s[static_cast<std::size_t>(k)] = out / in;
+    s[static_cast<std::size_t>(m_)] = out;
+    return true;
+  }
+
   /// "L[0]", …, "L[m−1]", "d".
   [[nodiscard]] std::vector<std::string> parameter_names() const {
     std::vector<std::string> n;

@@ -249,6 +249,16 @@ class PwLinear {
     return {xs, ys};
   }
 
+  /// The unit of each parameter when x is measured in units of size `in` and g(x) in units of
+  /// size `out` (estimation uses them to damp steps alike whatever units the data are in).
+  /// The log-gaps are unitless: a change of units shifts them.
+  bool parameter_scales(double in, double out, std::span<double> s) const {
+    s[0] = in;
+    for (int k = 1; k < n_; ++k) s[static_cast<std::size_t>(k)] = 1.0;
+    for (int k = 0; k < n_; ++k) s[static_cast<std::size_t>(n_ + k)] = out;
+    return true;
+  }
+
   /// "x[0]", "log_gap[1]" … "log_gap[n−1]", "y[0]" … "y[n−1]".
   [[nodiscard]] std::vector<std::string> parameter_names() const {
     std::vector<std::string> s{"x[0]"};

@@ -100,6 +100,18 @@ class Poly1d {
     for (int k = 0; k < n; ++k) theta[static_cast<std::size_t>(k)] = c[static_cast<std::size_t>(k)];
   }
 
+  /// The unit of each parameter when x is measured in units of size `in` and g(x) in units of
+  /// size `out` (estimation uses them to damp steps alike whatever units the data are in).
+  bool parameter_scales(double in, double out, std::span<double> s) const {
+    double unit = out;
+    for (int k = 0; k <= degree_; ++k, unit /= in) {
+      // out/inᵏ leaves the doubles for extreme units and high degrees; such a coefficient is
+      // then damped as if unitless rather than with 0 or ∞.
+      s[static_cast<std::size_t>(k)] = std::isfinite(unit) && unit > 0 ? unit : 1.0;
+    }
+    return true;
+  }
+
   /// "c[0]", …, "c[D]" (c[k] multiplies xᵏ).
   [[nodiscard]] std::vector<std::string> parameter_names() const {
     std::vector<std::string> n;

@@ -25,7 +25,11 @@
 /// mechanical stops) `initialize` uses them. Otherwise each limit is placed by the exact
 /// least-squares scan of detail/limit_scan.hpp: the samples beyond a lower limit ℓ change the sum
 /// of squares by Σ (yᵢ − ℓ)² − (yᵢ − xᵢ)², minimised globally over ℓ. A side with no saturated
-/// samples gets its limit at the data's extreme x (inactive on the data).
+/// samples gets its limit 1 % of the x range inside the data's extreme x: nearly inactive on the
+/// data, but with a gradient (a limit at the extreme clamps nothing, its derivative is zero on
+/// every sample and no optimiser could move it — e.g. the input map of a Hammerstein model,
+/// initialised as the identity, never found a saturation the data held). Data no saturation
+/// explains (limits that would cross) give the best constant, lower = upper = mean(y).
 
 #include <cmath>
 #include <optional>
@@ -108,11 +112,30 @@ class Saturation {
       a[i] = -y(r);                                         // (y − ℓ)² = (a + ℓ)²
       b[i] = (y(r) - X(r, 0)) * (y(r) - X(r, 0));           // the identity's own error
     }
-    double lo = detail::scan_lower_limit(xs, a, b).limit;
-    double hi = detail::scan_upper_limit(xs, a, b).limit;
-    if (lo > hi) lo = hi = 0.5 * (lo + hi);  // only for data no saturation explains
+    const detail::LimitFit lf = detail::scan_lower_limit(xs, a, b), hf = detail::scan_upper_limit(xs, a, b);
+    double lo = lf.limit, hi = hf.limit;
+    if (lo > hi) {
+      // Data no saturation explains: the best a saturation can do is the constant mean(y); any
+      // other pair of collapsed limits is a worse constant.
+      lo = hi = y.mean();
+    } else if (n > 1 && xs.back() > xs.front()) {
+      // A limit at the data's extreme clamps no sample and has no gradient there: an optimiser
+      // could never move it in to where the data (seen through other blocks) want it. 1 % of the
+      // range inside, it clamps the outermost samples a little and can move either way.
+      const double inset = 0.01 * (xs.back() - xs.front());
+      if (lf.active == 0) lo = xs.front() + inset;
+      if (hf.active == 0) hi = xs.back() - inset;
+      if (lo > hi) lo = hi = 0.5 * (xs.front() + xs.back());
+    }
     theta[0] = lo;
     theta[1] = hi;
+  }
+
+  /// The unit of each parameter when x is measured in units of size `in` and g(x) in units of
+  /// size `out` (estimation uses them to damp steps alike whatever units the data are in).
+  bool parameter_scales(double in, double /*out*/, std::span<double> s) const {
+    s[0] = s[1] = in;
+    return true;
   }
 
   /// "lower", "upper".

@@ -43,6 +43,10 @@ class UnitGain {
     detail::check_init_data(X, y, theta.size(), 1, 0, 0, "UnitGain");
   }
 
+  /// The unit of each parameter when x is measured in units of size `in` and g(x) in units of
+  /// size `out` (estimation uses them to damp steps alike whatever units the data are in).
+  bool parameter_scales(double /*in*/, double /*out*/, std::span<double> /*s*/) const { return true; }
+
   /// No parameters: an empty list.
   [[nodiscard]] std::vector<std::string> parameter_names() const { return {}; }
 
