@@ -529,3 +529,84 @@ TEST_CASE("model file: the estimation data's range is recorded by fit_model_spec
   write_file_atomically(bad_path, bad.dump(2));
   CHECK_THROWS_WITH(load_model(bad_path), Catch::Contains("data_range.inputs[0]") && Catch::Contains("lower <= upper"));
 }
+
+namespace {
+
+// `j` written as the file `name` in the scratch directory; its path.
+std::string write_json(const std::string& name, const Json& j) {
+  const std::string p = temp_path(name);
+  write_file_atomically(p, j.dump(2));
+  return p;
+}
+
+template <class F>
+std::string error_of(F&& f) {
+  try {
+    f();
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
+}  // namespace
+
+TEST_CASE("model file: hand-edited files - a data range per channel, a grey box's own states, a state-space file without report") {
+  // One data range per channel or none: an extra range described an input the model does not
+  // have, and nlid-codegen emitted its macros.
+  Arx arx(Eigen::Vector2d(-1.5, 0.7), {Eigen::Vector2d(0.3, 0.1)}, {1}, 0.01);
+  ModelFileInfo info;
+  info.input_range = {{-1.0, 1.0}};
+  info.output_range = {{0.0, 2.0}};
+  const std::string ranged = temp_path("arx_ranged.json");
+  save_model(ranged, arx, info);
+  REQUIRE(load_model(ranged).info().input_range.size() == 1);
+  {
+    Json j = read_model_file(ranged);
+    j["data_range"]["inputs"] = Json::array({Json::array({-1.0, 1.0}), Json::array({0.0, 5.0})});
+    const std::string two = write_json("arx_range_two_inputs.json", j);
+    const std::string msg = error_of([&] { (void)load_model(two); });
+    CHECK_THAT(msg, Catch::Contains("data_range.inputs") && Catch::Contains("has 2 entries, the model has 1 inputs") &&
+                        Catch::Contains("arx_range_two_inputs.json"));
+    CHECK_THAT(error_of([&] { (void)load_model<Arx>(two); }), Catch::Contains("data_range.inputs"));
+    j["data_range"]["inputs"] = Json::array();  // none: allowed (only the outputs' range recorded)
+    CHECK(load_model(write_json("arx_range_no_inputs.json", j)).info().input_range.empty());
+    j["data_range"]["outputs"] = Json::array({Json::array({0.0, 1.0}), Json::array({0.0, 1.0})});
+    CHECK_THAT(error_of([&] { (void)load_model(write_json("arx_range_two_outputs.json", j)); }),
+               Catch::Contains("data_range.outputs") && Catch::Contains("has 2 entries, the model has 1 outputs"));
+  }
+  // A grey box's "states" list must be its physics' (it was allowed and never read).
+  {
+    GreyBox<physics::Throttle> g;
+    const std::string path = temp_path("greybox_states.json");
+    save_model(path, g);
+    Json j = read_model_file(path);
+    const std::size_t n = j["structure"]["states"].size();
+    REQUIRE(n == 2);
+    const std::string first = j["structure"]["states"][0].as_string();
+    j["structure"]["states"] = Json::array({Json(first)});
+    const std::string short_list = write_json("greybox_one_state.json", j);
+    CHECK_THAT(error_of([&] { (void)load_model(short_list); }),
+               Catch::Contains("lists 1 states at structure.states, the model has 2") &&
+                   Catch::Contains("greybox_one_state.json"));
+    j["structure"]["states"] = Json::array({Json(first), Json(std::string("not_a_state"))});
+    CHECK_THAT(error_of([&] { (void)load_model(write_json("greybox_renamed_state.json", j)); }),
+               Catch::Contains("state 1 is 'not_a_state' in the file"));
+  }
+  // A hand-written state-space file needs no report, as ARX and OE files do not.
+  {
+    Eigen::MatrixXd A(1, 1), B(1, 1), C(1, 1), D(1, 1);
+    A << 0.5;
+    B << 1.0;
+    C << 1.0;
+    D << 0.0;
+    const std::string path = temp_path("ss_with_report.json");
+    save_model(path, StateSpace(A, B, C, D, 0.01));
+    Json j = read_model_file(path);
+    REQUIRE(j.erase("report"));
+    const std::string bare = write_json("ss_without_report.json", j);
+    const AnyModel m = load_model(bare);
+    CHECK(m.kind() == "state_space");
+    CHECK(bit_equal(m.parameters(), load_model(path).parameters()));
+  }
+}

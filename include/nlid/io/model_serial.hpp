@@ -391,6 +391,16 @@ inline double read_common(const JsonView& file, ModelFileInfo& info, std::vector
   out = read_channels(file.at("outputs"), info.output_units);
   info.initial_condition = read_initial_condition(file.at("initial_condition"));
   read_data_range(file, info);
+  // One range per channel or none: an extra range would describe an input the model does not
+  // have (and nlid-codegen would emit its macros), a missing one would leave a channel unchecked.
+  const auto check_count = [&](const char* key, std::size_t ranges, std::size_t channels, const char* what) {
+    if (ranges == 0 || ranges == channels) return;
+    const JsonView list = file.at("data_range").at(key);
+    list.fail("data range at " + list.path_text() + " has " + std::to_string(ranges) + " entries, the model has " +
+              std::to_string(channels) + " " + what);
+  };
+  check_count("inputs", info.input_range.size(), in.size(), "inputs");
+  check_count("outputs", info.output_range.size(), out.size(), "outputs");
   return ts;
 }
 
@@ -717,6 +727,19 @@ struct ModelSerial<GreyBox<P>> {
       s.at("physics").fail("the file's grey-box physics is \"" + s.at("physics").as_string() + "\", this model's is \"" +
                            m.name() + "\"");
     }
+    // The states are the physics', not the file's; a list that disagrees was edited or belongs
+    // to another version of the physics, whose estimated initial states would be misread.
+    if (s.contains("states")) {
+      const JsonView xs = s.at("states");
+      const auto& info_x = m.state_info();
+      detail::expect_channel_count(xs, xs.as_array().size(), static_cast<int>(info_x.size()), "states");
+      for (std::size_t i = 0; i < info_x.size(); ++i) {
+        const JsonView x = xs.at(i);
+        if (x.as_string() != info_x[i].name)
+          x.fail("state " + std::to_string(i) + " is '" + x.as_string() + "' in the file (at " + x.path_text() +
+                 ") but '" + info_x[i].name + "' in physics '" + m.name() + "'");
+      }
+    }
     const JsonView table = s.at("parameter_table");
     detail::expect_channel_count(table, table.as_array().size(), m.num_parameters(), "parameters");
     const Eigen::VectorXd values = detail::read_parameters(file, m.num_parameters(), true);
@@ -1038,7 +1061,8 @@ struct ModelSerial<StateSpace> {
     std::vector<std::string> names;
     const Eigen::VectorXd th = parameter_table(m, names);
     (void)detail::check_linear_parameters(file, names, th);
-    m.set_report(linear_report_from_json(file.at("report")));
+    // Optional as for ARX and OE: a hand-written model has no estimation to report.
+    if (file.contains("report")) m.set_report(linear_report_from_json(file.at("report")));
     return m;
   }
   /// Replaces the prototype by the file's model.
