@@ -23,6 +23,7 @@
 #include <limits>
 #include <map>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "cli_common.hpp"
@@ -211,8 +212,21 @@ int main(int argc, char** argv) {
         }
       }
     } catch (const nlid::Error& e) {
-      throw UsageError(e.what());
+      // The generators name their arguments; the user typed the options.
+      nlid::Location l = e.where();
+      static const std::pair<const char*, const char*> options[] = {
+          {"band", "--band"},     {"levels", "--levels"}, {"n", "--samples"}, {"bits", "--bits"},
+          {"hold", "--hold"},     {"min_hold", "--hold"}, {"max_hold", "--hold"}, {"period", "--period"},
+          {"periods", "--periods"}};
+      for (const auto& [from, to] : options)
+        if (l.parameter == from) l.parameter = to;
+      throw UsageError(nlid::Error(e.message(), l).what());
     }
+    // The time stamps are i * ts: with a huge --ts the last ones overflow to inf, which no reader
+    // takes as a time. Checked on the duration, which the summary line prints too.
+    if (!std::isfinite(static_cast<double>(u.size()) * ts))
+      throw UsageError("--ts " + a.get("--ts") + " is too large for " + std::to_string(u.size()) +
+                       " samples: the time stamps would not be finite");
 
     stage = "writing " + out;
     std::string text = "t," + column + "\n";

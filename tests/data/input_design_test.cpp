@@ -271,3 +271,18 @@ TEST_CASE("Input design refuses signals longer than 2^31 samples before allocati
   CHECK_THROWS_WITH(nlid::random_binary(1000, {1e-17, 1.0}), Contains("band edge 1e-17"));
   CHECK(parameter_of([] { return nlid::random_gaussian(1000, {0.0, 1e-9}); }) == "band");
 }
+
+TEST_CASE("Random binary: a band too narrow for the length is refused, not written as a constant", "[data][input_design][errors]") {
+  // Band 0 … 0.001 of Nyquist on 100 samples: the noise drifts without changing sign.
+  try {
+    (void)nlid::random_binary(100, {0.0, 0.001});
+    FAIL("random_binary gave a constant signal for a band far narrower than 1/n");
+  } catch (const nlid::Error& e) {
+    CHECK_THAT(e.message(), Catch::Contains("band [0, 0.001]") && Catch::Contains("too narrow for 100 samples"));
+    CHECK(e.where().parameter == "band");
+  }
+  // Long enough for the same band: both levels, as before.
+  const Eigen::VectorXd u = nlid::random_binary(100000, {0.0, 0.001});
+  CHECK(u.minCoeff() == -1.0);
+  CHECK(u.maxCoeff() == 1.0);
+}

@@ -136,3 +136,24 @@ TEST_CASE("nlid-input refuses bad command lines, naming the option", "[tools][in
   CHECK(tool_test::input("--help").code == 0);
   CHECK(tool_test::input("--signal prbs --bits 5").code == 2);  // --ts and --out are required
 }
+
+TEST_CASE("nlid-input refuses a random-binary band too narrow for --samples and a --ts whose time stamps overflow",
+          "[tools][input][bad_input]") {
+  const fs::path out = work_dir() / "narrow_or_huge.csv";
+  // The sign of noise drifting without a zero crossing: a constant -1 was written, exit 0.
+  Run r = tool_test::input("--signal random-binary --samples 100 --band 0,0.001 --ts 0.01 --out " + q(out));
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("band [0, 0.001]") && Catch::Contains("too narrow for 100 samples") &&
+                        Catch::Contains("parameter '--band'"));
+  CHECK_FALSE(fs::exists(out));
+  // t = i * ts beyond the largest double: rows of 'inf' were written, exit 0.
+  r = tool_test::input("--signal random-binary --samples 1000 --ts 1e306 --out " + q(out));
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("--ts 1e306 is too large for 1000 samples: the time stamps would not be finite"));
+  CHECK_FALSE(fs::exists(out));
+  // The largest sample time that still fits is accepted.
+  r = tool_test::input("--signal prbs --bits 3 --ts 1e307 --out " + q(out));
+  INFO(r.err);
+  CHECK(r.code == 0);
+  CHECK(tool_test::slurp(out).find("inf") == std::string::npos);
+}

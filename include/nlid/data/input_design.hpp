@@ -222,6 +222,13 @@ inline std::uint32_t prbs_next_state(int bits, std::uint32_t state) {
   detail::check_levels(levels);
   Eigen::VectorXd e = detail::band_noise(n, band, seed);
   for (Eigen::Index k = 0; k < n; ++k) e[k] = e[k] >= 0.0 ? levels.high : levels.low;
+  // A band much narrower than 1/n leaves noise that drifts without changing sign: a constant
+  // "excitation" is refused, as random_gaussian refuses a band with no power left.
+  require(n < 2 || (e.array() != e[0]).any(),
+          "random_binary: the band [" + detail::format_g(band.low, 6) + ", " + detail::format_g(band.high, 6) +
+              "] (fractions of Nyquist) is too narrow for " + std::to_string(n) +
+              " samples: the signal would stay at one level; widen the band or generate more samples",
+          at_parameter("band"));
   return e;
 }
 
