@@ -15,14 +15,17 @@
 #include <limits>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "nlid/analysis/fit.hpp"
 #include "nlid/core/error.hpp"
 #include "nlid/core/sample_time.hpp"
+#include "nlid/core/utf8.hpp"
 #include "nlid/data/csv.hpp"
 #include "nlid/data/dataset.hpp"
 #include "nlid/data/resample.hpp"
+#include "nlid/io/json.hpp"
 #include "nlid/models/any_model.hpp"
 #include "nlid/models/greybox_dynamic.hpp"
 #include "nlid/models/spec.hpp"
@@ -87,6 +90,14 @@ std::optional<Args> parse(int argc, char** argv) {
     if (a.last <= a.first) throw UsageError("--rows " + v + " needs 0 <= FIRST < LAST (rows FIRST..LAST-1 are kept)");
   }
   a.record = nlid_tools::record_options_from(p);
+  // The model file names its channels in UTF-8: a column name in another encoding would fail the
+  // save after the whole estimation.
+  for (const auto& [flag, name] : {std::pair<const char*, const std::string&>{"--input", a.input}, {"--output", a.output}}) {
+    const std::size_t bad = nlid::first_invalid_utf8(name);
+    if (bad != std::string::npos)
+      throw UsageError(std::string(flag) + " '" + name + "' is not valid UTF-8 (byte " + std::to_string(bad) +
+                       "); model files name channels in UTF-8: rename the column");
+  }
   if (a.model.empty()) throw UsageError("--model SPEC is required");
   if (a.est.empty()) throw UsageError("at least one --est FILE is required");
   if (a.save.empty()) throw UsageError("--save FILE is required");
@@ -124,7 +135,9 @@ nlid::Experiment load(const std::string& path, const Args& a) {
   std::string name = path;
   const auto slash = name.find_last_of('/');
   if (slash != std::string::npos) name = name.substr(slash + 1);
-  e.set_name(name);
+  // The name is saved in the model file, which holds UTF-8 only: repaired now, the save after
+  // the estimation cannot fail on a file name in another encoding.
+  e.set_name(nlid::valid_utf8(name));
   return e;
 }
 
@@ -163,6 +176,23 @@ void print_fit_row(const char* role, const nlid::AnyModel& m, const nlid::Experi
                 err.message().c_str());
     return;
   }
+}
+
+// The solver's stopping message when it did not certify a solution, up to its first "; " (the
+// counts after it make the line long), else "". The model file keeps the whole message, but a
+// file is not where one learns that --iterations cut the estimation short.
+std::string unconverged_status(const nlid::AnyModel& m) {
+  const nlid::Json j = m.to_json();
+  const nlid::JsonView v = j.view();
+  if (!v.contains("report")) return {};
+  const nlid::JsonView r = v.at("report");
+  std::string s = r.contains("status") ? r.at("status").as_string()
+                  : r.contains("solver_message") ? r.at("solver_message").as_string()
+                                                 : std::string();
+  if (s.find("(not converged)") == std::string::npos && s.find("(stalled") == std::string::npos) return {};
+  const auto cut = s.find("; ");
+  if (cut != std::string::npos) s.resize(cut);
+  return s;
 }
 
 }  // namespace
@@ -255,6 +285,12 @@ int main(int argc, char** argv) {
     const double after = std::chrono::duration<double>(t1 - t_estimated.value_or(t1)).count();
     stage = "saving " + a.save;
     m.save(a.save);
+    if (const std::string status = unconverged_status(m); !status.empty()) {
+      std::cerr << "nlid-fit: warning: the estimation did not converge (" << status
+                << "); the model is saved as it stands"
+                << (status.find("max_iterations_reached") != std::string::npos ? ": more --iterations may improve it" : "")
+                << "\n";
+    }
     stage = "simulating the saved model";
     std::printf("model %s (%s), %zu parameters, estimated in %.2f s", a.model.c_str(), m.kind().c_str(),
                 static_cast<std::size_t>(m.parameters().size()), secs);

@@ -21,6 +21,7 @@ namespace nlid_tools {
 /// The record-reading options of a tool's command line.
 struct RecordOptions {
   std::string time = "t";  ///< time column
+  bool time_given = false; ///< --time was on the command line: the column must exist
   double ts = 0.0;         ///< sample time (s); 0: from the time column
   char delimiter = ',';    ///< field separator; ' ' = runs of blanks
   char decimal = '.';      ///< decimal point
@@ -39,6 +40,7 @@ inline bool parse_record_option(const std::string& k, const std::string& v, Reco
   if (k == "--time") {
     if (v.empty()) throw nlid::Error("--time needs a column name", nlid::at_parameter(k));
     o.time = v;
+    o.time_given = true;
   } else if (k == "--ts") {
     char* end = nullptr;
     const double x = std::strtod(v.c_str(), &end);
@@ -87,13 +89,12 @@ inline RecordOptions record_options_from(const ParsedOptions& p) {
   return o;
 }
 
-/// True if the header of `path` (its first line that is neither blank nor a '#' comment), split
-/// as read_csv splits it, names a column `name`. Unreadable or malformed files answer true:
-/// read_csv then reports the problem with its location.
-inline bool header_has(const std::string& path, const std::string& name, char delimiter) {
+/// The header of `path` (its first line that is neither blank nor a '#' comment), split as
+/// read_csv splits it; false for an unreadable or malformed file (read_csv then reports the
+/// problem with its location).
+inline bool read_header(const std::string& path, char delimiter, std::vector<std::string>& fields) {
   std::ifstream f(path);
   std::string line;
-  std::vector<std::string> fields;
   for (bool first_line = true; f && std::getline(f, line); first_line = false) {
     if (first_line && line.rfind("\xEF\xBB\xBF", 0) == 0) line.erase(0, 3);  // UTF-8 byte-order mark
     if (!line.empty() && line.back() == '\r') line.pop_back();
@@ -102,11 +103,18 @@ inline bool header_has(const std::string& path, const std::string& name, char de
     try {
       nlid::detail::split_csv_line(line, delimiter, fields, path, 0);
     } catch (const nlid::Error&) {
-      return true;
+      return false;
     }
-    return std::find(fields.begin(), fields.end(), name) != fields.end();
+    return true;
   }
-  return true;
+  return false;
+}
+
+/// True if the header of `path` names a column `name`. Unreadable or malformed files answer true:
+/// read_csv then reports the problem with its location.
+inline bool header_has(const std::string& path, const std::string& name, char delimiter) {
+  std::vector<std::string> fields;
+  return !read_header(path, delimiter, fields) || std::find(fields.begin(), fields.end(), name) != fields.end();
 }
 
 /// A sample time for messages: "%.10g s" (std::to_string's six decimals print 20 µs as
@@ -118,13 +126,27 @@ inline std::string format_seconds(double s) {
 }
 
 /// `CsvReadOptions` for reading `path` with these options: with `--ts` and no time column in the
-/// file, the file is read without one (t₀ = 0).
+/// file, the file is read without one (t₀ = 0). Only the default name may be missing: a --time
+/// the user typed and the file lacks is a misspelling, and reading on without it would drop the
+/// time column and its check for dropped samples without a word.
 inline nlid::CsvReadOptions csv_read_options(const RecordOptions& o, const std::string& path) {
   nlid::CsvReadOptions c;
   c.ts = o.ts;
   c.delimiter = o.delimiter;
   c.decimal_point = o.decimal;
-  c.time_column = (o.ts > 0.0 && !header_has(path, o.time, o.delimiter)) ? std::string() : o.time;
+  c.time_column = o.time;
+  std::vector<std::string> header;
+  if (o.ts > 0.0 && read_header(path, o.delimiter, header) &&
+      std::find(header.begin(), header.end(), o.time) == header.end()) {
+    if (o.time_given) {
+      nlid::Location l = nlid::at_parameter("--time");
+      l.file = path;
+      throw nlid::Error("no column named '" + nlid::detail::printable(o.time) +
+                            "' (--time); available columns: " + nlid::detail::quoted_list(header),
+                        l);
+    }
+    c.time_column.clear();
+  }
   return c;
 }
 

@@ -1,6 +1,7 @@
 // CSV reading and writing: the throttle files, exact round trips, tolerated formatting, and one
 // test per user error checking that the message names the file, row and column.
 #include "nlid/data/csv.hpp"
+#include "nlid/core/utf8.hpp"
 #include "nlid/data/dataset.hpp"
 
 #include <catch2/catch.hpp>
@@ -678,4 +679,18 @@ TEST_CASE("read_csv_dataset names the file whose record does not fit", "[data][c
   CHECK_THAT(err.what(), Contains("sample time"));
   CHECK(err.where().file == second);
   CHECK(err.where().experiment == 1);
+}
+
+TEST_CASE("read_csv: a file name that is not valid UTF-8 gives a valid UTF-8 experiment name", "[data][csv]") {
+  // A Latin-1 name (0xE4 = a-umlaut): model files and reports hold UTF-8 only, so a raw name
+  // made saving fail after a whole estimation. Each invalid byte becomes U+FFFD.
+  const TempDir dir;
+  const std::string path = dir.write("mess\xE4ung.csv", "t,u,y\n0,1,2\n0.1,2,3\n0.2,3,4\n");
+  const nlid::Experiment e = nlid::read_csv(path);
+  CHECK(e.name() == "mess\xEF\xBF\xBDung");
+  CHECK(nlid::first_invalid_utf8(e.name()) == std::string::npos);
+  // Valid UTF-8 is kept as it is.
+  CHECK(nlid::read_csv(dir.write("mess\xC3\xA4ung.csv", "t,u,y\n0,1,2\n0.1,2,3\n")).name() == "mess\xC3\xA4ung");
+  CHECK(nlid::valid_utf8("a\xFF\xC3") == "a\xEF\xBF\xBD\xEF\xBF\xBD");
+  CHECK(nlid::first_invalid_utf8("ab\xE4") == 2u);
 }

@@ -405,3 +405,54 @@ TEST_CASE("nlid-sim --band: the covariance nlid-fit saves gives y_std, models wi
   CHECK_THAT(r.err, Catch::Contains("--band needs the parameters' covariance") && Catch::Contains("does not keep"));
   CHECK_FALSE(fs::exists(none));
 }
+
+TEST_CASE("nlid-fit and nlid-diagnose: an estimation file whose name is not valid UTF-8 is fitted and saved",
+          "[tools][fit][diagnose]") {
+  // A Latin-1 name: the estimation ran, then saving failed on the name ("not valid UTF-8") and
+  // the model was lost. The record's name now has U+FFFD for the invalid byte.
+  const fs::path src = write_record("latin_src", 800, 41u, 0);
+  const fs::path est = work_dir() / "mess\xE4ung.csv";
+  fs::copy_file(src, est, fs::copy_options::overwrite_existing);
+  const fs::path model = work_dir() / "latin.json";
+  Run r = fit("--model nlarx:na=1,nb=1,nk=1:linear --est " + q(est) + " --save " + q(model));
+  INFO(r.err);
+  REQUIRE(r.code == 0);
+  REQUIRE(fs::exists(model));
+  const nlid::Json j = nlid::Json::parse(slurp(model));
+  CHECK(j["report"]["data_names"][0].as_string() == "mess\xEF\xBF\xBDung.csv");
+  // nlid-diagnose names its records by the file's stem, in the JSON report and the saved model.
+  const fs::path json = work_dir() / "latin_diag.json", saved = work_dir() / "latin_diag_model.json";
+  r = tool_test::diagnose("--baseline first_order --est " + q(est) + " --val " + q(src) +
+                          " --starts 1 --threads 1 --quiet --json " + q(json) + " --save " + q(saved));
+  INFO(r.err);
+  CHECK(r.code == 0);
+  CHECK(slurp(json).find("mess\xEF\xBF\xBDung") != std::string::npos);
+  CHECK(fs::exists(saved));
+  // A column name that is not valid UTF-8 would fail the same way: refused before any work.
+  r = fit("--model nlarx:na=1,nb=1,nk=1:linear --est " + q(est) + " --input \"$(printf 'u\\344')\" --save " +
+          q(work_dir() / "latin_col.json"));
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("is not valid UTF-8 (byte 1)"));
+}
+
+TEST_CASE("nlid-fit warns on stderr when the estimation did not converge, and still saves the model", "[tools][fit]") {
+  const fs::path est = write_record("nonconv_est", 800, 43u, 0);
+  const fs::path model = work_dir() / "nonconv.json";
+  // Two iterations of a sigmoid network cannot reach a tolerance.
+  Run r = fit("--model nlarx:na=2,nb=2,nk=1:sigmoidnet:3 --iterations 2 --est " + q(est) + " --save " + q(model));
+  INFO(r.err);
+  REQUIRE(r.code == 0);
+  CHECK(fs::exists(model));
+  CHECK_THAT(r.err, Catch::Contains("nlid-fit: warning: the estimation did not converge (Levenberg-Marquardt: "
+                                    "max_iterations_reached (not converged) after 2 iterations") &&
+                        Catch::Contains("more --iterations may improve it"));
+  // One line, and the file's report says the same.
+  const auto at = r.err.find("nlid-fit: warning:");
+  REQUIRE(at != std::string::npos);
+  CHECK_THAT(r.err.substr(at, r.err.find('\n', at) - at), Catch::EndsWith("more --iterations may improve it"));
+  CHECK_THAT(slurp(model), Catch::Contains("(not converged)"));
+  // A converged estimation (a linear map: one Gauss-Newton step) has no warning.
+  r = fit("--model nlarx:na=1,nb=1,nk=1:linear --est " + q(est) + " --save " + q(model));
+  REQUIRE(r.code == 0);
+  CHECK(r.err.find("warning") == std::string::npos);
+}

@@ -53,6 +53,7 @@
 
 #include "nlid/core/atomic_file.hpp"
 #include "nlid/core/error.hpp"
+#include "nlid/core/utf8.hpp"
 #include "nlid/data/dataset.hpp"
 #include "nlid/data/detail/csv_parse.hpp"
 #include "nlid/data/experiment.hpp"
@@ -315,8 +316,9 @@ inline Experiment read_csv(const std::string& path, const CsvReadOptions& option
   }
 
   // `keep`: the policy has been applied above, with file locations; the constructor must not
-  // apply it again with sample indices.
-  Experiment e(std::move(u), std::move(y), ts, std::filesystem::path(path).stem().string(),
+  // apply it again with sample indices. The name goes into model files and reports, which hold
+  // UTF-8 only: a file name in another encoding is repaired here, not refused after an estimation.
+  Experiment e(std::move(u), std::move(y), ts, valid_utf8(std::filesystem::path(path).stem().string()),
                NonFinitePolicy::keep);
   e.set_t0(t0);
   e.set_input_names(options.inputs);

@@ -1,0 +1,75 @@
+#pragma once
+/// @file
+/// UTF-8 well-formedness, shared by the JSON writer (which refuses malformed text) and the places
+/// that make names out of bytes nlid does not control (file names) and so must repair them.
+
+#include <cstddef>
+#include <string>
+#include <string_view>
+
+namespace nlid {
+
+namespace detail {
+
+/// Length of the UTF-8 sequence starting at s[i] if it is well-formed (Unicode table 3-7:
+/// no overlongs, no surrogates, nothing above U+10FFFF), else 0.
+inline std::size_t utf8_sequence_length(std::string_view s, std::size_t i) noexcept {
+  const auto b = [&](std::size_t k) { return static_cast<unsigned char>(s[k]); };
+  const unsigned char c = b(i);
+  if (c < 0x80) return 1;
+  std::size_t n = 0;
+  unsigned char lo = 0x80, hi = 0xBF;  // allowed range of the second byte
+  if (c >= 0xC2 && c <= 0xDF) {
+    n = 2;
+  } else if (c >= 0xE0 && c <= 0xEF) {
+    n = 3;
+    if (c == 0xE0) lo = 0xA0;
+    if (c == 0xED) hi = 0x9F;  // excludes UTF-16 surrogates
+  } else if (c >= 0xF0 && c <= 0xF4) {
+    n = 4;
+    if (c == 0xF0) lo = 0x90;
+    if (c == 0xF4) hi = 0x8F;
+  } else {
+    return 0;
+  }
+  if (i + n > s.size()) return 0;
+  if (b(i + 1) < lo || b(i + 1) > hi) return 0;
+  for (std::size_t k = 2; k < n; ++k) {
+    if (b(i + k) < 0x80 || b(i + k) > 0xBF) return 0;
+  }
+  return n;
+}
+
+}  // namespace detail
+
+/// Byte offset of the first byte of `s` that is not part of well-formed UTF-8, or npos.
+inline std::size_t first_invalid_utf8(std::string_view s) noexcept {
+  for (std::size_t i = 0; i < s.size();) {
+    const std::size_t n = detail::utf8_sequence_length(s, i);
+    if (n == 0) return i;
+    i += n;
+  }
+  return std::string_view::npos;
+}
+
+/// `s` with each byte that is not part of well-formed UTF-8 replaced by U+FFFD, as the HTML and
+/// SVG writers do. For names made of bytes from outside (a Latin-1 file name such as
+/// "mess\xE4ung.csv" gives "mess\uFFFDung"): model files and reports hold UTF-8 only, and guessing
+/// the name's encoding (Latin-1? CP1252? Shift-JIS?) would print a wrong letter as if it were right.
+inline std::string valid_utf8(std::string_view s) {
+  std::string out;
+  out.reserve(s.size());
+  for (std::size_t i = 0; i < s.size();) {
+    const std::size_t n = detail::utf8_sequence_length(s, i);
+    if (n == 0) {
+      out.append("\xEF\xBF\xBD");
+      ++i;
+    } else {
+      out.append(s.substr(i, n));
+      i += n;
+    }
+  }
+  return out;
+}
+
+}  // namespace nlid
