@@ -167,14 +167,21 @@ int main(int argc, char** argv) {
     stage = "reading " + input;
     nlid::Experiment e = nlid_tools::read_record(record, input, columns, outputs, "nlid-sim");
     if (decimate > 1) {
-      // decimate() filters every channel; without measured outputs give it a zero one.
-      if (reads_outputs) {
-        e = nlid::decimate(e, decimate);
-      } else {
-        nlid::Experiment with_y(e.u(), Eigen::MatrixXd::Zero(e.size(), 1), e.ts());
-        with_y.set_t0(e.t0());
-        with_y.set_input_names(e.input_names());
-        e = nlid::decimate(with_y, decimate);
+      try {
+        // decimate() filters every channel; without measured outputs give it a zero one.
+        if (reads_outputs) {
+          e = nlid::decimate(e, decimate);
+        } else {
+          nlid::Experiment with_y(e.u(), Eigen::MatrixXd::Zero(e.size(), 1), e.ts());
+          with_y.set_t0(e.t0());
+          with_y.set_input_names(e.input_names());
+          e = nlid::decimate(with_y, decimate);
+        }
+      } catch (const nlid::Error& err) {
+        // The library names its argument 'factor'; the user typed --decimate, for this file.
+        nlid::Location l = nlid::at_parameter("--decimate");
+        l.file = input;
+        throw nlid::Error(err.message(), l);
       }
     }
     if (m.ts() > 0 && !nlid::same_sample_time(e.ts(), m.ts())) {
@@ -243,6 +250,13 @@ int main(int argc, char** argv) {
     } catch (const nlid::DivergenceError& d) {
       if (d.sample() < 0 || d.sample() >= static_cast<long>(t.size())) throw;
       throw diverged(d.sample(), "");
+    } catch (const nlid::Error& err) {
+      // The model's checks of the record (too short for its history, ...) know no file.
+      if (!err.where().file.empty()) throw;
+      nlid::Location l = err.where();
+      l.file = input;
+      if (l.parameter == "initial") l.parameter = "--x0";
+      throw nlid::Error(err.message(), l);
     }
     for (Eigen::Index i = 0; i < y.rows(); ++i) {
       if (!y.row(i).allFinite()) {
@@ -278,7 +292,8 @@ int main(int argc, char** argv) {
           throw UsageError("--with-input: the input column '" + header[i] +
                            "' has the name of an output column of nlid-sim's file; rename it in " + input);
     std::string text;
-    for (std::size_t i = 0; i < header.size(); ++i) text += (i ? "," : "") + header[i];
+    // Quoted as write_csv quotes: an input column "cmd, V" must read back as one column.
+    for (std::size_t i = 0; i < header.size(); ++i) text += (i ? "," : "") + nlid::detail::quote_if_needed(header[i], ',');
     text += '\n';
     text.reserve(static_cast<std::size_t>(e.size()) * 26 * header.size());
     char buf[32];

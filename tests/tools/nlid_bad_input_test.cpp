@@ -441,3 +441,47 @@ TEST_CASE("nlid-fit: a SPEC option the estimator would not use is a command-line
                         !Catch::Contains("spec_missing.csv"));
   CHECK_FALSE(fs::exists(model));
 }
+
+TEST_CASE("tools: a --time column the file lacks is an error naming the file and its columns, also with --ts",
+          "[tools][fit][sim][bad_input]") {
+  // A misspelt --time with --ts dropped the time column, and with it the check for a dropped sample.
+  const fs::path gap = without_row(write_record("time_typo_full", 600, 205u, 0), "time_typo_gap", 300);
+  const fs::path model = work_dir() / "time_typo.json";
+  Run r = fit("--model linear:arx:na=2,nb=2,nk=1 --est " + q(gap) + " --time tim --ts 0.01 --save " + q(model));
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("no column named 'tim' (--time); available columns: 't', 'u', 'y'") &&
+                        Catch::Contains("time_typo_gap.csv") && Catch::Contains("parameter '--time'"));
+  CHECK_FALSE(fs::exists(model));
+  r = sim("--model " + q(model) + " --input " + q(gap) + " --time tim --ts 0.01 --out " + q(work_dir() / "tt_y.csv"));
+  CHECK(r.code == 1);
+  // The default name may be absent: --ts alone reads a file without a time column.
+  const fs::path no_t = write_record("time_typo_no_t", 600, 206u, 0, false);
+  r = fit("--model linear:arx:na=2,nb=2,nk=1 --est " + q(no_t) + " --ts 0.01 --save " + q(model));
+  INFO(r.err);
+  CHECK(r.code == 0);
+  // The right name with --ts: the time column is read, and its gap found.
+  r = fit("--model linear:arx:na=2,nb=2,nk=1 --est " + q(gap) + " --time t --ts 0.01 --save " + q(model));
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("non-uniform time column"));
+}
+
+TEST_CASE("nlid-sim: --decimate and a record too short for the model name the option and the file",
+          "[tools][sim][bad_input]") {
+  const fs::path est = write_record("short_est", 600, 207u, 0);
+  const fs::path model = work_dir() / "short_model.json";
+  REQUIRE(fit("--model nlarx:na=2,nb=2,nk=0:linear --est " + q(est) + " --save " + q(model)).code == 0);
+  const fs::path three = work_dir() / "short_three.csv", one = work_dir() / "short_one.csv";
+  std::ofstream(three) << "t,u,y\n0,1,0\n0.01,1,0\n0.02,1,0\n";
+  std::ofstream(one) << "u,y\n1,0\n";
+  const fs::path out = work_dir() / "short_y.csv";
+  // Was "[at parameter 'factor']": neither the option nor the file.
+  Run r = sim("--model " + q(model) + " --input " + q(three) + " --decimate 10 --out " + q(out));
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("parameter '--decimate'") && Catch::Contains("short_three.csv"));
+  CHECK(r.err.find("'factor'") == std::string::npos);
+  // Was "experiment has 1 samples, not more than the 2 needed ..." without a location.
+  r = sim("--model " + q(model) + " --input " + q(one) + " --ts 0.01 --out " + q(out));
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("short_one.csv"));
+  CHECK_FALSE(fs::exists(out));
+}

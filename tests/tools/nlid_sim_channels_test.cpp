@@ -217,3 +217,28 @@ TEST_CASE("nlid-fit greybox prints its multi-start progress, and the summary tim
   // (The split itself is printed only when the uncertainty takes 5 ms or more: not on this small problem.)
   CHECK(n.err.find("computing the parameters' uncertainty") > n.err.rfind("iteration "));
 }
+
+TEST_CASE("nlid-sim --with-input quotes a channel name as write_csv does, and the file reads back", "[tools][sim][fit]") {
+  // An input named "cmd, V" was written bare: the header "t,cmd, V,y" has four columns.
+  const fs::path model = work_dir() / "sim_comma_name.json";
+  std::ofstream(model) << "{\"format\": \"nlid-model\", \"version\": 1, \"kind\": \"state_space\", \"ts\": 0.01, "
+                          "\"inputs\": [{\"name\": \"cmd, V\", \"unit\": \"\"}], \"outputs\": [{\"name\": \"y1\", \"unit\": \"\"}], "
+                          "\"initial_condition\": \"zero\", \"structure\": {\"A\": [[0.5]], \"B\": [[1]], \"C\": [[1]], "
+                          "\"D\": [[0]], \"offset\": [0]}, \"report\": {\"method\": \"n4sid\", \"focus\": \"simulation\", "
+                          "\"num_experiments\": 1, \"num_samples\": 4, \"num_parameters\": 4, \"loss\": 0, "
+                          "\"fit_percent\": 0, \"iterations\": 0, \"solver_message\": \"\"}}";
+  const fs::path in =
+      write_text("sim_comma_name_u.csv", "t,\"cmd, V\"\n0,1\n0.01,2\n0.02,0\n0.03,1\n0.04,3\n0.05,-1\n0.06,0\n0.07,2\n");
+  const fs::path out = work_dir() / "sim_comma_name_y.csv";
+  const Run r = sim("--model " + q(model) + " --input " + q(in) + " --with-input --out " + q(out));
+  INFO(r.err);
+  REQUIRE(r.code == 0);
+  const std::string text = slurp(out);
+  CHECK(text.substr(0, text.find('\n')) == "t,\"cmd, V\",y");
+  CHECK(csv_column(out, 2) == std::vector<double>{0, 1, 2.5, 1.25, 1.625, 3.8125, 0.90625, 0.453125});
+  // nlid-fit finds the column by its name in nlid-sim's file.
+  const Run f = fit("--model linear:arx:na=1,nb=1,nk=1 --est " + q(out) + " --input 'cmd, V' --save " +
+                    q(work_dir() / "sim_comma_name_fit.json"));
+  CHECK(f.code == 0);
+  CHECK(f.err.find("no column") == std::string::npos);
+}
