@@ -75,6 +75,10 @@ int main(int argc, char** argv) {
     } catch (const nlid::Error& err) {
       nlid::Location l = err.where();
       l.file = data;
+      // The library names its arguments; the user typed the options.
+      if (l.parameter == "period") l.parameter = "--period";
+      else if (l.parameter == "skip_periods") l.parameter = "--skip";
+      else if (l.parameter == "threshold_db") l.parameter = "--threshold";
       throw nlid::Error(err.message(), l);
     }
     std::cout << d.report();

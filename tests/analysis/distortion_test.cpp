@@ -7,6 +7,7 @@
 #include <cmath>
 #include <complex>
 #include <string>
+#include <utility>
 
 #include "nlid/data/input_design.hpp"
 
@@ -173,4 +174,43 @@ TEST_CASE("Distortion analysis: an output buried in noise gives no verdict, not 
   CHECK_FALSE(d.conclusive());
   CHECK_THAT(d.report(), Catch::Contains("no conclusion") && !Catch::Contains("a linear model can explain"));
   CHECK(nlid::distortion_analysis(wiener(0.0, 0.0), kPeriod).conclusive());
+}
+
+TEST_CASE("Distortion analysis: huge and tiny finite records give the same levels as ordinary ones",
+          "[analysis][distortion]") {
+  // Powers are sums of squares: unscaled, an output near 1e301 overflowed to inf (NaN dB and a
+  // "linear" verdict), an input near 1e301 read as one without power.
+  const nlid::Experiment base = wiener(0.5, 0.0);
+  const nlid::DistortionAnalysis ref = nlid::distortion_analysis(base, kPeriod);
+  REQUIRE(ref.even_detected());
+  for (const auto& [ku, ky] : {std::pair{1.0, 7e300}, std::pair{7e300, 1.0}, std::pair{1e300, 1e-300}, std::pair{1e-300, 1.0}}) {
+    INFO("input x " << ku << ", output x " << ky);
+    const nlid::Experiment e(base.u() * ku, base.y() * ky, base.ts(), "scaled");
+    const nlid::DistortionAnalysis d = nlid::distortion_analysis(e, kPeriod);
+    CHECK(d.excited == ref.excited);
+    CHECK(d.snr_db() == Approx(ref.snr_db()).epsilon(1e-9));
+    CHECK(d.even_db() == Approx(ref.even_db()).epsilon(1e-9));
+    CHECK(d.odd_db() == Approx(ref.odd_db()).epsilon(1e-9));
+    CHECK(d.even_detected());
+    CHECK_FALSE(d.odd_detected());
+    // The frequency response in the record's units, where it is a double (1e-600 is not).
+    if (ky / ku > 1e-290 && ky / ku < 1e290) {
+      const std::complex<double> g = d.frf[0] / (ky / ku), g0 = ref.frf[0];
+      CHECK(std::abs(g - g0) <= 1e-9 * std::abs(g0));
+    }
+    CHECK(d.report().find("nan") == std::string::npos);
+  }
+}
+
+TEST_CASE("Distortion analysis: a zero output gives no verdict and no NaN level", "[analysis][distortion]") {
+  // Every level is 0 against a floor of 0: the report printed "nan dB" and "a linear model can
+  // explain these data".
+  const nlid::Experiment base = wiener(0.0, 0.0);
+  const nlid::Experiment e(base.u(), Eigen::VectorXd::Zero(base.size()), base.ts(), "flat");
+  const nlid::DistortionAnalysis d = nlid::distortion_analysis(e, kPeriod);
+  CHECK_FALSE(d.conclusive());
+  const std::string r = d.report();
+  CHECK(r.find("nan") == std::string::npos);
+  CHECK_THAT(r, Catch::Contains("no conclusion: the output has no power at the excited lines"));
+  CHECK(r.find("a linear model can explain") == std::string::npos);
 }

@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <tuple>
 
 #include "nlid/data/csv.hpp"
 #include "nlid/data/input_design.hpp"
@@ -124,4 +125,41 @@ TEST_CASE("nlid-distortion refuses bad command lines and records it cannot analy
   CHECK(r.code == 1);
   CHECK_THAT(r.err, Catch::Contains("z"));
   CHECK(tool_test::distortion("--help").code == 0);
+}
+
+TEST_CASE("nlid-distortion: outputs and inputs near the largest doubles give the levels of ordinary ones, never nan",
+          "[tools][distortion]") {
+  // The power sums overflowed: y up to ~1e301 printed nan dB and "no distortion", a huge input
+  // "has no power".
+  const fs::path rec = record("dist_scaled_ref", 0.5);
+  const nlid::CsvTable t = nlid::read_csv_table(rec.string());
+  const auto scaled = [&](const std::string& name, double ku, double ky) {
+    const fs::path p = work_dir() / (name + ".csv");
+    std::ofstream f(p);
+    f.precision(17);
+    f << "t,u,y\n";
+    for (Eigen::Index i = 0; i < t.data.rows(); ++i)
+      f << t.data(i, 0) << "," << t.data(i, 1) * ku << "," << t.data(i, 2) * ky << "\n";
+    return p;
+  };
+  const Run ref = tool_test::distortion("--data " + q(rec) + " --period 256");
+  REQUIRE(ref.code == 0);
+  REQUIRE_THAT(ref.out, Catch::Contains("even distortion") && Catch::Contains("present"));
+  // The reference's dB figures, which the scaled records must repeat (the first line names no file).
+  for (const auto& [name, ku, ky] : {std::tuple{"dist_huge_y", 1.0, 1e300}, std::tuple{"dist_huge_u", 1e300, 1.0}}) {
+    const Run r = tool_test::distortion("--data " + q(scaled(name, ku, ky)) + " --period 256");
+    INFO(r.err);
+    REQUIRE(r.code == 0);
+    CHECK(r.out == ref.out);
+    CHECK(r.out.find("nan") == std::string::npos);
+  }
+}
+
+TEST_CASE("nlid-distortion names --period, not the library's parameter", "[tools][distortion][bad_input]") {
+  const fs::path rec = record("dist_period_name", 0.0);
+  const Run r = tool_test::distortion("--data " + q(rec) + " --period 250");  // not the input's period
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("does not repeat every 250 samples") && Catch::Contains("parameter '--period'") &&
+                        Catch::Contains(rec.filename().string()));
+  CHECK(r.err.find("parameter 'period'") == std::string::npos);
 }

@@ -56,6 +56,10 @@ struct DistortionAnalysis {
   std::vector<Eigen::Index> even_lines;  ///< empty even lines inside the excited band
   std::vector<Eigen::Index> odd_lines;   ///< empty odd lines inside the excited band
   Eigen::VectorXcd frf;                  ///< Ȳ/Ū at the excited lines (best linear approximation)
+  /// The powers and levels below are those of y / output_scale, the largest |y| of the record:
+  /// in the output's own units they would overflow for outputs beyond about 1e150 (multiply by
+  /// output_scale² where they do not). The dB values are ratios and need no unit.
+  double output_scale = 1.0;
   Eigen::VectorXd output_power;          ///< |Ȳ(k)|², k = 0 … period/2
   Eigen::VectorXd noise_power;           ///< var(Ȳ(k)) from the spread over periods, k = 0 … period/2
   double excited_level = std::numeric_limits<double>::quiet_NaN();  ///< mean |Ȳ|² at excited lines
@@ -94,18 +98,24 @@ struct DistortionAnalysis {
 
   /// True when the excited output stands above the noise by more than the threshold: only then
   /// does "no distortion detected" say something about the system.
-  [[nodiscard]] bool conclusive() const { return noise_free() || snr_db() > threshold_db; }
+  /// An output without power at the excited lines (a constant output) responds to nothing: no
+  /// verdict, and no dB level against a zero floor.
+  [[nodiscard]] bool conclusive() const { return excited_level > 0.0 && (noise_free() || snr_db() > threshold_db); }
 
   /// A few lines for a person: levels, what they mean for the choice of model.
   [[nodiscard]] std::string report() const {
     char buf[256];
     std::string s;
-    std::snprintf(buf, sizeof buf,
-                  "Distortion analysis: %d periods of %ld samples, %zu excited lines (%.4g to %.4g Hz), output "
-                  "%.1f dB above the noise\n",
+    std::snprintf(buf, sizeof buf, "Distortion analysis: %d periods of %ld samples, %zu excited lines (%.4g to %.4g Hz), ",
                   periods, static_cast<long>(period), excited.size(), excited.empty() ? 0.0 : frequency(excited.front()),
-                  excited.empty() ? 0.0 : frequency(excited.back()), snr_db());
+                  excited.empty() ? 0.0 : frequency(excited.back()));
     s += buf;
+    if (excited_level > 0.0) {
+      std::snprintf(buf, sizeof buf, "output %.1f dB above the noise\n", snr_db());
+      s += buf;
+    } else {
+      s += "no output at the excited lines\n";
+    }
     if (noise_free()) s += "  no measurable noise (a simulated record?): levels are relative to the DFT's rounding floor\n";
     const auto line = [&](const char* what, const std::vector<Eigen::Index>& lines, double level_db, bool detected) {
       if (lines.empty()) {
@@ -113,6 +123,9 @@ struct DistortionAnalysis {
         std::snprintf(buf, sizeof buf,
                       "  %s distortion: not measurable, no empty %s lines in the band (use %s lines)\n", what, what,
                       what[0] == 'e' ? "odd or random-odd" : "random-odd");
+      } else if (!std::isfinite(level_db)) {
+        std::snprintf(buf, sizeof buf, "  %s distortion: no level on %zu lines (no output to compare it with)\n", what,
+                      lines.size());
       } else {
         std::snprintf(buf, sizeof buf, "  %s distortion: %.1f dB above the noise on %zu lines: %s\n", what, level_db,
                       lines.size(), detected ? "present" : "not detected");
@@ -121,7 +134,9 @@ struct DistortionAnalysis {
     };
     line("even", even_lines, even_db(), even_detected());
     line("odd", odd_lines, odd_db(), odd_detected());
-    if (!conclusive()) {
+    if (!(excited_level > 0.0)) {
+      s += "  no conclusion: the output has no power at the excited lines (constant, or not a response to this input)\n";
+    } else if (!conclusive()) {
       std::snprintf(buf, sizeof buf,
                     "  no conclusion: the output at the excited lines is only %.1f dB above the noise (needs more than "
                     "%.1f dB): too noisy, or not a response to this input\n",
@@ -174,10 +189,18 @@ struct DistortionAnalysis {
               " whole period(s) of " + std::to_string(period) + "; after skipping " + std::to_string(skip_periods) +
               " at least 2 must remain (the noise level is their spread)",
           at_parameter("period"));
-  const auto u = e.u().col(0);
-  const auto y = e.y().col(0);
-  require(u.allFinite() && y.allFinite(), "distortion analysis: the record has non-finite samples",
+  require(e.u().col(0).allFinite() && e.y().col(0).allFinite(), "distortion analysis: the record has non-finite samples",
           at_parameter("experiment"));
+  // Powers are sums of squares: of samples near 1e300 they overflow (inf/inf = NaN dB, an input
+  // "without power"), of samples near 1e-300 they underflow. Divided by the largest magnitude
+  // every sum stays within a period's length of 1, for any finite record.
+  const auto scale_of = [](const auto& v) {
+    const double m = v.cwiseAbs().maxCoeff();
+    return m > 0.0 ? m : 1.0;
+  };
+  const double u_scale = scale_of(e.u().col(0)), y_scale = scale_of(e.y().col(0));
+  const Eigen::VectorXd u = e.u().col(0) / u_scale;
+  const Eigen::VectorXd y = e.y().col(0) / y_scale;
 
   // The method rests on the input repeating: on a record that is not periodic with this
   // period (a wrong period, a non-periodic excitation) the "noise" is the input's own change
@@ -208,6 +231,7 @@ struct DistortionAnalysis {
   r.periods = static_cast<int>(p);
   r.ts = e.ts();
   r.threshold_db = threshold_db;
+  r.output_scale = y_scale;
   const Eigen::Index nk = period / 2 + 1;  // lines 0 … period/2
   const detail::DftTable tab(period);
   const Eigen::VectorXd &c = tab.cos, &s = tab.sin;
@@ -254,7 +278,7 @@ struct DistortionAnalysis {
   double exc = 0, noise = 0, even = 0, odd = 0;
   for (std::size_t i = 0; i < r.excited.size(); ++i) {
     const Eigen::Index k = r.excited[i];
-    r.frf[static_cast<Eigen::Index>(i)] = ybar[k] / ubar[k];
+    r.frf[static_cast<Eigen::Index>(i)] = ybar[k] / ubar[k] * (y_scale / u_scale);
     exc += r.output_power[k];
   }
   std::size_t j = 0;
