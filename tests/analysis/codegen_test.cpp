@@ -523,7 +523,23 @@ TEST_CASE("generated step refuses a non-finite input and keeps its state so that
 TEST_CASE("codegen: user text in C comments cannot close them", "[codegen]") {
   // Channel names, parameter names and equations come from users' files into /* ... */.
   CHECK(nlid::codegen::comment_text("valve */ angle") == "valve * / angle");
-  CHECK(nlid::codegen::comment_text("a*/*/b") == "a* /* /b");
+  CHECK(nlid::codegen::comment_text("a*/*/b") == "a* / * /b");  // and no "/*" left to open one
   CHECK(nlid::codegen::comment_text("no terminator / * here") == "no terminator / * here");
   CHECK(nlid::codegen::comment_block("x */ y").find("x * / y") != std::string::npos);
+}
+
+TEST_CASE("C comments: user text cannot open or close a comment", "[codegen]") {
+  // "*/" would end the comment; "/*" inside one is legal C, but -Wcomment warns of it, and
+  // a -Werror build of the generated code failed on a channel named "u/*V".
+  for (const std::string t : {"u/*V", "a*/b", "/*/", "*/*", "x /**/ y", "/**", "//* c"}) {
+    INFO(t);
+    const std::string c = nlid::codegen::comment_text(t);
+    CHECK(c.find("/*") == std::string::npos);
+    CHECK(c.find("*/") == std::string::npos);
+    const std::string block = nlid::codegen::comment_block(t + "\n" + t);
+    CHECK(block.find("/*", 1) == std::string::npos);           // only the block's own opener
+    CHECK(block.find("*/") == block.size() - 3);               // only its own closer, " */\n"
+  }
+  CHECK(nlid::codegen::comment_text("u/*V") == "u/ *V");
+  CHECK(nlid::codegen::comment_text("plain text") == "plain text");
 }

@@ -647,3 +647,25 @@ TEST_CASE("nlid-codegen: --u0 gives each input of a two-input model its own valu
   CHECK(r.code == 1);
   CHECK_THAT(r.err, Catch::Contains("--u0 has 3 values, the model") && Catch::Contains("has 2 inputs"));
 }
+
+TEST_CASE("nlid-codegen: channel names holding comment markers compile under -Werror", "[tools][codegen]") {
+  // The names go into C comments: "*/" was defused, "/*" was not, and -Wcomment failed the build.
+  const fs::path dir = work_dir() / "cg_comment_names";
+  fs::create_directories(dir);
+  const fs::path rec = write_record("cg_marks", 400, 51u, 0);
+  {
+    std::string text = slurp(rec);
+    text.replace(0, text.find('\n'), "t,u/*V,y*/ /* x");
+    std::ofstream(rec) << text;
+  }
+  const fs::path model = dir / "model.json";
+  const Run f = fit("--model linear:arx:na=1,nb=1,nk=1 --est " + q(rec) + " --input 'u/*V' --output 'y*/ /* x' --save " +
+                    q(model));
+  INFO(f.err);
+  REQUIRE(f.code == 0);
+  const Run g = codegen("--model " + q(model) + " --out " + q(dir) + " --name marks");
+  INFO(g.err);
+  REQUIRE(g.code == 0);
+  CHECK_THAT(slurp(dir / "marks.c") + slurp(dir / "marks.h"), Catch::Contains("u/ *V"));
+  CHECK(run_generated(dir, "marks", {1, 2, 0}).size() == 3u);
+}

@@ -357,14 +357,16 @@ inline double sampled_model_ts(double model_ts, double option) {
   return option;
 }
 
-/// Text that can stand inside a C block comment: every "*/" (which would end it) becomes "* /".
-/// Channel names and equations come from users' files.
+/// Text that can stand inside a C block comment: every "*/" (which would end it) becomes "* /",
+/// and every "/*" becomes "/ *" (a nested opener is legal C, but -Wcomment warns of it and
+/// -Werror builds fail). Channel names and equations come from users' files.
 inline std::string comment_text(std::string text) {
   for (std::size_t p = 0; (p = text.find("*/", p)) != std::string::npos;) text.replace(p, 2, "* /");
+  for (std::size_t p = 0; (p = text.find("/*", p)) != std::string::npos;) text.replace(p, 2, "/ *");
   return text;
 }
 
-/// Text as a C block comment ("*/" defused).
+/// Text as a C block comment (through comment_text).
 inline std::string comment_block(const std::string& text, const std::string& indent = "") {
   std::string s = indent + "/*\n";
   std::string line;
