@@ -781,7 +781,10 @@ class LmEngine {
     for (int k = 0; k < n_; ++k) {
       if (fixed_[k]) continue;
       const double sk = scaled ? options_.parameter_scale[k] : 1.0;
-      const double p = (x_[k] - std::clamp(x_[k] - sk * sk * g_[k], lower_[k], upper_[k])) / sk;
+      // Inside the box the entry is the gradient step itself: θ − (θ − s²g) would round it to 0
+      // wherever s²g is below θ's last digit (small units, large parameter values).
+      const double step = sk * sk * g_[k], t = x_[k] - step;
+      const double p = (t < lower_[k] ? x_[k] - lower_[k] : t > upper_[k] ? x_[k] - upper_[k] : step) / sk;
       if (std::isnan(p)) return std::numeric_limits<double>::quiet_NaN();
       gn = std::max(gn, std::abs(p));
     }

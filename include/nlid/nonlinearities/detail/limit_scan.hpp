@@ -34,6 +34,11 @@ inline LimitFit scan_lower_limit(const std::vector<double>& x, const std::vector
   const std::size_t n = x.size();
   LimitFit best;
   best.limit = n ? x[0] : 0.0;
+  // A limit must beat "no limit" by more than rounding, judged against the data's own energy
+  // (an absolute floor would refuse every limit of data in small units: y ~ 1e-9 gives cost
+  // changes ~ 1e-18).
+  double energy = 0;
+  for (std::size_t i = 0; i < n; ++i) energy += a[i] * a[i] + std::abs(b[i]);
   double sa = 0, saa = 0, sb = 0;
   for (std::size_t k = 1; k <= n; ++k) {
     sa += a[k - 1];
@@ -44,7 +49,7 @@ inline LimitFit scan_lower_limit(const std::vector<double>& x, const std::vector
     const double kk = static_cast<double>(k);
     const double l = std::clamp(-sa / kk, lo, hi);
     const double c = kk * l * l + 2 * l * sa + saa - sb;
-    if (c < best.cost_change - 1e-12 * (1 + std::abs(best.cost_change))) {
+    if (c < best.cost_change - 1e-12 * (energy + std::abs(best.cost_change))) {
       best.cost_change = c;
       best.limit = l;
       best.active = static_cast<long>(k);
