@@ -8,10 +8,12 @@
 #include <cstdint>
 #include <filesystem>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
 
+#include "../support/error_of.hpp"
 #include "nlid/io/augmented_serial.hpp"
 #include "nlid/io/series_serial.hpp"
 #include "nlid/models/spec.hpp"  // nlid-fit's specs: must coexist with the series serialiser
@@ -533,20 +535,16 @@ TEST_CASE("model file: the estimation data's range is recorded by fit_model_spec
 namespace {
 
 // `j` written as the file `name` in the scratch directory; its path.
-std::string write_json(const std::string& name, const Json& j) {
+std::string json_file(const std::string& name, const Json& j) {
   const std::string p = temp_path(name);
   write_file_atomically(p, j.dump(2));
   return p;
 }
 
+// The message of the nlid::Error `f` throws (the test fails if it throws none).
 template <class F>
-std::string error_of(F&& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "(no error)";
+std::string message_of(F&& f) {
+  return nlid_test::error_of(std::forward<F>(f)).what();
 }
 
 }  // namespace
@@ -564,15 +562,15 @@ TEST_CASE("model file: hand-edited files - a data range per channel, a grey box'
   {
     Json j = read_model_file(ranged);
     j["data_range"]["inputs"] = Json::array({Json::array({-1.0, 1.0}), Json::array({0.0, 5.0})});
-    const std::string two = write_json("arx_range_two_inputs.json", j);
-    const std::string msg = error_of([&] { (void)load_model(two); });
+    const std::string two = json_file("arx_range_two_inputs.json", j);
+    const std::string msg = message_of([&] { (void)load_model(two); });
     CHECK_THAT(msg, Catch::Contains("data_range.inputs") && Catch::Contains("has 2 entries, the model has 1 inputs") &&
                         Catch::Contains("arx_range_two_inputs.json"));
-    CHECK_THAT(error_of([&] { (void)load_model<Arx>(two); }), Catch::Contains("data_range.inputs"));
+    CHECK_THAT(message_of([&] { (void)load_model<Arx>(two); }), Catch::Contains("data_range.inputs"));
     j["data_range"]["inputs"] = Json::array();  // none: allowed (only the outputs' range recorded)
-    CHECK(load_model(write_json("arx_range_no_inputs.json", j)).info().input_range.empty());
+    CHECK(load_model(json_file("arx_range_no_inputs.json", j)).info().input_range.empty());
     j["data_range"]["outputs"] = Json::array({Json::array({0.0, 1.0}), Json::array({0.0, 1.0})});
-    CHECK_THAT(error_of([&] { (void)load_model(write_json("arx_range_two_outputs.json", j)); }),
+    CHECK_THAT(message_of([&] { (void)load_model(json_file("arx_range_two_outputs.json", j)); }),
                Catch::Contains("data_range.outputs") && Catch::Contains("has 2 entries, the model has 1 outputs"));
   }
   // A grey box's "states" list must be its physics' (it was allowed and never read).
@@ -585,12 +583,12 @@ TEST_CASE("model file: hand-edited files - a data range per channel, a grey box'
     REQUIRE(n == 2);
     const std::string first = j["structure"]["states"][0].as_string();
     j["structure"]["states"] = Json::array({Json(first)});
-    const std::string short_list = write_json("greybox_one_state.json", j);
-    CHECK_THAT(error_of([&] { (void)load_model(short_list); }),
+    const std::string short_list = json_file("greybox_one_state.json", j);
+    CHECK_THAT(message_of([&] { (void)load_model(short_list); }),
                Catch::Contains("lists 1 states at structure.states, the model has 2") &&
                    Catch::Contains("greybox_one_state.json"));
     j["structure"]["states"] = Json::array({Json(first), Json(std::string("not_a_state"))});
-    CHECK_THAT(error_of([&] { (void)load_model(write_json("greybox_renamed_state.json", j)); }),
+    CHECK_THAT(message_of([&] { (void)load_model(json_file("greybox_renamed_state.json", j)); }),
                Catch::Contains("state 1 is 'not_a_state' in the file"));
   }
   // A hand-written state-space file needs no report, as ARX and OE files do not.
@@ -604,7 +602,7 @@ TEST_CASE("model file: hand-edited files - a data range per channel, a grey box'
     save_model(path, StateSpace(A, B, C, D, 0.01));
     Json j = read_model_file(path);
     REQUIRE(j.erase("report"));
-    const std::string bare = write_json("ss_without_report.json", j);
+    const std::string bare = json_file("ss_without_report.json", j);
     const AnyModel m = load_model(bare);
     CHECK(m.kind() == "state_space");
     CHECK(bit_equal(m.parameters(), load_model(path).parameters()));
