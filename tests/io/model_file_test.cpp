@@ -795,6 +795,24 @@ TEST_CASE("model file: damaged files are refused with the key path, file and lin
              Catch::Contains("was a C++ function without an expression") && Catch::Contains("prototype"));
   auto proto = lambda_model;
   CHECK_NOTHROW(load_model(temp_path("lambda.json"), proto));
+  // A lambda whose name parses as an expression that computes something else is saved by name
+  // only: written as that expression it would load as a different model, silently.
+  Nlarx misnamed(RegressorSet{LaggedRegressors<1, 1, 0>{},
+                              custom_regressor<OutputLag<1>, InputLag<1>>("y1(t-1)+u1(t-1)",
+                                                                           [](auto y, auto u) { return y * u; })},
+                 LinearMap<3>{});
+  save_model(temp_path("misnamed.json"), misnamed);
+  CHECK_THAT(read_text(temp_path("misnamed.json")), Catch::Contains("\"expression\": null"));
+  CHECK_THAT(error_of([&] { (void)load_model(temp_path("misnamed.json")); }),
+             Catch::Contains("was a C++ function without an expression"));
+  // Named after what it computes (the study's hard-stop spring), the expression is written.
+  Nlarx named(RegressorSet{LaggedRegressors<1, 1, 0>{},
+                           custom_regressor<OutputLag<1>, InputLag<1>>("y1(t-1)*u1(t-1)",
+                                                                        [](auto y, auto u) { return y * u; })},
+              LinearMap<3>{});
+  save_model(temp_path("named.json"), named);
+  CHECK_THAT(read_text(temp_path("named.json")), Catch::Contains("\"expression\": \"y1(t-1)*u1(t-1)\""));
+  CHECK_NOTHROW(load_model(temp_path("named.json")));
 }
 
 TEST_CASE("model file: writes are atomic and errors name the file") {

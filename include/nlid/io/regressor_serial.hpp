@@ -13,26 +13,35 @@
 ///
 /// `names` is the getreg list (for people, and to check a compile-time prototype against the
 /// file). A C++ lambda regressor (`CustomRegressor`) is written with its display name as the
-/// expression when that name parses (the recommended spelling, e.g. the study's hard-stop
-/// regressor); otherwise as {"type": "custom", "expression": null, "name": "..."}, which only a
-/// program holding the lambda can load (`load_model(path, prototype)`).
+/// expression when that name parses and computes what the lambda computes on 64 probe windows
+/// (the recommended spelling, e.g. the study's hard-stop regressor); otherwise as
+/// {"type": "custom", "expression": null, "name": "..."}, which only a program holding the
+/// lambda can load (`load_model(path, prototype)`) — never as an expression that would load as
+/// a different model.
 ///
 /// `RegressorSerial<R>`: `save_blocks(r, blocks)` appends r's blocks; `load(view, next)` builds an
 /// R from the blocks starting at index `next` and advances it (for the types that can be rebuilt:
 /// `OutputLags`, `InputLags`, `LaggedRegressors`, `ExpressionRegressor`, `RegressorList` and sets
 /// of them).
 
+#include <algorithm>
+#include <cmath>
 #include <cstddef>
+#include <cstdint>
+#include <span>
 #include <string>
 #include <tuple>
 #include <utility>
 #include <vector>
+
+#include <Eigen/Core>
 
 #include "nlid/core/error.hpp"
 #include "nlid/io/json.hpp"
 #include "nlid/io/serial_common.hpp"
 #include "nlid/regressors/custom.hpp"
 #include "nlid/regressors/expression.hpp"
+#include "nlid/regressors/lag_window.hpp"
 #include "nlid/regressors/lagged.hpp"
 #include "nlid/regressors/regressor_set.hpp"
 
@@ -196,17 +205,68 @@ struct RegressorSerial<LaggedRegressors<Na, Nb, Nk>> {
   }
 };
 
-/// A lambda custom regressor: written with its name as the expression (see the file comment).
+namespace detail {
+
+// Whether the expression computes what the lambda computes, probed on 64 deterministic lag
+// windows with values spread over ±1000 (both sides of any stop or threshold a regressor of
+// recorded signals is likely to hold). A name that parses but means something else — or a lambda
+// that cannot be evaluated on the probes — must not be written as the expression: the file
+// would load as a different model, silently.
+template <class Fn, class... Args>
+bool expression_matches(const CustomRegressor<Fn, Args...>& r, const Expression& e) {
+  if (e.output_lag() > r.output_lag() || e.input_lag() > r.input_lag() ||
+      e.num_input_channels() > r.num_input_channels())
+    return false;
+  const int lag = std::max(r.output_lag(), r.input_lag());
+  const int nu = std::max(r.num_input_channels(), 1);
+  Eigen::MatrixXd u(lag + 1, nu);
+  Eigen::VectorXd y(lag + 1);
+  std::uint64_t state = 0x9E3779B97F4A7C15ULL;
+  auto next = [&state] {  // splitmix64 → uniform in [−1000, 1000)
+    state += 0x9E3779B97F4A7C15ULL;
+    std::uint64_t z = state;
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
+    z ^= z >> 31;
+    return -1000.0 + 2000.0 * static_cast<double>(z >> 11) * 0x1.0p-53;
+  };
+  try {
+    for (int probe = 0; probe < 64; ++probe) {
+      for (Eigen::Index i = 0; i < u.size(); ++i) u.data()[i] = next();
+      for (Eigen::Index i = 0; i < y.size(); ++i) y[i] = next();
+      MeasuredWindow<double> w(u, y);
+      w.set_time(lag);
+      double a = 0.0;
+      r.evaluate(w, std::span<double>(&a, 1));
+      const double b = e.evaluate(w);
+      if (std::isfinite(a) != std::isfinite(b)) return false;
+      if (std::isfinite(a) && !(std::abs(a - b) <= 1e-9 * (1.0 + std::abs(a) + std::abs(b)))) return false;
+    }
+  } catch (...) {
+    return false;
+  }
+  return true;
+}
+
+}  // namespace detail
+
+/// A lambda custom regressor: written with its name as the expression when that expression
+/// computes what the lambda does (see the file comment), else by name only.
 template <class Fn, class... Args>
 struct RegressorSerial<CustomRegressor<Fn, Args...>> {
   /// Appends one "custom" block.
   static void save_blocks(const CustomRegressor<Fn, Args...>& r, Json::Array& a) {
     const std::string name = r.names(default_input_names(r.num_input_channels()), "y1")[0];
     Json b = Json::object({{"type", "custom"}});
+    bool matches = false;
     try {
-      (void)Expression::parse(name);
-      b["expression"] = name;
+      matches = detail::expression_matches(r, Expression::parse(name));
     } catch (const Error&) {
+      matches = false;
+    }
+    if (matches) {
+      b["expression"] = name;
+    } else {
       b["expression"] = nullptr;
       b["name"] = name;
     }
