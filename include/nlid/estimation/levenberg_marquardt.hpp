@@ -474,12 +474,12 @@ class LmEngine {
     // ---- iterations ----------------------------------------------------------------------------
     for (int iter = 1; !done && iter <= options_.max_iterations; ++iter) {
       compute_step(lambda, sum);  // x_trial_ = P(x + δ)
-      const double step_norm = (x_trial_ - x_).norm();
+      y_ = x_trial_ - x_;         // the projected step δ
+      const double step_norm = y_.norm();
       const bool tiny_step =
           scaled_step_norm() <= options_.parameter_tolerance * (free_norm(x_) + options_.parameter_tolerance);
       sum.iterations = iter;
       // Model decrease of the projected step: m(0) − m(δ) = −(gᵀδ + ½ δᵀAδ).
-      y_ = x_trial_ - x_;
       rhs_.noalias() = A_ * y_;
       const double predicted = -(g_.dot(y_) + 0.5 * y_.dot(rhs_));
       ++sum.residual_evaluations;
@@ -804,10 +804,10 @@ class LmEngine {
     return std::sqrt(s);
   }
 
-  // ‖x_trial − x‖₂ of the step just computed, in the units of `free_norm`.
+  // ‖δ‖₂ of the projected step held in y_, in the units of `free_norm`.
   double scaled_step_norm() const {
-    if (options_.parameter_scale.size() != n_) return (x_trial_ - x_).norm();
-    return ((x_trial_ - x_).array() / options_.parameter_scale.array()).matrix().norm();
+    if (options_.parameter_scale.size() != n_) return y_.norm();
+    return (y_.array() / options_.parameter_scale.array()).matrix().norm();
   }
 
   // Solves the scaled damped system for y, sets x_trial_ = P(x + D⁻¹y).

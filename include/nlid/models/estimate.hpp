@@ -61,6 +61,7 @@
 #include "nlid/models/detail/model_common.hpp"
 #include "nlid/models/hammerstein_wiener.hpp"
 #include "nlid/models/nlarx.hpp"
+#include "nlid/nonlinearities/concepts.hpp"
 
 namespace nlid {
 
@@ -685,16 +686,9 @@ Eigen::VectorXd hw_parameter_scales(const Model& model, const Eigen::VectorXd& u
   const auto ph = static_cast<std::size_t>(model.output_nonlinearity().num_parameters());
   Eigen::VectorXd s = Eigen::VectorXd::Ones(static_cast<Eigen::Index>(pf + pl + ph));
   const std::span<double> all(s.data(), pf + pl + ph);
-  const auto known = [](const auto& part, double in, double out, std::span<double> ss) {
-    if constexpr (requires { part.parameter_scales(in, out, ss); }) {
-      return static_cast<bool>(part.parameter_scales(in, out, ss));
-    } else {
-      return false;
-    }
-  };
-  if (!known(model.input_nonlinearity(), su, su, all.subspan(0, pf)) ||
-      !known(model.linear_block(), su, sy, all.subspan(pf, pl)) ||
-      !known(model.output_nonlinearity(), sy, sy, all.subspan(pf + pl, ph)))
+  if (!parameter_scales_of(model.input_nonlinearity(), su, su, all.subspan(0, pf)) ||
+      !parameter_scales_of(model.linear_block(), su, sy, all.subspan(pf, pl)) ||
+      !parameter_scales_of(model.output_nonlinearity(), sy, sy, all.subspan(pf + pl, ph)))
     return {};
   return s;
 }

@@ -131,15 +131,7 @@ class AnyNonlinearity {
   /// PwLinear::parameter_scales); false, leaving `s` as it was, for a map that does not know
   /// them (the networks, whose inputs are standardised inside).
   bool parameter_scales(double in, double out, std::span<double> s) const {
-    return std::visit(
-        [&](const auto& f) {
-          if constexpr (requires { f.parameter_scales(in, out, s); }) {
-            return static_cast<bool>(f.parameter_scales(in, out, s));
-          } else {
-            return false;
-          }
-        },
-        v_);
+    return std::visit([&](const auto& f) { return detail::parameter_scales_of(f, in, out, s); }, v_);
   }
   /// Parameter names of the held map.
   [[nodiscard]] std::vector<std::string> parameter_names() const {

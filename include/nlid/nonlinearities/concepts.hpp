@@ -65,6 +65,18 @@ concept EvaluatesOn = requires(const F& f, std::span<const T> x, std::span<const
   { f(x, theta) } -> std::same_as<T>;
 };
 
+/// `part.parameter_scales(in, out, s)` where the component has it (the unit of each of its
+/// parameters for signals in units `in` → `out`; PwLinear, TransferFunctionBlock, …), else false
+/// with `s` untouched: one detection for the type-erased map and for the estimator.
+template <class Part>
+bool parameter_scales_of(const Part& part, double in, double out, std::span<double> s) {
+  if constexpr (requires { part.parameter_scales(in, out, s); }) {
+    return static_cast<bool>(part.parameter_scales(in, out, s));
+  } else {
+    return false;
+  }
+}
+
 }  // namespace detail
 
 /// A static map g: Rᵐ → R with external parameters θ (see the file comment for the contract).
