@@ -48,6 +48,7 @@
 
 #include "nlid/core/atomic_file.hpp"
 #include "nlid/core/error.hpp"
+#include "nlid/core/utf8.hpp"
 
 namespace nlid {
 
@@ -383,40 +384,21 @@ inline std::string escape_xml(std::string_view text) {
   while (i < text.size()) {
     const unsigned char c = static_cast<unsigned char>(text[i]);
     if (c >= 0x80) {
-      // Well-formed multi-byte sequence? (same rules as Unicode table 3-7)
-      std::size_t n = 0;
-      unsigned char lo = 0x80, hi = 0xBF;
-      if (c >= 0xC2 && c <= 0xDF) {
-        n = 2;
-      } else if (c >= 0xE0 && c <= 0xEF) {
-        n = 3;
-        lo = c == 0xE0 ? 0xA0 : 0x80;
-        hi = c == 0xED ? 0x9F : 0xBF;
-      } else if (c >= 0xF0 && c <= 0xF4) {
-        n = 4;
-        lo = c == 0xF0 ? 0x90 : 0x80;
-        hi = c == 0xF4 ? 0x8F : 0xBF;
-      }
-      bool ok = n > 0 && i + n <= text.size();
-      for (std::size_t k = 1; ok && k < n; ++k) {
-        const unsigned char b = static_cast<unsigned char>(text[i + k]);
-        ok = k == 1 ? (b >= lo && b <= hi) : (b >= 0x80 && b <= 0xBF);
+      const std::size_t n = utf8_sequence_length(text, i);  // core/utf8.hpp: Unicode table 3-7
+      if (n == 0) {
+        out.append("\xEF\xBF\xBD");  // U+FFFD replacement character
+        ++i;
+        continue;
       }
       // U+FFFE and U+FFFF are well-formed UTF-8 but not XML 1.0 characters: one replacement
       // for the whole sequence, as for any other character the markup cannot hold.
-      if (ok && n == 3 && c == 0xEF && static_cast<unsigned char>(text[i + 1]) == 0xBF &&
+      if (n == 3 && c == 0xEF && static_cast<unsigned char>(text[i + 1]) == 0xBF &&
           static_cast<unsigned char>(text[i + 2]) >= 0xBE) {
         out.append("\xEF\xBF\xBD");
-        i += n;
-        continue;
-      }
-      if (ok) {
-        out.append(text.substr(i, n));
-        i += n;
       } else {
-        out.append("\xEF\xBF\xBD");  // U+FFFD replacement character
-        ++i;
+        out.append(text.substr(i, n));
       }
+      i += n;
       continue;
     }
     switch (c) {
