@@ -214,3 +214,41 @@ TEST_CASE("Distortion analysis: a zero output gives no verdict and no NaN level"
   CHECK_THAT(r, Catch::Contains("no conclusion: the output has no power at the excited lines"));
   CHECK(r.find("a linear model can explain") == std::string::npos);
 }
+
+TEST_CASE("Distortion analysis: a constant or offset noise-free output is not read as distortion",
+          "[analysis][distortion]") {
+  // The rounding floor was 1e-24 of the excited level: a constant output has nothing but
+  // rounding on its excited lines, so that rounding stood 240 dB "above the noise" on the
+  // detection lines too, and the report said "present" and "a nonlinear structure is warranted".
+  const nlid::Experiment base = wiener(0.0, 0.0, nlid::MultisineLines::random_odd, 0.0);
+  for (const double level : {1.0, 3.7, -250.0, 1e-5}) {
+    INFO("constant output " << level);
+    const nlid::Experiment e(base.u(), Eigen::VectorXd::Constant(base.size(), level), base.ts(), "constant");
+    const nlid::DistortionAnalysis d = nlid::distortion_analysis(e, kPeriod);
+    CHECK(d.noise_free());
+    CHECK_FALSE(d.even_detected());
+    CHECK_FALSE(d.odd_detected());
+    CHECK_FALSE(d.conclusive());
+    const std::string r = d.report();
+    CHECK_THAT(r, Catch::Contains("no conclusion: the output at the excited lines is at the DFT's rounding floor"));
+    CHECK_THAT(r, !Catch::Contains("present") && !Catch::Contains("nonlinear structure") &&
+                      !Catch::Contains("a linear model can explain"));
+  }
+  // An offset adds rounding in proportion to its own power: a linear response on top of a large
+  // offset stays linear, and a cube on top of it is still found.
+  for (const double offset : {100.0, 1e4}) {
+    INFO("offset " << offset);
+    const nlid::Experiment lin(base.u(), base.y().array() + offset, base.ts(), "offset linear");
+    const nlid::DistortionAnalysis d = nlid::distortion_analysis(lin, kPeriod);
+    CHECK(d.conclusive());
+    CHECK_FALSE(d.even_detected());
+    CHECK_FALSE(d.odd_detected());
+    CHECK_THAT(d.report(), Catch::Contains("a linear model can explain these data"));
+    const nlid::Experiment cube = wiener(0.0, 0.05, nlid::MultisineLines::random_odd, 0.0);
+    const nlid::DistortionAnalysis c =
+        nlid::distortion_analysis(nlid::Experiment(cube.u(), cube.y().array() + offset, cube.ts(), "offset cube"), kPeriod);
+    CHECK(c.conclusive());
+    CHECK(c.odd_detected());
+    CHECK_FALSE(c.even_detected());
+  }
+}

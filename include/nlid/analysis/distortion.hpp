@@ -20,13 +20,14 @@
 /// line) of the period-averaged spectrum Ȳ(k) = (1/P) Σ_p Y_p(k), Y_p(k) = Σ_t y_p(t) e^{−2πikt/N};
 /// the noise level is the mean over the same lines of var(Ȳ(k)) = Σ_p |Y_p(k) − Ȳ(k)|² / (P(P−1)),
 /// the expectation of |Ȳ(k)|² at a line that carries noise only (for a noise-free record, the
-/// DFT's rounding floor takes its place: `noise_floor`). A detection-line level more than
-/// `threshold_db` (default 6 dB, a factor 4 in power) above the noise level is reported as
-/// distortion. Only a kind of distortion whose lines the input leaves empty can be measured
-/// (`even_measurable`, `odd_measurable`): an odd multisine excites every odd line, so it shows
-/// even distortion but hides odd distortion under the excited lines; "a linear model can explain
-/// these data" is said only when both kinds were measured and neither found. The frequency
-/// response at the excited lines, Ȳ(k)/Ū(k), is the best linear
+/// DFT's rounding floor takes its place: `noise_floor`; it scales with the whole output's power,
+/// DC included, so the rounding of a constant or offset output is not read as distortion). A
+/// detection-line level more than `threshold_db` (default 6 dB, a factor 4 in power) above the
+/// noise level is reported as distortion. Only a kind of distortion whose lines the input leaves
+/// empty can be measured (`even_measurable`, `odd_measurable`): an odd multisine excites every
+/// odd line, so it shows even distortion but hides odd distortion under the excited lines; "a
+/// linear model can explain these data" is said only when both kinds were measured and neither
+/// found. The frequency response at the excited lines, Ȳ(k)/Ū(k), is the best linear
 /// approximation of the system for this input class (for a linear system, its transfer function).
 ///
 /// Cost: period²/2 multiply-adds per period (direct DFT with exact integer angles).
@@ -69,13 +70,19 @@ struct DistortionAnalysis {
   double threshold_db = 6.0;  ///< detection threshold above the noise level
 
   /// The level the others are compared with: the measured noise, or — for a noise-free record
-  /// (simulated data) — the rounding floor of the DFT, 10⁻²⁴ of the excited level (double
-  /// rounding leaves about 10⁻²⁹ of it on an empty line of a 1000-sample period).
-  [[nodiscard]] double noise_floor() const {
-    return std::max(noise_level, std::isfinite(excited_level) ? 1e-24 * excited_level : 0.0);
+  /// (simulated data) — `rounding_floor()`.
+  [[nodiscard]] double noise_floor() const { return std::max(noise_level, rounding_floor()); }
+  /// What double rounding leaves on a line of the DFT, with a wide margin: 10⁻²⁴ of the output's
+  /// total power Σ|Ȳ(k)|², k = 0 … period/2 (measured: 10⁻³³ to 10⁻³² of it for periods of 512 to
+  /// 8192 samples). Rounding comes from all of the output, not from the excited lines alone: a
+  /// floor relative to the excited level put the rounding of a constant or strongly offset
+  /// output 240 dB "above the noise" and reported it as distortion.
+  [[nodiscard]] double rounding_floor() const {
+    const double total = output_power.sum();
+    return std::isfinite(total) ? 1e-24 * total : 0.0;
   }
   /// True when the record has no measurable noise and levels are relative to the rounding floor.
-  [[nodiscard]] bool noise_free() const { return !(noise_level > 1e-24 * excited_level); }
+  [[nodiscard]] bool noise_free() const { return !(noise_level > rounding_floor()); }
 
   /// Frequency of line k in Hz.
   [[nodiscard]] double frequency(Eigen::Index k) const {
@@ -98,9 +105,10 @@ struct DistortionAnalysis {
 
   /// True when the excited output stands above the noise by more than the threshold: only then
   /// does "no distortion detected" say something about the system.
-  /// An output without power at the excited lines (a constant output) responds to nothing: no
-  /// verdict, and no dB level against a zero floor.
-  [[nodiscard]] bool conclusive() const { return excited_level > 0.0 && (noise_free() || snr_db() > threshold_db); }
+  /// An output without power at the excited lines responds to nothing: no verdict, and no dB
+  /// level against a zero floor. A noise-free record is held to the same test against the
+  /// rounding floor: a constant output has nothing but rounding on its excited lines.
+  [[nodiscard]] bool conclusive() const { return excited_level > 0.0 && snr_db() > threshold_db; }
 
   /// A few lines for a person: levels, what they mean for the choice of model.
   [[nodiscard]] std::string report() const {
@@ -136,6 +144,9 @@ struct DistortionAnalysis {
     line("odd", odd_lines, odd_db(), odd_detected());
     if (!(excited_level > 0.0)) {
       s += "  no conclusion: the output has no power at the excited lines (constant, or not a response to this input)\n";
+    } else if (!conclusive() && noise_free()) {
+      s += "  no conclusion: the output at the excited lines is at the DFT's rounding floor (constant, or not a "
+           "response to this input)\n";
     } else if (!conclusive()) {
       std::snprintf(buf, sizeof buf,
                     "  no conclusion: the output at the excited lines is only %.1f dB above the noise (needs more than "
