@@ -7,6 +7,7 @@
 #include <functional>
 #include <limits>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "nlid/ad.hpp"
@@ -133,6 +134,45 @@ TEST_CASE("arithmetic: product, quotient and scalar mixing", "[ad][dual]") {
   CHECK(y <= -0.8);
   CHECK(x != y);
   CHECK(x == 1.5);
+}
+
+// q = x/y with x = n·t, y = d·s at t = s = 1: ∂q/∂t = n/d, ∂q/∂s = −n/d. The old rule scaled by
+// 1/d and (n/d)/d: for d = 1e-200 that is ∞ (and ∞·0 = NaN in the component y does not move),
+// for d = 1e300 it underflows to 0, for a subnormal d the reciprocal itself is ∞.
+template <class D>
+void check_quotient_by_extreme_divisor(double n, double d) {
+  INFO("n = " << n << ", d = " << d);
+  const double dq = n / d;
+  // Central difference in s of n/(d·s): relative steps keep every value an ordinary number.
+  const double h = 1e-6;
+  const double fd = (n / (d * (1 + h)) - n / (d * (1 - h))) / (2 * h);
+  CHECK(fd == Approx(-dq).epsilon(1e-6));
+  const D x = make_dual<D>(n, n, 0.0), y = make_dual<D>(d, 0.0, d);
+  D assigned = x;
+  assigned /= y;
+  for (const D& q : {x / y, assigned}) {
+    CHECK(q.a == dq);
+    CHECK(q.v[0] == Approx(dq).epsilon(1e-14));
+    CHECK(q.v[1] == Approx(-dq).epsilon(1e-14));
+  }
+  // A plain numerator or denominator: n/y, x/d.
+  const D r = n / y;
+  CHECK(r.v[0] == 0.0);
+  CHECK(r.v[1] == Approx(-dq).epsilon(1e-14));
+  D over_scalar = x;
+  over_scalar /= d;
+  for (const D& w : {x / d, over_scalar}) {
+    CHECK(w.v[0] == Approx(dq).epsilon(1e-14));
+    CHECK(w.v[1] == 0.0);
+  }
+}
+
+TEST_CASE("quotients by tiny and huge divisors keep the derivatives the quotient rule gives", "[ad][dual]") {
+  for (const auto& [n, d] : {std::pair{2.0, 1e-200}, std::pair{2.0, 1e-300}, std::pair{1e-100, 1e-310},
+                             std::pair{2.0, 1e300}, std::pair{1e300, 1e307}, std::pair{-3.0, 0.25}}) {
+    check_quotient_by_extreme_divisor<Dual<double, 2>>(n, d);
+    check_quotient_by_extreme_divisor<DynamicDual<double>>(n, d);
+  }
 }
 
 TEST_CASE("compound assignment with itself (aliasing) is correct", "[ad][dual]") {

@@ -132,16 +132,18 @@ struct Dual {
     a *= o.a;
     return *this;
   }
-  // (x/y)' = (x' - (x/y) y') / y
+  // (x/y)' = x'/y - (x/y)(y'/y)
+  // Each term divides by y itself: through 1/y and (x/y)/y a tiny y (1e-200) overflowed to ∞ (and
+  // ∞·0 = NaN in components y does not move), a huge one (1e300) underflowed to 0, where the
+  // derivative is an ordinary number.
   Dual& operator/=(const Dual& o) {
     if (&o == this) return *this /= Dual(o);  // x /= x: read o before it changes
-    const T inv = T(1) / o.a;
     a /= o.a;  // a true division, so the value is bit-identical to the plain-T evaluation
     if constexpr (N != Dynamic) {
-      v = v * inv + T(-a * inv) * o.v;
+      v = v / o.a - a * (o.v / o.a);
     } else {
-      v *= inv;
-      detail::add_scaled(v, o.v, T(-a * inv));
+      v /= o.a;
+      if (o.v.size() != 0) detail::add_scaled(v, Gradient(o.v / o.a), T(-a));
     }
     return *this;
   }
@@ -161,11 +163,10 @@ struct Dual {
     v *= s;
     return *this;
   }
-  // (x/s)' = x'/s
+  // (x/s)' = x'/s   (divided, not scaled by 1/s, which overflows for a tiny s)
   Dual& operator/=(const T& s) {
-    const T inv = T(1) / s;
     a /= s;
-    v *= inv;
+    v /= s;
     return *this;
   }
 
@@ -241,13 +242,12 @@ template <class T, int N> Dual<T, N> operator*(const Dual<T, N>& x, const Dual<T
     return r *= y;
   }
 }
-// (x/y)' = (x'y - xy')/y²
+// (x/y)' = x'/y - (x/y)(y'/y)   (no 1/y or 1/y², see operator/=)
 /// Quotient.
 template <class T, int N> Dual<T, N> operator/(const Dual<T, N>& x, const Dual<T, N>& y) {
   if constexpr (N != Dynamic) {
-    const T inv = T(1) / y.a;
     const T q = x.a / y.a;  // a true division, bit-identical to the plain-T value
-    return Dual<T, N>(q, x.v * inv + T(-q * inv) * y.v);
+    return Dual<T, N>(q, x.v / y.a - q * (y.v / y.a));
   } else {
     Dual<T, N> r = x;
     return r /= y;
@@ -296,22 +296,20 @@ Dual<T, N> operator*(Dual<T, N> x, const std::type_identity_t<T>& s) { x *= s; r
 /// Scalar times dual (dynamic gradient).
 template <class T, int N> requires(N == Dynamic)
 Dual<T, N> operator*(const std::type_identity_t<T>& s, Dual<T, N> x) { x *= s; return x; }
-// (x/s)' = x'/s
+// (x/s)' = x'/s   (divided, not scaled by 1/s, which overflows for a tiny s)
 /// Dual over scalar.
 template <class T, int N> requires(N != Dynamic)
 Dual<T, N> operator/(const Dual<T, N>& x, const std::type_identity_t<T>& s) {
-  const T inv = T(1) / s;
-  return Dual<T, N>(x.a / s, x.v * inv);  // a true division: value bit-identical to plain T
+  return Dual<T, N>(x.a / s, x.v / s);  // a true division: value bit-identical to plain T
 }
 /// Dual over scalar (dynamic gradient).
 template <class T, int N> requires(N == Dynamic)
 Dual<T, N> operator/(Dual<T, N> x, const std::type_identity_t<T>& s) { x /= s; return x; }
-// (s/x)' = -s x'/x²
+// (s/x)' = -(s/x)(x'/x)   (no 1/x², which overflows for a tiny x)
 /// Scalar over dual.
 template <class T, int N> Dual<T, N> operator/(const std::type_identity_t<T>& s, const Dual<T, N>& x) {
-  const T inv = T(1) / x.a;
   const T r = s / x.a;
-  return Dual<T, N>(r, x.v * T(-r * inv));
+  return Dual<T, N>(r, T(-r) * (x.v / x.a));
 }
 
 // ---- comparisons: on the value only (derivatives do not order numbers) --------------------------
