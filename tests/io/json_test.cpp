@@ -486,3 +486,30 @@ TEST_CASE("Json from a null const char* is an nlid::Error, not undefined behavio
   CHECK(nlid::Json(nullptr).is_null());  // the literal still means JSON null
   CHECK(nlid::Json("").as_string().empty());
 }
+
+TEST_CASE("A null const char* key is an nlid::Error, not undefined behaviour") {
+  // Converted to std::string_view, a null pointer was read for its length: undefined behaviour
+  // (in practice a crash inside strlen) from every keyed accessor.
+  const char* none = nullptr;
+  nlid::Json j = nlid::Json::object({{"a", 1}});
+  CHECK(error_of([&] { (void)j[none]; }).message() ==
+        "Json::operator[] got a null const char* as the key; a key must be a string");
+  CHECK(j.size() == 1u);  // nothing inserted
+  const nlid::Json& cj = j;
+  CHECK_THROWS_WITH(cj[none], Catch::Contains("Json::operator[] got a null const char* as the key"));
+  CHECK_THROWS_WITH(cj.at(none), Catch::Contains("Json::at got a null const char* as the key"));
+  const nlid::Json doc = nlid::Json::parse(R"({"m": {"k": 2}})");
+  CHECK_THROWS_WITH(doc.at("m")[none], Catch::Contains("a null const char* is not a key (at m)"));
+  CHECK_THROWS_WITH(doc.at("m").at(none), Catch::Contains("a null const char* is not a key (at m)"));
+  // C-string keys (const and not) still work, and 0 is still an index, not a null key.
+  const char* k = "k";
+  CHECK(doc.at("m")[k].as_number() == 2.0);
+  CHECK(doc["m"].at(k).as_number() == 2.0);
+  char key[] = "a";
+  CHECK(j[key] == nlid::Json(1));
+  CHECK(cj.at(key).as_number() == 1.0);
+  nlid::Json arr = nlid::Json::array({7});
+  CHECK(arr[0] == nlid::Json(7));
+  CHECK(static_cast<const nlid::Json&>(arr)[0].as_number() == 7.0);
+  CHECK(doc.at("m").contains("k"));
+}

@@ -104,6 +104,13 @@ concept JsonInteger = std::integral<T> && !std::same_as<T, bool> && !std::same_a
                       !std::same_as<T, char16_t> && !std::same_as<T, char32_t>;
 inline std::string json_preview(const Json& value);
 class JsonParser;
+/// A key given as a C string. Turning a null `const char*` into a `std::string_view` is
+/// undefined behaviour (it reads the pointee for the length), so it is refused here first.
+inline std::string_view json_key(const char* key, const char* where) {
+  if (key == nullptr)
+    throw Error(std::string(where) + " got a null const char* as the key; a key must be a string");
+  return key;
+}
 /// Deepest nesting `parse` reads and `dump` writes: the root is level 0, and a value at level
 /// 513 is refused. It bounds the parser's and the writer's recursion; refusing to write what could
 /// not be read back keeps `parse(dump(x)) == x` true for every `x` that `dump` accepts.
@@ -238,6 +245,12 @@ class Json {
     members.emplace_back(std::string(key), Json());
     return members.back().second;
   }
+  /// Member access with a C-string key: the same, but a null pointer throws `nlid::Error`.
+  /// (A template, so that `j[0]` still takes the index overload below.)
+  template <std::same_as<char> C>
+  Json& operator[](const C* key) {
+    return (*this)[detail::json_key(key, "Json::operator[]")];
+  }
   /// Array element `index` for modification. Throws if this is not an array or the index is out
   /// of range (arrays grow only through `push_back`, so a typo cannot create 10^6 nulls).
   /// Also keeps `j[0]` from converting 0 to a null `const char*` key.
@@ -255,6 +268,10 @@ class Json {
   }
   /// Read-only member access on a const value: same as `at(key)` (throws if missing).
   [[nodiscard]] JsonView operator[](std::string_view key) const;
+  /// @copydoc operator[](std::string_view) const
+  /// A null pointer throws `nlid::Error`.
+  template <std::same_as<char> C>
+  [[nodiscard]] JsonView operator[](const C* key) const;
   /// Read-only element access on a const value: same as `at(index)`.
   [[nodiscard]] JsonView operator[](std::size_t index) const;
   /// Appends to an array (a null value first becomes an empty array). Returns the new element.
@@ -288,6 +305,10 @@ class Json {
   /// Member `key` of this object, as a view that names its path in errors. Throws if this is
   /// not an object or the key is missing.
   [[nodiscard]] JsonView at(std::string_view key) const;
+  /// @copydoc at(std::string_view) const
+  /// A null pointer throws `nlid::Error`.
+  template <std::same_as<char> C>
+  [[nodiscard]] JsonView at(const C* key) const;
   /// Element `index` of this array (throws if not an array or out of range).
   [[nodiscard]] JsonView at(std::size_t index) const;
   /// Pointer to member `key`, or null if absent or this is not an object. Never throws.
@@ -433,8 +454,19 @@ class JsonView {
     }
     return JsonView(items[index], path_ + "[" + std::to_string(index) + "]");
   }
+  /// `at(key)` with a C-string key; a null pointer throws `nlid::Error` naming the path.
+  template <std::same_as<char> C>
+  [[nodiscard]] JsonView at(const C* key) const {
+    if (key == nullptr) fail("a null const char* is not a key (at " + path_text() + ")");
+    return at(std::string_view(key));
+  }
   /// Same as `at(key)`.
   [[nodiscard]] JsonView operator[](std::string_view key) const { return at(key); }
+  /// Same as `at(key)` (a null pointer throws).
+  template <std::same_as<char> C>
+  [[nodiscard]] JsonView operator[](const C* key) const {
+    return at(key);
+  }
   /// Same as `at(index)`.
   [[nodiscard]] JsonView operator[](std::size_t index) const { return at(index); }
   /// True if this is an object with member `key`.
@@ -1462,6 +1494,14 @@ inline JsonView Json::at(std::string_view key) const { return view().at(key); }
 inline JsonView Json::at(std::size_t index) const { return view().at(index); }
 inline JsonView Json::operator[](std::string_view key) const { return view().at(key); }
 inline JsonView Json::operator[](std::size_t index) const { return view().at(index); }
+template <std::same_as<char> C>
+inline JsonView Json::at(const C* key) const {
+  return at(detail::json_key(key, "Json::at"));
+}
+template <std::same_as<char> C>
+inline JsonView Json::operator[](const C* key) const {
+  return (*this)[detail::json_key(key, "Json::operator[]")];
+}
 inline double Json::as_number() const { return view().as_number(); }
 inline long long Json::as_integer() const { return view().as_integer(); }
 inline bool Json::as_bool() const { return view().as_bool(); }
