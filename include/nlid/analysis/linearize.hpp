@@ -443,9 +443,8 @@ Eigen::VectorXd trajectory_state(const GreyBox<P>& model, const Experiment& e, E
   const Eigen::VectorXd x0 = model.initial_state(e, ic);
   const Eigen::VectorXd p = model.parameters();
   Eigen::VectorXd x = x0;
-  const Eigen::VectorXd u0 = e.u().row(0).transpose();
-  const int sub = substeps_for(e.ts(), physics_spectral_radius(model.physics(), p.data(), x.data(), u0.data()),
-                               model.integrator());
+  // The count of the whole record's run, so the state is the one `simulate` passes through.
+  const int sub = physics_substeps(model.physics(), model.integrator(), p.data(), x.data(), e.u(), e.ts());
   const Eigen::MatrixXd u = e.u().topRows(t + 1);
   const Eigen::Index got = model.template simulate_with<double>(u, e.ts(), p.data(), x.data(), sub,
                                                                 [](Eigen::Index, const double*) {});

@@ -97,7 +97,9 @@ GeneratedCode generate_c(const GreyBox<P>& model, const CodegenOptions& options)
       m.x0 = Eigen::VectorXd::Zero(m.nx);
       m.x0_doc = "zero";
     }
-    // The sub-step count GreyBox::simulate would use when started from x0 with input u_sub.
+    // The sub-step count GreyBox::simulate uses from x0 with input u_sub for a physics with a
+    // spectral_radius; without one, simulate takes the stiffest state of its record, which the
+    // generated step cannot know (docs/codegen.md: pin CodegenOptions::substeps).
     const double rho = physics_spectral_radius(model.physics(), pv.data(), m.x0.data(), u_sub.data());
     const int sub = options.substeps > 0 ? options.substeps : substeps_for(m.ts, rho, io);
     // A step the method cannot keep stable, from the automatic rule at its ceiling or from a

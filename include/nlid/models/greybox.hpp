@@ -333,10 +333,11 @@ class GreyBox {
     validate(o);
     integrator_ = o;
   }
-  /// Sub-steps per sample the rule gives at the current parameters for sample time `ts`
-  /// (initial state and input only matter for physics without a `spectral_radius`). Throws
-  /// `nlid::Error` naming "ts" unless ts is positive and finite, or naming "spectral_radius" if
-  /// the physics returns +inf.
+  /// Sub-steps per sample the rule gives at the current parameters for sample time `ts`, judged
+  /// at the zero state and input: the count of every run for a physics with a
+  /// `spectral_radius`; for one without, a run's count also depends on the states it reaches —
+  /// `substeps(u, ts, x0)` gives it. Throws `nlid::Error` naming "ts" unless ts is positive and
+  /// finite, or naming "spectral_radius" if the physics returns +inf.
   [[nodiscard]] int substeps(double ts) const {
     require(ts > 0.0 && std::isfinite(ts), "sample time must be positive and finite, got " + detail::format_g(ts),
             at_parameter("ts"));
@@ -345,6 +346,21 @@ class GreyBox {
     const Eigen::VectorXd u = Eigen::VectorXd::Zero(input_dimension());
     return substeps_for(ts, physics_spectral_radius(physics_, p.data(), x.data(), u.data()),
                         integrator_);
+  }
+  /// Sub-steps per sample of `simulate(u, ts, x0)`: for a physics without a `spectral_radius`
+  /// the rule with the largest Gershgorin bound of ∂f/∂x along that run (`physics_substeps`).
+  [[nodiscard]] int substeps(const Eigen::MatrixXd& u, double ts, const StateVector& x0) const {
+    require(ts > 0.0 && std::isfinite(ts), "sample time must be positive and finite, got " + detail::format_g(ts),
+            at_parameter("ts"));
+    require(u.cols() == input_dimension(), "input has " + std::to_string(u.cols()) + " columns, the model takes " +
+                                               std::to_string(input_dimension()),
+            at_parameter("u"));
+    require(x0.size() == state_dimension(), "initial state has " + std::to_string(x0.size()) +
+                                                " entries, the model has " + std::to_string(state_dimension()) +
+                                                " states",
+            at_parameter("x0"));
+    const ParameterVector p = parameters();
+    return physics_substeps(physics_, integrator_, p.data(), x0.data(), u, ts);
   }
 
   // ---- data-driven initialisation --------------------------------------------------------------
@@ -434,10 +450,8 @@ class GreyBox {
     check_relations(p, "simulate");
     StateVector x = x0;
     Eigen::MatrixXd y(u.rows(), output_dimension());
-    const Eigen::VectorXd u0 = u.rows() > 0 ? Eigen::VectorXd(u.row(0).transpose())
-                                            : Eigen::VectorXd::Zero(input_dimension());
-    const double rho = physics_spectral_radius(physics_, p.data(), x.data(), u0.data());
-    const int sub = substeps_for(ts, rho, integrator_);
+    double rho = 0.0;
+    const int sub = physics_substeps(physics_, integrator_, p.data(), x.data(), u, ts, &rho);
     const Eigen::Index got = simulate_physics<double>(
         physics_, integrator_, sub, u, ts, p.data(), x.data(), [&](Eigen::Index k, const double* yk) {
           for (Eigen::Index j = 0; j < y.cols(); ++j) y(k, j) = yk[j];

@@ -84,14 +84,13 @@ Eigen::MatrixXd simulate_batched(const GreyBox<P>& model, const Eigen::MatrixXd&
           at_parameter("integrator"));
   const P& phys = model.physics();
   Eigen::MatrixXd out(n, k_runs);
-  // Sub-steps of each run by the model's rule, at its own parameters and initial state.
-  const Eigen::Matrix<double, NU, 1> u0 =
-      n > 0 ? Eigen::Matrix<double, NU, 1>(u.row(0).transpose()) : Eigen::Matrix<double, NU, 1>::Zero();
+  // Sub-steps of each run by the model's rule, at its own parameters and initial state (for a
+  // physics without spectral_radius, over its own trajectory: one double pass per run).
   const auto run_substeps = [&](Eigen::Index k) {
     const Eigen::Matrix<double, NP, 1> p = thetas.col(k);
     Eigen::Matrix<double, NX, 1> x = x0s.cols() > 0 ? Eigen::Matrix<double, NX, 1>(x0s.col(k))
                                                      : Eigen::Matrix<double, NX, 1>::Zero();
-    return substeps_for(ts, physics_spectral_radius(phys, p.data(), x.data(), u0.data()), opt);
+    return physics_substeps(phys, opt, p.data(), x.data(), u, ts);
   };
   with_register_bytes(
       [&]<std::size_t R>() {

@@ -243,13 +243,11 @@ class GreyBoxProblem {
     }
   }
 
-  /// Sub-step count for experiment e at physical parameters p and initial state x0.
+  /// Sub-step count for experiment e at physical parameters p and initial state x0: the count
+  /// `GreyBox::simulate` takes for the same run (`physics_substeps`).
   [[nodiscard]] int substeps(std::size_t e, const double* p, const double* x0) const {
     const Experiment& ex = (*data_)[e];
-    Eigen::Matrix<double, NU, 1> u0(nu_);
-    for (int j = 0; j < nu_; ++j) u0[j] = ex.u()(0, j);
-    const double rho = physics_spectral_radius(phys_, p, x0, u0.data());
-    return substeps_for(ex.ts(), rho, options_);
+    return physics_substeps(phys_, options_, p, x0, ex.u(), ex.ts());
   }
 
   /// Residuals and (if `J` is not null) the Jacobian at θ; false if a simulation diverged, an

@@ -17,8 +17,8 @@
 ///
 /// Sub-steps. n = `substeps_for(T_s, ρ, options)` (integrators.hpp) with ρ an upper bound on the
 /// spectral radius of ∂f/∂x: the physics' `spectral_radius(p)` when it has one (state-dependent
-/// stiffness such as a hard stop can only be known from the physics), otherwise the Gershgorin
-/// bound max_i Σ_j |∂f_i/∂x_j| at the initial state and first input. n is computed from the
+/// stiffness such as a hard stop can only be known from the physics), otherwise the largest
+/// Gershgorin bound max_i Σ_j |∂f_i/∂x_j| along the run (`physics_substeps`). n is computed from the
 /// `double` parameter values, so value and Dual runs take identical steps (their derivatives then
 /// describe exactly the discrete map that produced the residuals).
 ///
@@ -157,6 +157,105 @@ bool physics_stiffness_finite(const P& phys, const double* p) {
     (void)p;
     return true;
   }
+}
+
+namespace detail {
+
+// Gershgorin bound max_i Σ_j |∂f_i/∂x_j| at (x, u); 0 (unknown) if the Jacobian is not finite.
+// A static physics is differentiated in one pass on Dual<double, n_x> held on the stack, so the
+// trajectory rule below allocates nothing per sample.
+template <Physics P>
+double gershgorin_bound(const P& phys, const double* x, const double* u, const double* p) {
+  if constexpr (StaticPhysics<P>) {
+    constexpr int NX = P::num_states, NU = P::num_inputs, NP = P::num_params;
+    using D = Dual<double, NX>;
+    std::array<D, NX> xd, dx;
+    std::array<D, (NU > 0 ? NU : 1)> ud;
+    std::array<D, (NP > 0 ? NP : 1)> pd;
+    for (int j = 0; j < NX; ++j) xd[static_cast<std::size_t>(j)] = D::variable(x[j], j);
+    for (int j = 0; j < NU; ++j) ud[static_cast<std::size_t>(j)] = D(u[j]);
+    for (int j = 0; j < NP; ++j) pd[static_cast<std::size_t>(j)] = D(p[j]);
+    phys.derivative(xd.data(), ud.data(), pd.data(), dx.data());
+    double bound = 0.0;
+    for (const D& d : dx) {
+      const double row = d.v.cwiseAbs().sum();
+      if (!std::isfinite(row)) return 0.0;
+      bound = std::max(bound, row);
+    }
+    return bound;
+  } else {
+    const Eigen::MatrixXd J = physics_state_jacobian(phys, x, u, p);
+    return J.allFinite() ? J.cwiseAbs().rowwise().sum().maxCoeff() : 0.0;
+  }
+}
+
+}  // namespace detail
+
+/// Sub-steps per sample for a fixed-step run of `phys` at parameters p from the state x0 over
+/// the inputs u (N × n_u) with sample time ts — the count `GreyBox::simulate` and the estimator
+/// use, so every caller that must reproduce their numbers calls this.
+///
+/// `IntegratorOptions::substeps` if set; else the rule n = ⌈T_s ρ / s⌉ with ρ the physics'
+/// `spectral_radius(p)` when it knows one. A physics that does not (no member, or a negative or
+/// NaN value) gets ρ = the largest Gershgorin bound of ∂f/∂x met along the run itself: a
+/// double-precision pass from x0 evaluates the bound at every sample's state and input and
+/// raises n as soon as a stiffer state is reached. Why the whole run: the bound at the start
+/// alone can be far below the rest — a pendulum started horizontal has |∂f/∂x| ≈ 1 there
+/// against g/L at the bottom of its swing; one RK4 step per 0.2 s sample instead of three left
+/// its swing 70 times further off (tests/greybox/greybox_test.cpp).
+/// n only grows during the pass, and the pass stops where the state leaves the finite numbers
+/// (the simulation proper then reports the divergence). The adaptive method takes no count:
+/// for it the rule at the start is returned, as before. `rho`, if given, receives the ρ the
+/// count came from (for messages on a capped count). Throws `nlid::Error` naming
+/// `spectral_radius` if the physics returns +inf.
+template <Physics P>
+int physics_substeps(const P& phys, const IntegratorOptions& options, const double* p, const double* x0,
+                     const Eigen::MatrixXd& u, double ts, double* rho = nullptr) {
+  constexpr int NX = P::num_states, NU = P::num_inputs;
+  const int nx = detail::physics_states(phys), nu = detail::physics_inputs(phys);
+  Eigen::Matrix<double, NU, 1> uk(nu);
+  for (int j = 0; j < nu; ++j) uk[j] = u.rows() > 0 ? u(0, j) : 0.0;
+  if constexpr (detail::HasSpectralRadius<P>) {
+    // +inf lands here too, and physics_spectral_radius throws for it.
+    if (static_cast<double>(phys.spectral_radius(p)) >= 0.0) {
+      const double own = physics_spectral_radius(phys, p, x0, uk.data());
+      if (rho != nullptr) *rho = own;
+      return substeps_for(ts, own, options);
+    }
+  }
+  double worst = detail::gershgorin_bound(phys, x0, uk.data(), p);
+  if (rho != nullptr) *rho = worst;
+  if (options.substeps > 0) return options.substeps;
+  int n = substeps_for(ts, worst, options);
+  if (options.method == IntegratorMethod::dormand_prince) return n;
+  using State = Eigen::Matrix<double, NX, 1>;
+  State xs(nx);
+  for (int i = 0; i < nx; ++i) xs[i] = x0[i];
+  auto f = [&](const State& s, State& ds) { phys.derivative(s.data(), uk.data(), p, ds.data()); };
+  Rk4Stepper<State> rk4;
+  EulerStepper<State> euler;
+  for (Eigen::Index k = 0; k + 1 < u.rows(); ++k) {
+    for (int j = 0; j < nu; ++j) uk[j] = u(k, j);
+    if (k > 0) {
+      const double r = detail::gershgorin_bound(phys, xs.data(), uk.data(), p);
+      if (r > worst) {
+        worst = r;
+        n = substeps_for(ts, worst, options);
+      }
+    }
+    bool ok = true;
+    if (options.method == IntegratorMethod::rk4) {
+      ok = rk4.integrate(f, xs, ts, n);
+    } else {
+      for (int i = 0; i < n && ok; ++i) {
+        euler.step(f, xs, ts / n);
+        ok = detail::values_finite(xs);
+      }
+    }
+    if (!ok) break;
+  }
+  if (rho != nullptr) *rho = worst;
+  return n;
 }
 
 namespace detail {
