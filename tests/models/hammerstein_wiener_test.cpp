@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "nlid/linear/output_error.hpp"
 #include "nlid/linear/polynomial.hpp"
 #include "nlid/models/hammerstein_wiener.hpp"
 #include "nlid/nonlinearities/piecewise_linear.hpp"
@@ -38,9 +39,9 @@ Eigen::VectorXd wiener_reference(const Eigen::MatrixXd& u, const Eigen::VectorXd
 template <class T>
 std::span<const T> cspan(const std::vector<T>& v) { return {v.data(), v.size()}; }
 
-struct FakeOe {  // anything with toolbox polynomials b() and f(), e.g. an OutputError model
-  Eigen::VectorXd b() const { return Eigen::Vector3d(0, 0.5, 0.25); }
-  Eigen::VectorXd f() const { return Eigen::Vector3d(1, -1.5, 0.7); }
+struct FakeOe {  // anything with toolbox polynomials, as OutputError has them
+  Eigen::VectorXd b_polynomial() const { return Eigen::Vector3d(0, 0.5, 0.25); }
+  Eigen::VectorXd f_polynomial() const { return Eigen::Vector3d(1, -1.5, 0.7); }
 };
 }  // namespace
 
@@ -143,6 +144,30 @@ TEST_CASE("the linear block is set from an earlier linear model's polynomials", 
   Eigen::VectorXd bad(2);
   bad << 1.0, 2.0;
   CHECK_THROWS_WITH(m.set_linear_polynomials(bad, Eigen::Vector2d(1, 0.5)), Catch::Contains("parameter 'F'"));
+}
+
+TEST_CASE("the linear block is set from an estimated OutputError model", "[models][hw]") {
+  // A known B/F system: oe() recovers it from noise-free data, and the block takes its numbers
+  // (OutputError::f() omits F's leading 1, so the block reads f_polynomial()).
+  const int n = 400;
+  Eigen::MatrixXd u(n, 1);
+  for (int k = 0; k < n; ++k) u(k, 0) = std::sin(0.07 * k) + ((k / 17) % 2 == 0 ? 0.5 : -0.5);
+  Eigen::VectorXd y = Eigen::VectorXd::Zero(n);
+  // From rest: samples before the record are zero.
+  const auto at = [&](const auto& v, int k) { return k >= 0 ? v(k) : 0.0; };
+  const Eigen::VectorXd u0 = u.col(0);
+  for (int k = 1; k < n; ++k)
+    y[k] = 1.5 * at(y, k - 1) - 0.7 * at(y, k - 2) + 0.5 * at(u0, k - 1) + 0.25 * at(u0, k - 2);
+  const nlid::Dataset d(nlid::Experiment(u, y, 1.0, "bf"));
+  const nlid::OutputError oe = nlid::oe(d, {2, 2, 1});
+  Wiener m;
+  m.set_linear_block(oe);
+  const auto lin = m.linear_parameters();
+  const std::vector<double> want{0.5, 0.25, -1.5, 0.7};
+  REQUIRE(lin.size() == want.size());
+  for (std::size_t i = 0; i < want.size(); ++i) CHECK(lin[i] == Approx(want[i]).margin(1e-6));
+  const nlid::OutputError wrong = nlid::oe(d, {3, 2, 1});
+  CHECK_THROWS_WITH(m.set_linear_block(wrong), Catch::Contains("parameter 'B'"));
 }
 
 TEST_CASE("HW rejects data it cannot simulate, naming the experiment", "[models][hw]") {

@@ -213,15 +213,17 @@ class HammersteinWiener {
     lin_.set_from_polynomials(b, f, std::span<double>(theta_.data() + linear_offset(),
                                                       static_cast<std::size_t>(lin_.num_parameters())));
   }
-  /// Sets the linear block from a previously estimated linear model with `b()` and `f()`
-  /// polynomials (e.g. an `OutputError` model) — the toolbox GUI cannot do this, the API can.
+  /// Sets the linear block from a previously estimated linear model with the toolbox polynomials
+  /// `b_polynomial()` (nk leading zeros) and monic `f_polynomial()` — an `OutputError` model; the
+  /// toolbox GUI cannot do this, the API can. (Its `b()`/`f()` are the free coefficients, F
+  /// without its leading 1.) An offset of the linear model is not carried: the block has none.
   template <class LinearModel>
     requires requires(const LinearModel& m) {
-      { m.b() } -> std::convertible_to<Eigen::VectorXd>;
-      { m.f() } -> std::convertible_to<Eigen::VectorXd>;
+      { m.b_polynomial() } -> std::convertible_to<Eigen::VectorXd>;
+      { m.f_polynomial() } -> std::convertible_to<Eigen::VectorXd>;
     }
   void set_linear_block(const LinearModel& m) {
-    set_linear_polynomials(m.b(), m.f());
+    set_linear_polynomials(m.b_polynomial(), m.f_polynomial());
   }
   /// Names "input:…", "linear:b1", …, "output:…".
   [[nodiscard]] std::vector<std::string> parameter_names() const {

@@ -229,15 +229,15 @@ class Series {
   void set_linear_polynomials(const Eigen::VectorXd& b, const Eigen::VectorXd& f)
     requires(num_linear_blocks == 1)
   { set_block_polynomials<first_linear()>(b, f); }
-  /// Sets the only linear block from a previously estimated linear model with `b()` and `f()`
-  /// polynomials (e.g. an `OutputError` model).
+  /// Sets the only linear block from a previously estimated linear model with the toolbox
+  /// polynomials `b_polynomial()` and monic `f_polynomial()` (an `OutputError` model).
   template <class LinearModel>
     requires(num_linear_blocks == 1) && requires(const LinearModel& m) {
-      { m.b() } -> std::convertible_to<Eigen::VectorXd>;
-      { m.f() } -> std::convertible_to<Eigen::VectorXd>;
+      { m.b_polynomial() } -> std::convertible_to<Eigen::VectorXd>;
+      { m.f_polynomial() } -> std::convertible_to<Eigen::VectorXd>;
     }
   void set_linear_block(const LinearModel& m) {
-    set_linear_polynomials(m.b(), m.f());
+    set_linear_polynomials(m.b_polynomial(), m.f_polynomial());
   }
 
   // ---- per-block parameters ------------------------------------------------------------------
