@@ -57,6 +57,18 @@ void add_scaled(G& v, const G& g, const S& s) {
   }
   v += s * g;
 }
+// The quotient rule multiplies by r = 1/y (one division per quotient, not one per derivative
+// component), except where r loses what a division keeps: 1/y overflows for a subnormal y and
+// is itself subnormal for |y| > 1/DBL_MIN. Then the caller divides by y instead.
+template <class T>
+bool usable_reciprocal(const T& r) {
+  if constexpr (std::is_floating_point_v<T>) {
+    return std::isnormal(r);
+  } else {
+    (void)r;
+    return true;
+  }
+}
 }  // namespace detail
 
 /// Dual number with value `a` of type T and N derivative components `v`.
@@ -132,18 +144,27 @@ struct Dual {
     a *= o.a;
     return *this;
   }
-  // (x/y)' = x'/y - (x/y)(y'/y)
-  // Each term divides by y itself: through 1/y and (x/y)/y a tiny y (1e-200) overflowed to ∞ (and
-  // ∞·0 = NaN in components y does not move), a huge one (1e300) underflowed to 0, where the
-  // derivative is an ordinary number.
+  // (x/y)' = (x' - (x/y) y') / y
+  // The bracket is formed first and then scaled once: scaling by 1/y and (x/y)/y separately
+  // overflowed for a tiny y (1e-200: (x/y)/y = ∞, and ∞·0 = NaN in components y does not move)
+  // and underflowed for a huge one (1e300), where the derivative is an ordinary number.
   Dual& operator/=(const Dual& o) {
     if (&o == this) return *this /= Dual(o);  // x /= x: read o before it changes
     a /= o.a;  // a true division, so the value is bit-identical to the plain-T evaluation
+    const T r = T(1) / o.a;
     if constexpr (N != Dynamic) {
-      v = v / o.a - a * (o.v / o.a);
+      if (detail::usable_reciprocal(r)) {
+        v = (v - a * o.v) * r;
+      } else {
+        v = (v - a * o.v) / o.a;
+      }
     } else {
-      v /= o.a;
-      if (o.v.size() != 0) detail::add_scaled(v, Gradient(o.v / o.a), T(-a));
+      detail::add_scaled(v, o.v, T(-a));
+      if (detail::usable_reciprocal(r)) {
+        v *= r;
+      } else {
+        v /= o.a;
+      }
     }
     return *this;
   }
@@ -163,10 +184,15 @@ struct Dual {
     v *= s;
     return *this;
   }
-  // (x/s)' = x'/s   (divided, not scaled by 1/s, which overflows for a tiny s)
+  // (x/s)' = x'/s   (scaled by 1/s unless that reciprocal over- or underflows)
   Dual& operator/=(const T& s) {
     a /= s;
-    v /= s;
+    const T r = T(1) / s;
+    if (detail::usable_reciprocal(r)) {
+      v *= r;
+    } else {
+      v /= s;
+    }
     return *this;
   }
 
@@ -242,12 +268,14 @@ template <class T, int N> Dual<T, N> operator*(const Dual<T, N>& x, const Dual<T
     return r *= y;
   }
 }
-// (x/y)' = x'/y - (x/y)(y'/y)   (no 1/y or 1/y², see operator/=)
+// (x/y)' = (x' - (x/y) y') / y   (the bracket scaled once, see operator/=)
 /// Quotient.
 template <class T, int N> Dual<T, N> operator/(const Dual<T, N>& x, const Dual<T, N>& y) {
   if constexpr (N != Dynamic) {
     const T q = x.a / y.a;  // a true division, bit-identical to the plain-T value
-    return Dual<T, N>(q, x.v / y.a - q * (y.v / y.a));
+    const T r = T(1) / y.a;
+    if (detail::usable_reciprocal(r)) return Dual<T, N>(q, (x.v - q * y.v) * r);
+    return Dual<T, N>(q, (x.v - q * y.v) / y.a);
   } else {
     Dual<T, N> r = x;
     return r /= y;
@@ -296,20 +324,25 @@ Dual<T, N> operator*(Dual<T, N> x, const std::type_identity_t<T>& s) { x *= s; r
 /// Scalar times dual (dynamic gradient).
 template <class T, int N> requires(N == Dynamic)
 Dual<T, N> operator*(const std::type_identity_t<T>& s, Dual<T, N> x) { x *= s; return x; }
-// (x/s)' = x'/s   (divided, not scaled by 1/s, which overflows for a tiny s)
+// (x/s)' = x'/s   (scaled by 1/s unless that reciprocal over- or underflows)
 /// Dual over scalar.
 template <class T, int N> requires(N != Dynamic)
 Dual<T, N> operator/(const Dual<T, N>& x, const std::type_identity_t<T>& s) {
-  return Dual<T, N>(x.a / s, x.v / s);  // a true division: value bit-identical to plain T
+  const T r = T(1) / s;
+  // The value is a true division: bit-identical to plain T.
+  if (detail::usable_reciprocal(r)) return Dual<T, N>(x.a / s, x.v * r);
+  return Dual<T, N>(x.a / s, x.v / s);
 }
 /// Dual over scalar (dynamic gradient).
 template <class T, int N> requires(N == Dynamic)
 Dual<T, N> operator/(Dual<T, N> x, const std::type_identity_t<T>& s) { x /= s; return x; }
-// (s/x)' = -(s/x)(x'/x)   (no 1/x², which overflows for a tiny x)
+// (s/x)' = -(s/x) x' / x   (no 1/x², which overflows for a tiny x)
 /// Scalar over dual.
 template <class T, int N> Dual<T, N> operator/(const std::type_identity_t<T>& s, const Dual<T, N>& x) {
-  const T r = s / x.a;
-  return Dual<T, N>(r, T(-r) * (x.v / x.a));
+  const T q = s / x.a;
+  const T r = T(1) / x.a;
+  if (detail::usable_reciprocal(r)) return Dual<T, N>(q, (T(-q) * x.v) * r);
+  return Dual<T, N>(q, (T(-q) * x.v) / x.a);
 }
 
 // ---- comparisons: on the value only (derivatives do not order numbers) --------------------------
