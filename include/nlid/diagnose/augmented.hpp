@@ -166,13 +166,22 @@ class AugmentedModel {
     integ_ = o;
   }
 
-  /// Sub-steps per sample at parameter values `theta` (see the file comment).
+  /// Sub-steps per sample at parameter values `theta` judged at the start (see the file
+  /// comment); a run's own count, for a baseline physics without `spectral_radius`, also covers
+  /// the states the run reaches: `substeps(theta, x0, u)`.
   [[nodiscard]] int substeps(const double* theta, const double* x0, const double* u0) const {
     return substeps_for(ts_, stiffness(theta, x0, u0), integ_);
   }
+  /// Sub-steps per sample of `simulate` over the inputs u (N × n_u): the count at the start, and
+  /// for a baseline physics that does not know its spectral radius the largest Gershgorin bound
+  /// of its ∂f/∂x along a run at that count (plus each effect's rate), as `physics_substeps` for
+  /// a plain grey box — a bound at the start alone can be far below the stiffest state.
+  [[nodiscard]] int substeps(const double* theta, const double* x0, const Eigen::MatrixXd& u) const;
   /// The stiffness estimate ρ [1/s] behind `substeps`: the physics' spectral radius at (x0, u0)
   /// (or a Gershgorin bound of its Jacobian) plus each effect's own rate.
   [[nodiscard]] double stiffness(const double* theta, const double* x0, const double* u0) const;
+  /// The effects' part of `stiffness`: the sum of each effect's own rate (state-independent).
+  [[nodiscard]] double effects_rate(const double* theta) const;
 
   // ---- one sample, piece by piece ----------------------------------------------------------
   // `simulate` is built from these members; the C generator (codegen/augmented.hpp) traces
@@ -217,6 +226,10 @@ class AugmentedModel {
   template <class T>
   Eigen::Index simulate(const Eigen::MatrixXd& u, const T* theta, const T* x0, T* y,
                         T* states = nullptr) const;
+  /// `simulate` with a given sub-step count (≥ 1).
+  template <class T>
+  Eigen::Index simulate_with_substeps(const Eigen::MatrixXd& u, const T* theta, const T* x0, T* y, T* states,
+                                      int sub) const;
 
   /// Free run of an experiment from `x0` at the current parameters: N × 1 outputs. Throws
   /// `nlid::Error` on a channel mismatch or a diverging simulation (naming the sample).
@@ -459,12 +472,14 @@ void AugmentedModel<P>::set_parameters(const Eigen::Ref<const Eigen::VectorXd>& 
 
 template <Physics P>
 double AugmentedModel<P>::stiffness(const double* theta, const double* x0, const double* u0) const {
-  double rho = physics_spectral_radius(phys_, theta, x0, u0);
-  if (!std::isfinite(rho) || rho < 0.0) {
-    // The physics does not know its stiffness: Gershgorin bound of ∂f/∂x at the start.
-    const Eigen::MatrixXd J = physics_state_jacobian(phys_, x0, u0, theta);
-    rho = J.allFinite() ? J.cwiseAbs().rowwise().sum().maxCoeff() : 0.0;
-  }
+  // The physics' own bound, or (it does not know its stiffness) the Gershgorin bound of ∂f/∂x
+  // at the start.
+  return physics_spectral_radius(phys_, theta, x0, u0) + effects_rate(theta);
+}
+
+template <Physics P>
+double AugmentedModel<P>::effects_rate(const double* theta) const {
+  double rho = 0.0;
   for (std::size_t i = 0; i < effects_.size(); ++i) {
     const Effect& e = effects_[i];
     const double* q = theta + offsets_[i];
@@ -486,6 +501,41 @@ template <Physics P>
 template <class T>
 Eigen::Index AugmentedModel<P>::simulate(const Eigen::MatrixXd& u, const T* theta, const T* x0, T* y,
                                          T* states) const {
+  if (u.rows() == 0) return 0;
+  // Sub-steps from the value parts (identical for double and Dual runs).
+  const int nx = detail::physics_states(phys_);
+  std::vector<double> thv(static_cast<std::size_t>(num_parameters())), x0v(static_cast<std::size_t>(nx));
+  for (int i = 0; i < num_parameters(); ++i) thv[static_cast<std::size_t>(i)] = static_cast<double>(value_of(theta[i]));
+  for (int i = 0; i < nx; ++i) x0v[static_cast<std::size_t>(i)] = static_cast<double>(value_of(x0[i]));
+  return simulate_with_substeps(u, theta, x0, y, states, substeps(thv.data(), x0v.data(), u));
+}
+
+template <Physics P>
+int AugmentedModel<P>::substeps(const double* theta, const double* x0, const Eigen::MatrixXd& u) const {
+  const int nx = detail::physics_states(phys_), nu = detail::physics_inputs(phys_);
+  std::vector<double> u0(static_cast<std::size_t>(std::max(nu, 1)), 0.0);
+  for (int j = 0; j < nu && u.rows() > 0; ++j) u0[static_cast<std::size_t>(j)] = u(0, j);
+  const int sub = std::max(1, substeps(theta, x0, u0.data()));
+  bool known = false;
+  if constexpr (detail::HasSpectralRadius<P>) known = static_cast<double>(phys_.spectral_radius(theta)) >= 0.0;
+  if (known || integ_.substeps > 0 || u.rows() < 2) return sub;
+  // The baseline does not know its stiffness: run once at the start's count and take the
+  // stiffest baseline state met (the effects' rates do not depend on the state).
+  const Eigen::Index n = u.rows();
+  std::vector<double> y(static_cast<std::size_t>(n)), states(static_cast<std::size_t>(n * nx));
+  const Eigen::Index got = simulate_with_substeps<double>(u, theta, x0, y.data(), states.data(), sub);
+  double worst = 0.0;
+  for (Eigen::Index k = 0; k < got; ++k) {
+    for (int j = 0; j < nu; ++j) u0[static_cast<std::size_t>(j)] = u(k, j);
+    worst = std::max(worst, detail::gershgorin_bound(phys_, states.data() + k * nx, u0.data(), theta));
+  }
+  return std::max(sub, substeps_for(ts_, worst + effects_rate(theta), integ_));
+}
+
+template <Physics P>
+template <class T>
+Eigen::Index AugmentedModel<P>::simulate_with_substeps(const Eigen::MatrixXd& u, const T* theta, const T* x0, T* y,
+                                                       T* states, int sub) const {
   // Continuous state [x; w]: fixed-size (stack, no heap) for a static physics. The actuator
   // state w is always carried (ẇ = 0 without the lag effect) so the size never changes.
   constexpr int NC = P::num_states == Dynamic ? Eigen::Dynamic : P::num_states + 1;
@@ -495,14 +545,9 @@ Eigen::Index AugmentedModel<P>::simulate(const Eigen::MatrixXd& u, const T* thet
   const Eigen::Index n = u.rows();
   if (n == 0) return 0;
   const int nc = nx + 1;
-
-  // Sub-steps from the value parts (identical for double and Dual runs).
-  std::vector<double> thv(static_cast<std::size_t>(num_parameters())), x0v(static_cast<std::size_t>(nx)),
-      u0v(static_cast<std::size_t>(std::max(nu, 1)), 0.0);
+  std::vector<double> thv(static_cast<std::size_t>(num_parameters()));
   for (int i = 0; i < num_parameters(); ++i) thv[static_cast<std::size_t>(i)] = static_cast<double>(value_of(theta[i]));
-  for (int i = 0; i < nx; ++i) x0v[static_cast<std::size_t>(i)] = static_cast<double>(value_of(x0[i]));
-  for (int j = 0; j < nu; ++j) u0v[static_cast<std::size_t>(j)] = u(0, j);
-  const int sub = std::max(1, substeps(thv.data(), x0v.data(), u0v.data()));
+  sub = std::max(1, sub);
   const double hs = ts_ / sub;
   const int m = dead_time_samples(thv.data());
 
