@@ -12,6 +12,7 @@
 #include "nlid/models/physics/mass_spring_damper.hpp"
 #include "nlid/models/physics/throttle.hpp"
 #include "synth.hpp"
+#include "../support/unrated_pendulum.hpp"
 
 using namespace nlid;
 
@@ -271,32 +272,11 @@ TEST_CASE("refit: recovers a known effect parameter from noisy data", "[diagnose
   CHECK(r.theta(1) == Approx(100.0).epsilon(0.02));
 }
 
-namespace {
-// No spectral_radius: |∂f/∂x| is 1 released horizontal, 10.5 at the bottom of the swing.
-struct AugUnratedPendulum {
-  static constexpr int num_states = 2, num_inputs = 1, num_outputs = 1, num_params = 2;
-  std::array<nlid::ParameterInfo, 2> parameter_info() const {
-    return {{{"g_l", "1/s^2", "gravity / length", 10.0, 0.0, INFINITY, 1, 100, true, false},
-             {"c", "1/s", "damping", 0.5, 0.0, INFINITY, 0.05, 5, true, false}}};
-  }
-  template <class T>
-  void derivative(const T* x, const T* u, const T* p, T* dx) const {
-    using std::sin;
-    dx[0] = x[1];
-    dx[1] = -p[0] * sin(x[0]) - p[1] * x[1] + u[0];
-  }
-  template <class T>
-  void output(const T* x, const T*, const T*, T* y) const {
-    y[0] = x[0];
-  }
-};
-}  // namespace
-
 TEST_CASE("augmented model: without a spectral radius the sub-steps cover the stiffest state of the run",
           "[diagnose][augmented]") {
-  const AugUnratedPendulum pend;
+  const nlid_test::UnratedPendulum pend;
   const double ts = 0.2;
-  AugmentedModel<AugUnratedPendulum> m(pend, diag_test::table(pend, {}), ts);
+  AugmentedModel<nlid_test::UnratedPendulum> m(pend, diag_test::table(pend, {}), ts);
   const Eigen::MatrixXd u = Eigen::MatrixXd::Zero(100, 1);
   const Eigen::Vector2d x0(1.5, 0.0);
   const Eigen::VectorXd theta = m.parameters();
@@ -306,7 +286,7 @@ TEST_CASE("augmented model: without a spectral radius the sub-steps cover the st
   // RK4) and is close to a finely sub-stepped reference.
   const Experiment e(u, Eigen::MatrixXd::Zero(100, 1), ts);
   const Eigen::MatrixXd y = m.simulate(e, x0);
-  GreyBox<AugUnratedPendulum> g;
+  GreyBox<nlid_test::UnratedPendulum> g;
   CHECK((y - g.simulate(u, ts, x0)).cwiseAbs().maxCoeff() < 1e-12);
   IntegratorOptions fine;
   fine.substeps = 400;

@@ -13,6 +13,7 @@
 #include "nlid/models/greybox_problem.hpp"
 #include "nlid/models/physics/catalogue.hpp"
 #include "../support/sanitizer.hpp"
+#include "../support/unrated_pendulum.hpp"
 #include "test_data.hpp"
 
 using nlid::Dataset;
@@ -786,33 +787,12 @@ TEST_CASE("A NaN spectral radius falls back to the Gershgorin bound, +inf is ref
   CHECK_FALSE(problem.evaluate(inf.parameters(), r, nullptr));
 }
 
-// The pendulum of docs/greybox.md: no spectral_radius, and a Jacobian whose size depends on the
-// angle (|∂f/∂x| ≈ max(1, c) when horizontal, g/L + c hanging down).
-struct SwingingPendulum {
-  static constexpr int num_states = 2, num_inputs = 1, num_outputs = 1, num_params = 3;
-  std::array<nlid::ParameterInfo, 3> parameter_info() const {
-    return {{{"g_l", "1/s^2", "gravity / length", 10.0, 0.0, INFINITY, 1, 100, true, false},
-             {"c", "1/s", "damping", 0.5, 0.0, INFINITY, 0.05, 5, true, false},
-             {"b", "{y}/({u}*s^2)", "input gain", 1.0, -INFINITY, INFINITY, 0.2, 5, true, false}}};
-  }
-  template <class T>
-  void derivative(const T* x, const T* u, const T* p, T* dx) const {
-    using std::sin;
-    dx[0] = x[1];
-    dx[1] = -p[0] * sin(x[0]) - p[1] * x[1] + p[2] * u[0];
-  }
-  template <class T>
-  void output(const T* x, const T*, const T*, T* y) const {
-    y[0] = x[0];
-  }
-};
-
 TEST_CASE("Without a spectral radius the sub-step count covers the stiffest state of the run, not only its start",
           "[greybox][integrators]") {
   // Released from horizontal the Gershgorin bound is 1 (one RK4 step per 0.2 s sample); at the
   // bottom of the swing it is 10.5 (three). Judged at the start only, the run took 1 step per
   // sample and ended 6e-3 rad from the true swing, 70 times the error of three.
-  GreyBox<SwingingPendulum> m;
+  GreyBox<nlid_test::UnratedPendulum> m;
   const double ts = 0.2;
   const Eigen::MatrixXd u = Eigen::MatrixXd::Zero(100, 1);
   const Eigen::Vector2d x0(std::numbers::pi / 2, 0.0);
@@ -821,7 +801,7 @@ TEST_CASE("Without a spectral radius the sub-step count covers the stiffest stat
   const Eigen::MatrixXd y = m.simulate(u, ts, x0);
   nlid::IntegratorOptions fine;
   fine.substeps = 400;
-  GreyBox<SwingingPendulum> ref = m;
+  GreyBox<nlid_test::UnratedPendulum> ref = m;
   ref.set_integrator(fine);
   const Eigen::MatrixXd y_ref = ref.simulate(u, ts, x0);
   const double err = (y - y_ref).cwiseAbs().maxCoeff();
@@ -829,13 +809,13 @@ TEST_CASE("Without a spectral radius the sub-step count covers the stiffest stat
   // The count at the start alone (what the rule gave before): visibly wrong.
   nlid::IntegratorOptions start_only;
   start_only.substeps = 1;
-  GreyBox<SwingingPendulum> coarse = m;
+  GreyBox<nlid_test::UnratedPendulum> coarse = m;
   coarse.set_integrator(start_only);
   CHECK((coarse.simulate(u, ts, x0) - y_ref).cwiseAbs().maxCoeff() > 3.0 * err);
   // Estimation takes the same count as simulation: its residuals at the true parameters are
   // those of `simulate`.
   const Dataset d(Experiment(u, y, ts));
-  const nlid::GreyBoxProblem<SwingingPendulum> problem(m.physics(), m.integrator(), d, InitialCondition::estimate);
+  const nlid::GreyBoxProblem<nlid_test::UnratedPendulum> problem(m.physics(), m.integrator(), d, InitialCondition::estimate);
   Eigen::VectorXd theta(problem.num_parameters());
   theta << m.parameters(), x0;
   CHECK(problem.substeps(0, theta.data(), x0.data()) == 3);

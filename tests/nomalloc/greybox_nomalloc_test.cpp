@@ -8,6 +8,7 @@
 #include "nlid/models/greybox.hpp"
 #include "nlid/models/greybox_problem.hpp"
 #include "nlid/models/physics/catalogue.hpp"
+#include "../support/unrated_pendulum.hpp"
 
 namespace {
 struct MallocGuard {
@@ -86,39 +87,20 @@ TEST_CASE("Grey-box simulation and Jacobian allocate nothing", "[nomalloc][greyb
   CHECK(J.allFinite());
 }
 
-namespace {
-// No spectral_radius: the sub-step rule takes the Gershgorin bound along each run
-// (physics_substeps), a double pass with a Jacobian per sample — on the stack too.
-struct UnratedPendulum {
-  static constexpr int num_states = 2, num_inputs = 1, num_outputs = 1, num_params = 2;
-  std::array<nlid::ParameterInfo, 2> parameter_info() const {
-    return {{{"g_l", "1/s^2", "gravity / length", 10.0, 0.0, INFINITY, 1, 100, true, false},
-             {"c", "1/s", "damping", 0.5, 0.0, INFINITY, 0.05, 5, true, false}}};
-  }
-  template <class T>
-  void derivative(const T* x, const T* u, const T* p, T* dx) const {
-    using std::sin;
-    dx[0] = x[1];
-    dx[1] = -p[0] * sin(x[0]) - p[1] * x[1] + u[0];
-  }
-  template <class T>
-  void output(const T* x, const T*, const T*, T* y) const {
-    y[0] = x[0];
-  }
-};
-}  // namespace
-
+// nlid_test::UnratedPendulum has no spectral_radius: the sub-step rule takes the Gershgorin
+// bound along each run (physics_substeps), a double pass with a Jacobian per sample — on the
+// stack too.
 TEST_CASE("The sub-step rule along a run allocates nothing for a fixed-size physics", "[nomalloc][greybox]") {
-  nlid::GreyBox<UnratedPendulum> m;
+  nlid::GreyBox<nlid_test::UnratedPendulum> m;
   const double ts = 0.2;
   const Eigen::MatrixXd u = Eigen::MatrixXd::Zero(300, 1);
   const Eigen::Vector2d x0(1.5, 0.0);
   const nlid::Dataset data(nlid::Experiment(u, m.simulate(u, ts, x0), ts, "swing"));
-  const nlid::GreyBoxProblem<UnratedPendulum> pb(m.physics(), m.integrator(), data, nlid::InitialCondition::estimate);
-  Eigen::VectorXd theta(4);
+  const nlid::GreyBoxProblem<nlid_test::UnratedPendulum> pb(m.physics(), m.integrator(), data, nlid::InitialCondition::estimate);
+  Eigen::VectorXd theta(5);
   theta << m.parameters(), x0;
   Eigen::VectorXd r(pb.num_residuals());
-  Eigen::MatrixXd J(pb.num_residuals(), 4);
+  Eigen::MatrixXd J(pb.num_residuals(), 5);
   const Eigen::VectorXd p = m.parameters();
   int sub = 0;
   bool ok_r = false, ok_j = false;
