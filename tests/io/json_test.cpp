@@ -512,4 +512,14 @@ TEST_CASE("A null const char* key is an nlid::Error, not undefined behaviour") {
   CHECK(arr[0] == nlid::Json(7));
   CHECK(static_cast<const nlid::Json&>(arr)[0].as_number() == 7.0);
   CHECK(doc.at("m").contains("k"));
+  // The accessors that never throw treat a null key as naming no member; value_or refuses it.
+  CHECK(cj.find(none) == nullptr);
+  CHECK_FALSE(cj.contains(none));
+  CHECK_FALSE(doc.at("m").contains(none));
+  CHECK_FALSE(j.erase(none));
+  CHECK(j.size() == 1u);
+  CHECK(cj.find(key) != nullptr);
+  CHECK_THROWS_WITH(doc.at("m").value_or(none, 5.0), Catch::Contains("a null const char* is not a key (value_or at m)"));
+  CHECK(doc.at("m").value_or(k, 5.0) == 2.0);
+  CHECK(doc.at("m").value_or("absent", 5.0) == 5.0);
 }

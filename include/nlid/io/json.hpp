@@ -297,6 +297,11 @@ class Json {
     }
     return false;
   }
+  /// `erase(key)` with a C-string key; a null pointer names no member (false).
+  template <std::same_as<char> C>
+  bool erase(const C* key) {
+    return key != nullptr && erase(std::string_view(key));
+  }
 
   // ---- reading --------------------------------------------------------------------------
 
@@ -319,8 +324,19 @@ class Json {
     }
     return nullptr;
   }
+  /// `find(key)` with a C-string key: a null pointer names no member (null), so these calls
+  /// that never throw stay defined for it.
+  template <std::same_as<char> C>
+  [[nodiscard]] const Json* find(const C* key) const noexcept {
+    return key == nullptr ? nullptr : find(std::string_view(key));
+  }
   /// True if this is an object with member `key`.
   [[nodiscard]] bool contains(std::string_view key) const noexcept { return find(key) != nullptr; }
+  /// `contains(key)` with a C-string key (false for a null pointer).
+  template <std::same_as<char> C>
+  [[nodiscard]] bool contains(const C* key) const noexcept {
+    return find(key) != nullptr;
+  }
   /// Number of elements (array) or members (object); 0 for scalars.
   [[nodiscard]] std::size_t size() const noexcept {
     if (is_array()) return std::get<Array>(value_).size();
@@ -471,6 +487,11 @@ class JsonView {
   [[nodiscard]] JsonView operator[](std::size_t index) const { return at(index); }
   /// True if this is an object with member `key`.
   [[nodiscard]] bool contains(std::string_view key) const noexcept { return node_->contains(key); }
+  /// `contains(key)` with a C-string key (false for a null pointer).
+  template <std::same_as<char> C>
+  [[nodiscard]] bool contains(const C* key) const noexcept {
+    return node_->contains(key);
+  }
   /// Elements or members; 0 for scalars.
   [[nodiscard]] std::size_t size() const noexcept { return node_->size(); }
   /// Keys of this object in order (throws if not an object).
@@ -553,6 +574,13 @@ class JsonView {
     const Json* child = node_->find(key);
     if (child == nullptr || child->is_null()) return fallback;
     return JsonView(*child, child_path(key)).get<T>();
+  }
+  /// `value_or(key, fallback)` with a C-string key; a null pointer is refused with an
+  /// `nlid::Error` naming the path (a fallback would hide the caller's bug).
+  template <class T, std::same_as<char> C>
+  [[nodiscard]] T value_or(const C* key, T fallback) const {
+    if (key == nullptr) fail("a null const char* is not a key (value_or at " + path_text() + ")");
+    return value_or(std::string_view(key), std::move(fallback));
   }
   /// Throws if this object has a key outside `allowed` (catches typos in hand-edited files:
   /// "unknown key 'iteratons' at options (allowed: max_iterations, tolerance)").
