@@ -11,6 +11,7 @@
 #include "nlid/nonlinearities/piecewise_linear.hpp"
 #include "nlid/nonlinearities/saturation.hpp"
 #include "nlid/nonlinearities/unit_gain.hpp"
+#include "test_inputs.hpp"
 
 using nlid::Dynamic;
 
@@ -149,16 +150,7 @@ TEST_CASE("the linear block is set from an earlier linear model's polynomials", 
 TEST_CASE("the linear block is set from an estimated OutputError model", "[models][hw]") {
   // A known B/F system: oe() recovers it from noise-free data, and the block takes its numbers
   // (OutputError::f() omits F's leading 1, so the block reads f_polynomial()).
-  const int n = 400;
-  Eigen::MatrixXd u(n, 1);
-  for (int k = 0; k < n; ++k) u(k, 0) = std::sin(0.07 * k) + ((k / 17) % 2 == 0 ? 0.5 : -0.5);
-  Eigen::VectorXd y = Eigen::VectorXd::Zero(n);
-  // From rest: samples before the record are zero.
-  const auto at = [&](const auto& v, int k) { return k >= 0 ? v(k) : 0.0; };
-  const Eigen::VectorXd u0 = u.col(0);
-  for (int k = 1; k < n; ++k)
-    y[k] = 1.5 * at(y, k - 1) - 0.7 * at(y, k - 2) + 0.5 * at(u0, k - 1) + 0.25 * at(u0, k - 2);
-  const nlid::Dataset d(nlid::Experiment(u, y, 1.0, "bf"));
+  const nlid::Dataset d(nlid_test::known_bf_record(400, 0.07, 17, 0.5, "bf"));
   const nlid::OutputError oe = nlid::oe(d, {2, 2, 1});
   Wiener m;
   m.set_linear_block(oe);

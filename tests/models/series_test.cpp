@@ -20,6 +20,7 @@
 #include "nlid/nonlinearities/polynomial.hpp"
 #include "nlid/nonlinearities/saturation.hpp"
 #include "nlid/nonlinearities/unit_gain.hpp"
+#include "test_inputs.hpp"
 
 using nlid::Dynamic;
 
@@ -381,16 +382,7 @@ TEST_CASE("series rejects bad input with located messages", "[models][series]") 
 TEST_CASE("Series: the only linear block is set from an estimated OutputError model", "[models][series]") {
   // oe() on noise-free data of B = 0.5 q^-1 + 0.25 q^-2, F = 1 - 1.5 q^-1 + 0.7 q^-2; the block
   // reads the toolbox polynomials (OutputError::f() leaves out F's leading 1).
-  const int n = 400;
-  Eigen::MatrixXd u(n, 1);
-  for (int k = 0; k < n; ++k) u(k, 0) = std::sin(0.05 * k) + ((k / 13) % 2 == 0 ? 0.4 : -0.4);
-  Eigen::VectorXd y = Eigen::VectorXd::Zero(n);
-  // From rest: samples before the record are zero.
-  const auto at = [&](const auto& v, int k) { return k >= 0 ? v(k) : 0.0; };
-  const Eigen::VectorXd u0 = u.col(0);
-  for (int k = 1; k < n; ++k)
-    y[k] = 1.5 * at(y, k - 1) - 0.7 * at(y, k - 2) + 0.5 * at(u0, k - 1) + 0.25 * at(u0, k - 2);
-  const nlid::OutputError oe = nlid::oe(nlid::Dataset(nlid::Experiment(u, y, 1.0, "bf")), {2, 2, 1});
+  const nlid::OutputError oe = nlid::oe(nlid::Dataset(nlid_test::known_bf_record(400, 0.05, 13, 0.4, "bf")), {2, 2, 1});
   nlid::Hammerstein<nlid::Poly1d<2>, Tf220> m;
   m.set_linear_block(oe);
   const auto lin = m.block_parameters(1);
