@@ -124,41 +124,6 @@ Eigen::MatrixXd physics_state_jacobian(const P& phys, const double* x, const dou
   return J;
 }
 
-/// Upper bound on the spectral radius of ∂f/∂x used by the sub-step rule: the physics' own
-/// `spectral_radius(p)` if it has one and it is a number ≥ 0, else (negative or NaN: "unknown")
-/// the Gershgorin bound max_i Σ_j |∂f_i/∂x_j| at (x, u). Throws `nlid::Error` naming
-/// `spectral_radius` if the physics returns +inf.
-template <Physics P>
-double physics_spectral_radius(const P& phys, const double* p, const double* x, const double* u) {
-  if constexpr (detail::HasSpectralRadius<P>) {
-    const double rho = static_cast<double>(phys.spectral_radius(p));
-    // An infinitely stiff system has no stable explicit step: the sub-step rule reads a
-    // non-finite radius as unknown and would take the fewest sub-steps, the opposite of what
-    // the physics means.
-    require(rho != std::numeric_limits<double>::infinity(),
-            "the physics' spectral_radius(p) is +inf: no number of explicit integrator sub-steps is stable; return a "
-            "finite bound, or a negative value for unknown",
-            at_parameter("spectral_radius"));
-    if (rho >= 0.0) return rho;
-  }
-  const Eigen::MatrixXd J = physics_state_jacobian(phys, x, u, p);
-  return J.allFinite() ? J.cwiseAbs().rowwise().sum().maxCoeff() : 0.0;
-}
-
-/// False if the physics declares itself infinitely stiff at p (`spectral_radius(p)` = +inf),
-/// where `physics_spectral_radius` throws: an estimator rejects such a trial point like a
-/// diverging one instead of ending the search.
-template <Physics P>
-bool physics_stiffness_finite(const P& phys, const double* p) {
-  if constexpr (detail::HasSpectralRadius<P>) {
-    return static_cast<double>(phys.spectral_radius(p)) != std::numeric_limits<double>::infinity();
-  } else {
-    (void)phys;
-    (void)p;
-    return true;
-  }
-}
-
 namespace detail {
 
 // Gershgorin bound max_i Σ_j |∂f_i/∂x_j| at (x, u); 0 (unknown) if the Jacobian is not finite.
@@ -189,7 +154,55 @@ double gershgorin_bound(const P& phys, const double* x, const double* u, const d
   }
 }
 
+// One sample interval of length ts in `sub` fixed steps of RK4 or Euler (`method` not
+// dormand_prince); false if the state left the finite numbers. The simulation loop and the
+// sub-step rule's pass over a run step alike through this.
+template <class F, class State>
+bool fixed_step_interval(IntegratorMethod method, Rk4Stepper<State>& rk4, EulerStepper<State>& euler, F& f,
+                         State& xs, double ts, int sub) {
+  if (method == IntegratorMethod::rk4) return rk4.integrate(f, xs, ts, sub);
+  for (int i = 0; i < sub; ++i) {
+    euler.step(f, xs, ts / sub);
+    if (!values_finite(xs)) return false;
+  }
+  return true;
+}
+
 }  // namespace detail
+
+/// Upper bound on the spectral radius of ∂f/∂x used by the sub-step rule: the physics' own
+/// `spectral_radius(p)` if it has one and it is a number ≥ 0, else (negative or NaN: "unknown")
+/// the Gershgorin bound max_i Σ_j |∂f_i/∂x_j| at (x, u). Throws `nlid::Error` naming
+/// `spectral_radius` if the physics returns +inf.
+template <Physics P>
+double physics_spectral_radius(const P& phys, const double* p, const double* x, const double* u) {
+  if constexpr (detail::HasSpectralRadius<P>) {
+    const double rho = static_cast<double>(phys.spectral_radius(p));
+    // An infinitely stiff system has no stable explicit step: the sub-step rule reads a
+    // non-finite radius as unknown and would take the fewest sub-steps, the opposite of what
+    // the physics means.
+    require(rho != std::numeric_limits<double>::infinity(),
+            "the physics' spectral_radius(p) is +inf: no number of explicit integrator sub-steps is stable; return a "
+            "finite bound, or a negative value for unknown",
+            at_parameter("spectral_radius"));
+    if (rho >= 0.0) return rho;
+  }
+  return detail::gershgorin_bound(phys, x, u, p);
+}
+
+/// False if the physics declares itself infinitely stiff at p (`spectral_radius(p)` = +inf),
+/// where `physics_spectral_radius` throws: an estimator rejects such a trial point like a
+/// diverging one instead of ending the search.
+template <Physics P>
+bool physics_stiffness_finite(const P& phys, const double* p) {
+  if constexpr (detail::HasSpectralRadius<P>) {
+    return static_cast<double>(phys.spectral_radius(p)) != std::numeric_limits<double>::infinity();
+  } else {
+    (void)phys;
+    (void)p;
+    return true;
+  }
+}
 
 /// Sub-steps per sample for a fixed-step run of `phys` at parameters p from the state x0 over
 /// the inputs u (N × n_u) with sample time ts — the count `GreyBox::simulate` and the estimator
@@ -243,16 +256,7 @@ int physics_substeps(const P& phys, const IntegratorOptions& options, const doub
         n = substeps_for(ts, worst, options);
       }
     }
-    bool ok = true;
-    if (options.method == IntegratorMethod::rk4) {
-      ok = rk4.integrate(f, xs, ts, n);
-    } else {
-      for (int i = 0; i < n && ok; ++i) {
-        euler.step(f, xs, ts / n);
-        ok = detail::values_finite(xs);
-      }
-    }
-    if (!ok) break;
+    if (!detail::fixed_step_interval(options.method, rk4, euler, f, xs, ts, n)) break;
   }
   if (rho != nullptr) *rho = worst;
   return n;
@@ -288,13 +292,8 @@ Eigen::Index simulate_physics_from(const P& phys, const IntegratorOptions& optio
     bool ok = true;
     switch (options.method) {
       case IntegratorMethod::rk4:
-        ok = rk4.integrate(f, xs, ts, sub);
-        break;
       case IntegratorMethod::euler:
-        for (int i = 0; i < sub && ok; ++i) {
-          euler.step(f, xs, ts / sub);
-          ok = values_finite(xs);
-        }
+        ok = fixed_step_interval(options.method, rk4, euler, f, xs, ts, sub);
         break;
       case IntegratorMethod::dormand_prince:
         ok = dopri.integrate(f, xs, ts, h_try, options);
