@@ -694,3 +694,17 @@ TEST_CASE("read_csv: a file name that is not valid UTF-8 gives a valid UTF-8 exp
   CHECK(nlid::valid_utf8("a\xFF\xC3") == "a\xEF\xBF\xBD\xEF\xBF\xBD");
   CHECK(nlid::first_invalid_utf8("ab\xE4") == 2u);
 }
+
+TEST_CASE("write_csv_table quotes a first name that starts with a byte-order mark", "[data][csv]") {
+  // Found by tests/fuzz/csv_fuzz.cpp: written bare as the file's first bytes, the BOM of such a
+  // name was stripped on reading, so the column came back as "" (or "x" for "\xEF\xBB\xBFx").
+  TempDir dir;
+  const std::string path = dir.file("bom.csv");
+  const Eigen::MatrixXd m = Eigen::MatrixXd::Ones(2, 2);
+  for (const std::string& name : {std::string("\xEF\xBB\xBF"), std::string("\xEF\xBB\xBFx")}) {
+    nlid::write_csv_table(path, {name, "b"}, m);
+    const nlid::CsvTable t = nlid::read_csv_table(path);
+    CHECK(t.header == std::vector<std::string>{name, "b"});
+    CHECK(t.data == m);
+  }
+}

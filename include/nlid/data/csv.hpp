@@ -179,8 +179,8 @@ inline CsvTable read_csv_table(const std::string& path, const CsvTableOptions& o
 /// Writes `header` and the rows of `data` atomically, numbers in shortest round-trip form.
 /// Throws, before writing anything, if the header width differs from the column count, a name is
 /// empty, repeated or holds a line break, or the delimiter is one `read_csv_table` refuses.
-/// Names holding the delimiter, quotes or edge blanks are quoted. A header of numbers only reads
-/// back with `CsvTableOptions::numeric_header`.
+/// Names holding the delimiter, quotes, edge blanks or a leading byte-order mark are quoted. A
+/// header of numbers only reads back with `CsvTableOptions::numeric_header`.
 inline void write_csv_table(const std::string& path, const std::vector<std::string>& header,
                             const Eigen::MatrixXd& data, char delimiter = ',') {
   if (header.size() != static_cast<std::size_t>(data.cols())) {

@@ -370,8 +370,10 @@ inline std::string format_double(double x) {
 }
 
 inline std::string quote_if_needed(const std::string& s, char delim) {
-  // With delim ' ' the reader splits at runs of blanks, tabs included.
+  // With delim ' ' the reader splits at runs of blanks, tabs included. A name that starts with a
+  // UTF-8 byte-order mark is quoted: as the file's first bytes the reader would strip it.
   const bool needs = s.find(delim) != std::string::npos || s.find('"') != std::string::npos ||
+                     s.starts_with("\xEF\xBB\xBF") ||
                      (delim == ' ' && s.find('\t') != std::string::npos) ||
                      s.find('\n') != std::string::npos || s.find('\r') != std::string::npos ||
                      (!s.empty() && (s.front() == ' ' || s.front() == '\t' || s.front() == '#' ||
