@@ -523,3 +523,20 @@ TEST_CASE("A null const char* key is an nlid::Error, not undefined behaviour") {
   CHECK(doc.at("m").value_or(k, 5.0) == 2.0);
   CHECK(doc.at("m").value_or("absent", 5.0) == 5.0);
 }
+
+TEST_CASE("Json error previews cut long strings at a character boundary, not inside one") {
+  // Found by tests/fuzz/json_fuzz.cpp: the preview kept the first 40 bytes, which here end inside
+  // the two bytes of 'é', and the cut text then failed the UTF-8 check: a valid string was shown
+  // as "<not UTF-8>".
+  const std::string a39(39, 'a');
+  const nlid::Json j = nlid::Json::parse("{\"s\": \"" + a39 + "\u00e9xyz\"}", "p.json");
+  CHECK(error_of([&] { (void)j.at("s").as_number(); }).message() ==
+        "expected number at s, found string \"" + a39 + "...\"");
+  // A string that is cut after a whole 'é' keeps it.
+  const nlid::Json k = nlid::Json("a\u00e9" + std::string(40, 'b'));
+  CHECK(error_of([&] { (void)k.as_bool(); }).message() ==
+        "expected boolean at top level, found string \"a\u00e9" + std::string(37, 'b') + "...\"");
+  // Malformed text built in code is still reported as such.
+  CHECK_THAT(error_of([&] { (void)nlid::Json(std::string(50, '\xff')).as_bool(); }).message(),
+             Catch::EndsWith("found string \"<not UTF-8>...\""));
+}

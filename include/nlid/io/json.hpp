@@ -785,8 +785,12 @@ inline std::string json_preview(const Json& value) {
     case Json::Type::string: {
       std::string_view t = value.as_string();
       const bool cut = t.size() > 40;
+      // Cut at a character boundary: cutting inside a multi-byte character would make a valid
+      // string look malformed below. (Steps back at most 3 bytes, even in malformed text.)
+      std::size_t keep = 40;
+      for (int k = 0; cut && k < 3 && (static_cast<unsigned char>(t[keep]) & 0xC0) == 0x80; ++k) --keep;
       std::string q;
-      if (append_json_string(q, cut ? t.substr(0, 40) : t) != std::string_view::npos) {
+      if (append_json_string(q, cut ? t.substr(0, keep) : t) != std::string_view::npos) {
         q = "\"<not UTF-8>\"";
       }
       if (cut) q.insert(q.size() - 1, "...");
