@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <bit>
 #include <catch2/catch.hpp>
+#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
@@ -12,6 +13,7 @@
 #include <vector>
 
 #include "../support/error_of.hpp"
+#include "../support/sanitizer.hpp"
 
 namespace {
 
@@ -24,6 +26,18 @@ nlid::Error parse_error(const std::string& text) {
 bool same_bits(double a, double b) {
   return std::bit_cast<std::uint64_t>(a) == std::bit_cast<std::uint64_t>(b);
 }
+
+// Milliseconds that f takes, for the tests that catch an O(n²) slip on large documents.
+template <class F>
+double json_test_milliseconds(F&& f) {
+  const auto t0 = std::chrono::steady_clock::now();
+  f();
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// The calls these tests time take 1-30 ms in Release, the O(n²) versions 5-10 s; sanitizers
+// slow everything about tenfold.
+constexpr double json_test_budget_ms = NLID_TEST_ASAN ? 2000.0 : 200.0;
 
 }  // namespace
 
@@ -539,4 +553,18 @@ TEST_CASE("Json error previews cut long strings at a character boundary, not ins
   // Malformed text built in code is still reported as such.
   CHECK_THAT(error_of([&] { (void)nlid::Json(std::string(50, '\xff')).as_bool(); }).message(),
              Catch::EndsWith("found string \"<not UTF-8>...\""));
+}
+
+TEST_CASE("Json dump without indentation of many small arrays takes linear time") {
+  // The one-line writer searched back for the start of the line (which it never wraps) at
+  // every array: 100 000 empty arrays took seconds.
+  std::string text = "[[]";
+  for (int k = 1; k < 100000; ++k) text += ",[]";
+  text += "]";
+  const nlid::Json j = nlid::Json::parse(text);
+  std::string out;
+  const double ms = json_test_milliseconds([&] { out = j.dump(-1); });
+  WARN("dump(-1) of 100 000 arrays: " << ms << " ms");
+  CHECK(out == text);
+  CHECK(ms < json_test_budget_ms);
 }

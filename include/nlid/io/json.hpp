@@ -882,8 +882,14 @@ class JsonWriter {
     bool all_scalar = true;
     for (const Json& e : a) all_scalar = all_scalar && is_scalar(e);
     const std::size_t wrap = 100;  // scalar arrays wrap near this column
-    std::size_t line_start = out_.rfind('\n');
-    line_start = line_start == std::string::npos ? 0 : line_start + 1;
+    // Only the indented layout wraps. There the scan back to the line start is short (every
+    // array that is not the root begins a line or follows a key); in one-line output it would
+    // cross the whole text for every array, O(n²) for "[[],[],...]".
+    std::size_t line_start = 0;
+    if (!compact) {
+      line_start = out_.rfind('\n');
+      line_start = line_start == std::string::npos ? 0 : line_start + 1;
+    }
     for (std::size_t i = 0; i < a.size(); ++i) {
       path_.push_back({{}, i, false});
       if (i > 0) out_.push_back(',');
