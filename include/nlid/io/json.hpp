@@ -59,6 +59,7 @@
 #include <string_view>
 #include <system_error>
 #include <type_traits>
+#include <unordered_map>
 #include <unordered_set>
 #include <utility>
 #include <variant>
@@ -1461,11 +1462,27 @@ inline bool Json::equal(const Json& a, const Json& b) {
       }
       case Type::object: {
         const Object& xo = std::get<Object>(x.value_);
-        if (xo.size() != y.size()) return false;
+        const Object& yo = std::get<Object>(y.value_);
+        if (xo.size() != yo.size()) return false;
+        // Members match by key, in any order. find() scans, which is cheapest for the small
+        // objects of model files; past 32 members an index of y's keys keeps a large object
+        // from costing n² key comparisons (as the parser's duplicate check does). The index
+        // keeps the first of repeated keys, as find() does (code can make them via as_object()).
+        if (xo.size() < 32) {
+          for (const Member& m : xo) {
+            const Json* other = y.find(m.first);
+            if (other == nullptr) return false;
+            pending.emplace_back(&m.second, other);
+          }
+          return true;
+        }
+        std::unordered_map<std::string_view, const Json*> index;
+        index.reserve(yo.size());
+        for (const Member& m : yo) index.emplace(m.first, &m.second);
         for (const Member& m : xo) {
-          const Json* other = y.find(m.first);
-          if (other == nullptr) return false;
-          pending.emplace_back(&m.second, other);
+          const auto it = index.find(m.first);
+          if (it == index.end()) return false;
+          pending.emplace_back(&m.second, it->second);
         }
         return true;
       }
