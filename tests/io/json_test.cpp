@@ -35,9 +35,9 @@ double json_test_milliseconds(F&& f) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
 
-// The calls these tests time take 1-30 ms in Release, the O(n²) versions 5-10 s; sanitizers
-// slow everything about tenfold.
-constexpr double json_test_budget_ms = NLID_TEST_ASAN ? 2000.0 : 200.0;
+// The calls these tests time take 1-30 ms in Release (150 ms seen on a loaded machine), the
+// O(n²) versions 5-15 s; sanitizers slow everything about tenfold.
+constexpr double json_test_budget_ms = NLID_TEST_ASAN ? 5000.0 : 1000.0;
 
 }  // namespace
 
