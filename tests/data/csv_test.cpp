@@ -8,10 +8,12 @@
 
 #include "../support/error_of.hpp"
 
+#include <clocale>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <iomanip>
 #include <limits>
 #include <random>
 #include <sstream>
@@ -707,4 +709,42 @@ TEST_CASE("write_csv_table quotes a first name that starts with a byte-order mar
     CHECK(t.header == std::vector<std::string>{name, "b"});
     CHECK(t.data == m);
   }
+}
+
+TEST_CASE("read_csv reads the same numbers and sample time under a locale with decimal commas", "[data][csv]") {
+  // strtod (which read cells below the smallest double) and snprintf (which rounded sample-time
+  // candidates) follow LC_NUMERIC: under de_DE "1.5e-400" read as 1, and a sample time printed
+  // with fixed decimals was not recovered. Skipped where no such locale is installed.
+  TempDir dir;
+  std::ostringstream os;
+  os << "t,u,y\n";
+  for (int k = 0; k < 2000; ++k) {
+    const char* u = k == 0 ? "1.5e-400" : k == 1 ? "-2.5e-400" : "0.25";
+    os << std::fixed << std::setprecision(8) << k / 51200.0 << "," << u << ",0.5\n";
+  }
+  const std::string path = dir.write("rate.csv", os.str());
+  const nlid::Experiment in_c = nlid::read_csv(path);
+  REQUIRE(in_c.ts() == 1.0 / 51200.0);
+
+  struct RestoreNumericLocale {
+    std::string saved = std::setlocale(LC_NUMERIC, nullptr);
+    ~RestoreNumericLocale() { std::setlocale(LC_NUMERIC, saved.c_str()); }
+  } restore;
+  bool comma = false;
+  for (const char* name : {"de_DE.UTF-8", "de_DE.utf8", "de_DE", "fr_FR.UTF-8", "fr_FR.utf8", "fr_FR"}) {
+    if (std::setlocale(LC_NUMERIC, name) != nullptr && std::string(std::localeconv()->decimal_point) == ",") {
+      comma = true;
+      break;
+    }
+  }
+  if (!comma) {
+    WARN("no locale with decimal commas installed: not checked");
+    return;
+  }
+  const nlid::Experiment e = nlid::read_csv(path);
+  CHECK(e.u()(0, 0) == 0.0);
+  CHECK_FALSE(std::signbit(e.u()(0, 0)));
+  CHECK(e.u()(1, 0) == 0.0);
+  CHECK(std::signbit(e.u()(1, 0)));
+  CHECK(e.ts() == in_c.ts());
 }

@@ -217,6 +217,35 @@ inline CsvText tokenize_csv(const std::string& path, char delimiter, char decima
   return t;
 }
 
+/// Decimal exponent of the first nonzero digit of a number in from_chars' syntax ([-]digits
+/// [.digits][e[±]digits]), the exponent part saturated at ±10⁹: 2 for "123.4", -3 for
+/// "0.00123", 398 for "1e400". For a value out of the range of double, its sign tells overflow
+/// (> 0) from underflow.
+inline long decimal_order(std::string_view s) {
+  constexpr long cap = 1000000000L;
+  std::size_t i = !s.empty() && (s.front() == '-' || s.front() == '+') ? 1 : 0;
+  long int_digits = 0, digits = 0, first = -1;
+  bool fraction = false;
+  for (; i < s.size() && s[i] != 'e' && s[i] != 'E'; ++i) {
+    if (s[i] == '.') {
+      fraction = true;
+      continue;
+    }
+    if (first < 0 && s[i] != '0') first = digits;
+    ++digits;
+    if (!fraction) ++int_digits;
+  }
+  if (first < 0) return -cap;  // zero (which from_chars never calls out of range)
+  long exponent = 0;
+  bool negative = false;
+  if (i < s.size()) {
+    ++i;
+    if (i < s.size() && (s[i] == '-' || s[i] == '+')) negative = s[i++] == '-';
+    for (; i < s.size(); ++i) exponent = std::min(cap, exponent * 10 + (s[i] - '0'));
+  }
+  return int_digits - 1 - first + (negative ? -exponent : exponent);
+}
+
 /// Parses one cell. Empty → NaN (a missing value). Throws quoting the cell if it is not a number.
 inline double parse_cell(const std::string& cell, char decimal_point, const CsvText& t,
                          std::size_t row, std::size_t col) {
@@ -236,10 +265,10 @@ inline double parse_cell(const std::string& cell, char decimal_point, const CsvT
   };
   if (ec == std::errc::result_out_of_range && ptr == s.data() + s.size()) {
     // from_chars reports underflow (1e-400) and overflow (1e400) alike; only overflow is an
-    // error: a number below the smallest double reads as the nearest double, as strtod does.
-    const std::string z(s);
-    const double w = std::strtod(z.c_str(), nullptr);
-    if (std::isfinite(w)) return w;
+    // error: a number below the smallest double reads as the nearest double, ±0. Told apart
+    // from the text, not by strtod, which reads by the C locale ("1.5e-400" read as 1 under a
+    // German LC_NUMERIC).
+    if (decimal_order(s) < 0) return s.front() == '-' ? -0.0 : 0.0;
     throw Error("number out of the range of double: '" + printable(cell) + "'", where());
   }
   if (ec != std::errc() || ptr != s.data() + s.size()) {
@@ -392,10 +421,12 @@ inline std::string quote_if_needed(const std::string& s, char delim) {
 
 /// x rounded to `digits` significant decimal digits (the double nearest the printed decimal).
 inline double round_significant(double x, int digits) {
+  // to_chars, not snprintf: under a locale with decimal commas "%e" prints "1,5e-03", of which
+  // from_chars reads only the 1 (and the sample time snapped to garbage).
   char buf[64];
-  std::snprintf(buf, sizeof buf, "%.*e", digits - 1, x);
+  const auto res = std::to_chars(buf, buf + sizeof buf, x, std::chars_format::scientific, digits - 1);
   double c = 0.0;
-  std::from_chars(buf, buf + std::char_traits<char>::length(buf), c);
+  std::from_chars(buf, res.ptr, c);
   return c;
 }
 
