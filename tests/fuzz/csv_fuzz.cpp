@@ -10,6 +10,7 @@
 //   Error that lost the file, is a defect;
 // - what is returned holds NaN/Inf only under NonFinitePolicy::keep, and a sample time that is
 //   positive, finite and near the time column's step;
+// - valid_utf8 (which names the experiment after the file) returns valid UTF-8;
 // - what the writers accept reads back the same: names, every value bit for bit (NaN as NaN),
 //   and the same time grid t0 + k·ts.
 #include <unistd.h>
@@ -30,6 +31,7 @@
 #include <vector>
 
 #include "nlid/core/error.hpp"
+#include "nlid/core/utf8.hpp"
 #include "nlid/data/csv.hpp"
 
 namespace {
@@ -153,6 +155,12 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     std::fclose(f);
   }
   const long lines = static_cast<long>(std::count(text.begin(), text.end(), '\n')) + 1;
+
+  // read_csv names the experiment valid_utf8(file stem): the repair must give valid UTF-8 and
+  // leave valid text alone.
+  const std::string repaired = nlid::valid_utf8(text);
+  if (nlid::first_invalid_utf8(repaired) != std::string::npos) csv_fuzz_defect("valid_utf8 output is not UTF-8");
+  if (nlid::first_invalid_utf8(text) == std::string::npos && repaired != text) csv_fuzz_defect("valid_utf8 changed UTF-8");
 
   const char delim = ",; \t"[sel & 3];
   const char decimal = (sel & 4) && delim != ',' ? ',' : '.';
