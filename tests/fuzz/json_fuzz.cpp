@@ -29,27 +29,32 @@ void check(bool ok, const char* what) {
 
 // A location must point into the text: row within its lines, column at most one past the end
 // of that line, counted in code points as the parser counts them (bytes that start a sequence).
-bool inside_text(std::string_view text, long row, long column) {
-  if (row < 1 || column < 1) return false;
-  std::size_t b = 0;
-  for (long r = 1; r < row; ++r) {
-    b = text.find('\n', b);
-    if (b == std::string_view::npos) return false;
-    ++b;
+// Line widths are counted once per input: per error, a long line would make the check O(n²).
+struct Lines {
+  std::vector<long> width{0};
+  explicit Lines(std::string_view text) {
+    for (char c : text) {
+      if (c == '\n') {
+        width.push_back(0);
+      } else {
+        width.back() += (static_cast<unsigned char>(c) & 0xC0) != 0x80;
+      }
+    }
   }
-  long width = 0;
-  for (; b < text.size() && text[b] != '\n'; ++b) width += (static_cast<unsigned char>(text[b]) & 0xC0) != 0x80;
-  return column <= width + 1;
-}
+  bool inside(long row, long column) const {
+    return row >= 1 && row <= static_cast<long>(width.size()) && column >= 1 &&
+           column <= width[static_cast<std::size_t>(row - 1)] + 1;
+  }
+};
 
 // Runs f, which must throw nlid::Error (a wrong-type or missing-key access); an error about a
 // parsed value must carry that value's position.
 template <class F>
-void expect_error(F&& f, std::string_view text) {
+void expect_error(F&& f, const Lines& lines) {
   try {
     f();
   } catch (const nlid::Error& e) {
-    check(inside_text(text, e.where().row, e.where().column), "accessor error outside the text");
+    check(lines.inside(e.where().row, e.where().column), "accessor error outside the text");
     check(e.where().file == "fuzz.json", "accessor error lost the source name");
     return;
   }
@@ -58,12 +63,12 @@ void expect_error(F&& f, std::string_view text) {
 
 // Reads an array through the Eigen and vector readers. Each may refuse the shape with
 // nlid::Error; what a double reader accepts must convert back to the same JSON.
-void read_as_matrices(const nlid::JsonView& v, std::string_view text) {
+void read_as_matrices(const nlid::JsonView& v, const Lines& lines) {
   const auto attempt = [&](auto reader) {
     try {
       reader();
     } catch (const nlid::Error& e) {
-      check(inside_text(text, e.where().row, e.where().column), "reader error outside the text");
+      check(lines.inside(e.where().row, e.where().column), "reader error outside the text");
     }
   };
   attempt([&] { check(nlid::Json(v.get<Eigen::VectorXd>()) == v.json(), "VectorXd round trip"); });
@@ -80,20 +85,20 @@ void read_as_matrices(const nlid::JsonView& v, std::string_view text) {
 }
 
 // Visits every value through JsonView, iteratively (a parsed tree is up to 512 levels deep).
-void walk(const nlid::Json& root, std::string_view text) {
+void walk(const nlid::Json& root, const Lines& lines) {
   std::vector<nlid::JsonView> todo{root.view()};
   while (!todo.empty()) {
     const nlid::JsonView v = std::move(todo.back());
     todo.pop_back();
     const nlid::Json& j = v.json();
-    check(inside_text(text, j.line(), j.column()), "value position outside the text");
+    check(lines.inside(j.line(), j.column()), "value position outside the text");
     using T = nlid::Json::Type;
-    if (j.type() != T::number) expect_error([&] { (void)v.as_number(); }, text);
-    if (j.type() != T::object) expect_error([&] { (void)v.at("k"); }, text);
-    if (j.type() != T::array) expect_error([&] { (void)v.at(0); }, text);
+    if (j.type() != T::number) expect_error([&] { (void)v.as_number(); }, lines);
+    if (j.type() != T::object) expect_error([&] { (void)v.at("k"); }, lines);
+    if (j.type() != T::array) expect_error([&] { (void)v.at(0); }, lines);
     switch (j.type()) {
       case T::null:
-        expect_error([&] { (void)v.as_bool(); }, text);
+        expect_error([&] { (void)v.as_bool(); }, lines);
         break;
       case T::boolean:
         (void)v.as_bool();
@@ -101,7 +106,7 @@ void walk(const nlid::Json& root, std::string_view text) {
       case T::number: {
         const double x = v.as_number();
         check(x - x == 0, "parsed number is not finite");
-        expect_error([&] { (void)v.as_string(); }, text);
+        expect_error([&] { (void)v.as_string(); }, lines);
         // Integer and float reads may refuse the value, never misbehave.
         try { (void)v.get<int>(); } catch (const nlid::Error&) {}
         try { (void)v.get<std::uint8_t>(); } catch (const nlid::Error&) {}
@@ -121,15 +126,15 @@ void walk(const nlid::Json& root, std::string_view text) {
         break;
       }
       case T::array:
-        expect_error([&] { (void)v.at(v.size()); }, text);
-        read_as_matrices(v, text);
+        expect_error([&] { (void)v.at(v.size()); }, lines);
+        read_as_matrices(v, lines);
         for (std::size_t i = 0; i < v.size(); ++i) todo.push_back(v[i]);
         break;
       case T::object: {
         const std::vector<std::string> keys = v.keys();
         check(keys.size() == v.size(), "keys() size");
-        if (!keys.empty()) expect_error([&] { v.check_keys({}); }, text);
-        if (!v.contains("")) expect_error([&] { (void)v.at(""); }, text);
+        if (!keys.empty()) expect_error([&] { v.check_keys({}); }, lines);
+        if (!v.contains("")) expect_error([&] { (void)v.at(""); }, lines);
         for (const std::string& k : keys) {
           check(v.contains(k) && j.find(k) == &v.at(k).json(), "find/at disagree on a key");
           try { (void)v.value_or<double>(k, 0.0); } catch (const nlid::Error&) {}
@@ -153,12 +158,13 @@ void check_round_trip(const nlid::Json& x, int indent) {
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const std::string_view text(reinterpret_cast<const char*>(data), size);
+  const Lines lines(text);
   nlid::Json x;
   try {
     x = nlid::Json::parse(text, "fuzz.json");
   } catch (const nlid::Error& e) {
     check(e.where().file == "fuzz.json", "parse error lost the source name");
-    check(inside_text(text, e.where().row, e.where().column), "parse error position outside the text");
+    check(lines.inside(e.where().row, e.where().column), "parse error position outside the text");
     return 0;
   }
   check(x == x, "x != x");
@@ -167,7 +173,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   check_round_trip(x, 0);
   const nlid::Json copy = x;
   check(copy == x && copy.dump(-1) == x.dump(-1), "copy differs from the original");
-  walk(x, text);
+  walk(x, lines);
 
   // Depth: wrap the value in arrays until its deepest value sits at the limit (it must still
   // round trip), then once more (dump must refuse it with nlid::Error); copy, == and the
