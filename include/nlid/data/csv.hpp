@@ -207,6 +207,7 @@ inline void write_csv_table(const std::string& path, const std::vector<std::stri
     }
   }
   // Everything read_csv_table would refuse or misread is refused before the file is touched.
+  detail::CsvNameIndex names;
   for (std::size_t j = 0; j < header.size(); ++j) {
     Location l;
     l.file = path;
@@ -219,12 +220,10 @@ inline void write_csv_table(const std::string& path, const std::vector<std::stri
     if (header[j].find_first_of("\n\r") != std::string::npos) {
       throw Error("column name contains a line break: '" + detail::printable(header[j]) + "'", l);
     }
-    for (std::size_t i = 0; i < j; ++i) {
-      if (header[i] == header[j]) {
-        throw Error("duplicate column name '" + detail::printable(header[j]) + "' (also column " +
-                        std::to_string(i + 1) + ")",
-                    l);
-      }
+    if (const std::size_t i = names.earlier(header[j], j); i != std::string::npos) {
+      throw Error("duplicate column name '" + detail::printable(header[j]) + "' (also column " +
+                      std::to_string(i + 1) + ")",
+                  l);
     }
   }
   std::string out;
@@ -363,18 +362,17 @@ inline void write_csv(const std::string& path, const Experiment& e,
   header.push_back(options.time_column);
   header.insert(header.end(), e.input_names().begin(), e.input_names().end());
   header.insert(header.end(), e.output_names().begin(), e.output_names().end());
+  detail::CsvNameIndex names;
   for (std::size_t j = 0; j < header.size(); ++j) {
     Location l;
     l.file = path;
     l.column = static_cast<long>(j) + 1;
-    l.column_name = header[j];
+    l.column_name = detail::printable(header[j], std::string::npos);
     if (header[j].empty()) throw Error("channel has an empty name; it could not be read back", l);
-    for (std::size_t i = 0; i < j; ++i) {
-      if (header[i] == header[j]) {
-        throw Error("duplicate column name '" + header[j] + "' (also column " +
-                        std::to_string(i + 1) + "); rename the channel",
-                    l);
-      }
+    if (const std::size_t i = names.earlier(header[j], j); i != std::string::npos) {
+      throw Error("duplicate column name '" + detail::printable(header[j]) + "' (also column " +
+                      std::to_string(i + 1) + "); rename the channel",
+                  l);
     }
   }
   Eigen::MatrixXd table(e.size(), static_cast<Eigen::Index>(header.size()));

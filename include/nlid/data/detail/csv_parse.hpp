@@ -16,6 +16,7 @@
 #include <string>
 #include <string_view>
 #include <system_error>
+#include <unordered_map>
 #include <utility>
 #include <vector>
 
@@ -36,6 +37,21 @@ inline std::string quoted_list(const std::vector<std::string>& names) {
   for (const auto& n : names) s += (s.empty() ? "'" : ", '") + printable(n) + "'";
   return s.empty() ? "(none)" : s;
 }
+
+/// Remembers column names by their first column, so a header of 10⁵ names (a wide logger or
+/// spectrum export) is checked for repeats with 10⁵ lookups, not 5·10⁹ string comparisons.
+/// The names must outlive it.
+class CsvNameIndex {
+ public:
+  /// The earlier column (0-based) named `name`, or npos after recording `j` as its first column.
+  std::size_t earlier(std::string_view name, std::size_t j) {
+    const auto [it, fresh] = first_.emplace(name, j);
+    return fresh ? std::string::npos : it->second;
+  }
+
+ private:
+  std::unordered_map<std::string_view, std::size_t> first_;
+};
 
 /// Tokenised CSV text: header, data rows as strings, and the file line of each row. Kept as text
 /// so only the columns a caller asks for must be numeric (a file may carry a comment column).
@@ -189,14 +205,13 @@ inline CsvText tokenize_csv(const std::string& path, char delimiter, char decima
       have_header = true;
       t.header = fields;
       t.header_line = line_no;
+      CsvNameIndex names;
       for (std::size_t j = 0; j < t.header.size(); ++j) {
         if (t.header[j].empty()) continue;  // unnamed (e.g. a pandas index) – cannot be requested
-        for (std::size_t i = 0; i < j; ++i) {
-          if (t.header[i] == t.header[j]) {
-            throw Error("duplicate column name '" + printable(t.header[j]) + "' (also column " +
-                            std::to_string(i + 1) + ")",
-                        csv_at(path, line_no, static_cast<long>(j) + 1, t.header[j]));
-          }
+        if (const std::size_t i = names.earlier(t.header[j], j); i != std::string::npos) {
+          throw Error("duplicate column name '" + printable(t.header[j]) + "' (also column " +
+                          std::to_string(i + 1) + ")",
+                      csv_at(path, line_no, static_cast<long>(j) + 1, t.header[j]));
         }
       }
       continue;
