@@ -588,3 +588,23 @@ TEST_CASE("Json equality of large objects takes linear time, in any member order
   CHECK_FALSE(a == b);
   CHECK_FALSE(b == a);
 }
+
+TEST_CASE("Json move assignment from a member of the value itself unwraps it") {
+  // The defaulted move assignment destroyed the old value, and the member inside it, before
+  // reading the member: j = std::move(j["a"]) read freed memory (a garbage string, or a crash).
+  nlid::Json j = nlid::Json::parse(R"({"a": {"b": ["a string longer than fifteen bytes", 2]}, "c": 3})");
+  j = std::move(j["a"]);  // object member over the object
+  CHECK(j == nlid::Json::parse(R"({"b": ["a string longer than fifteen bytes", 2]})"));
+  j = std::move(j["b"]);
+  CHECK(j.dump(-1) == R"(["a string longer than fifteen bytes",2])");
+  j = std::move(j[0]);  // array element over the array, a string over an array
+  CHECK(j.as_string() == "a string longer than fifteen bytes");
+  CHECK(j.line() == 1);  // the member's own position, not freed memory
+  CHECK(j.column() == 14);
+  nlid::Json& self = j;
+  j = std::move(self);  // self-move keeps the value
+  CHECK(j.as_string() == "a string longer than fifteen bytes");
+  nlid::Json k = nlid::Json::array({nlid::Json::array({1, 2}), 3});
+  k = k[0];  // copy assignment from a member (copies first, then replaces)
+  CHECK(k == nlid::Json::array({1, 2}));
+}

@@ -149,8 +149,18 @@ class Json {
     if (this != &other) *this = Json(other);
     return *this;
   }
-  /// Takes `other`'s value; the old value is destroyed as by `~Json`.
-  Json& operator=(Json&& other) noexcept = default;
+  /// Takes `other`'s value; the old value is destroyed as by `~Json`. `other` may be part of the
+  /// old value (`j = std::move(j["data"])` unwraps a member): it is moved out first, and the old
+  /// value destroyed last. (The defaulted assignment destroyed the old value, and `other` with
+  /// it, before reading `other`.)
+  Json& operator=(Json&& other) noexcept {
+    Json taken(std::move(other));
+    value_.swap(taken.value_);
+    std::swap(line_, taken.line_);
+    std::swap(column_, taken.column_);
+    source_.swap(taken.source_);
+    return *this;  // `taken` holds the old value now, and destroys it
+  }
   /// Dismantles nested arrays and objects on an explicit stack, so destroying a tree of any depth
   /// does not recurse through it (see "Depth" above).
   ~Json() {
