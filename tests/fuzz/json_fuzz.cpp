@@ -146,6 +146,12 @@ void walk(const nlid::Json& root, const Lines& lines) {
   }
 }
 
+// The first element or member of a non-empty array or object.
+template <class J>
+J& first_child(J& j) {
+  return j.is_array() ? j.as_array().front() : j.as_object().front().second;
+}
+
 // dump must read back to an equal value whose dump is the same text, in both layouts.
 void check_round_trip(const nlid::Json& x, int indent) {
   const std::string text = x.dump(indent);
@@ -174,6 +180,14 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   const nlid::Json copy = x;
   check(copy == x && copy.dump(-1) == x.dump(-1), "copy differs from the original");
   walk(x, lines);
+  // A value replaced by one of its own members (j = std::move(j["a"]), j = j[0]): the member
+  // lives inside the value being replaced, so it must be taken before the old value goes.
+  if (x.size() > 0) {
+    nlid::Json moved = x, copied = x;
+    moved = std::move(first_child(moved));
+    copied = first_child(copied);
+    check(moved == first_child(x) && copied == first_child(x), "assigning a member over its parent");
+  }
 
   // Depth: wrap the value in arrays until its deepest value sits at the limit (it must still
   // round trip), then once more (dump must refuse it with nlid::Error); copy, == and the
