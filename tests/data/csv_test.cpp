@@ -783,3 +783,40 @@ TEST_CASE("a header of 100 000 columns is checked for repeated names in linear t
   err = error_of([&] { nlid::write_csv(path, e); });
   CHECK_THAT(err.what(), Contains("duplicate column name 'a\\x00b' (also column 2)"));
 }
+
+TEST_CASE("write_csv refuses a time grid that read_csv would refuse, rather than write it", "[data][csv][errors]") {
+  // Found by tests/fuzz/csv_fuzz.cpp: a time column 1e17, 2e17 read with the override ts = 0.5
+  // gives t0 = 1e17, and t0 + k*0.5 rounds to 1e17 for every k (doubles there are 16 apart):
+  // write_csv wrote a constant time column that read_csv then refused as not increasing.
+  TempDir dir;
+  nlid::CsvReadOptions o;
+  o.ts = 0.5;
+  const nlid::Experiment e = nlid::read_csv(dir.write("big.csv", "t,u,y\n1e17,0,0\n2e17,0,0\n"), o);
+  const std::string out = dir.file("out.csv");
+  nlid::Error err = error_of([&] { nlid::write_csv(out, e); });
+  CHECK_THAT(err.what(), Contains("t0 = 1e+17, ts = 0.5") && Contains("not evenly spaced doubles from sample 1"));
+  CHECK(err.where().file == out);
+  CHECK(err.where().column_name == "t");
+  CHECK_FALSE(fs::exists(out));
+
+  // Stamps that increase but step unevenly (1e16 + k*1.5 rounds to steps of 2 and 0 or 4), a grid
+  // beyond the largest double, and a record without samples are refused too.
+  const Eigen::MatrixXd z = Eigen::MatrixXd::Zero(8, 1);
+  nlid::Experiment uneven(z, z, 1.5);
+  uneven.set_t0(1e16);
+  CHECK_THROWS_WITH(nlid::write_csv(out, uneven), Contains("not evenly spaced"));
+  nlid::Experiment huge(z, z, 1e308);
+  huge.set_t0(-1e308);
+  CHECK_THROWS_WITH(nlid::write_csv(out, huge), Contains("not evenly spaced"));
+  const nlid::Experiment none(Eigen::MatrixXd::Zero(0, 1), Eigen::MatrixXd::Zero(0, 1), 1.0);
+  CHECK_THROWS_WITH(nlid::write_csv(out, none), Contains("no samples"));
+  CHECK_FALSE(fs::exists(out));
+
+  // A grid the doubles resolve still round-trips: Unix time at 1 MHz.
+  nlid::Experiment unix_time(Eigen::MatrixXd::Zero(1000, 1), Eigen::MatrixXd::Zero(1000, 1), 1e-6);
+  unix_time.set_t0(1.7e9);
+  nlid::write_csv(out, unix_time);
+  const nlid::Experiment back = nlid::read_csv(out);
+  CHECK(back.t0() == unix_time.t0());
+  CHECK(back.size() == 1000);
+}

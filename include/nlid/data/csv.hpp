@@ -355,6 +355,9 @@ inline Dataset read_csv_dataset(const std::vector<std::string>& paths,
 /// Writes an experiment atomically with columns time, inputs, outputs (the channel names as
 /// headers), full precision, so `read_csv` with matching options gives it back exactly.
 /// NaN/Inf samples are written as `nan`/`inf` (read them back with `NonFinitePolicy::keep`).
+/// Throws, before writing anything, if a channel name is empty or repeated, the experiment has
+/// no samples, or its time grid t0 + k·ts does not round to evenly spaced doubles (a short ts
+/// after a large t0), since `read_csv` would refuse such a file.
 inline void write_csv(const std::string& path, const Experiment& e,
                       const CsvWriteOptions& options = {}) {
   e.validate(true);
@@ -379,6 +382,30 @@ inline void write_csv(const std::string& path, const Experiment& e,
   table.col(0) = e.time();
   table.middleCols(1, e.num_inputs()) = e.u();
   table.rightCols(e.num_outputs()) = e.y();
+  // t0 + k·ts is rounded to the doubles near t0, which after a large t0 can be too coarse for ts
+  // (0.5 after 1e17, where doubles are 16 apart) or overflow: stamps that repeat or step
+  // unevenly, which read_csv refuses. Refused here (with read_csv's default tolerance) rather
+  // than written as a file that cannot be read back.
+  Location at_time;
+  at_time.file = path;
+  at_time.column = 1;
+  at_time.column_name = detail::printable(options.time_column, std::string::npos);
+  if (e.empty()) throw Error("experiment has no samples: read_csv could not read the file back", at_time);
+  if (e.size() >= 2) {
+    const Eigen::VectorXd time = table.col(0);
+    const Eigen::Index n = time.size();
+    Eigen::Index k = 1;
+    while (k < n && std::isfinite(time(k) - time(0)) && time(k) > time(k - 1)) ++k;
+    double typical = 0.0;
+    if (k == n) k = detail::first_irregular_step(time, CsvReadOptions{}.time_tolerance, typical);
+    if (k < n) {
+      throw Error("the time stamps t0 + k*ts (t0 = " + detail::num(e.t0()) + ", ts = " + detail::num(e.ts()) +
+                      ") are not evenly spaced doubles from sample " + std::to_string(k) + " on (t = " +
+                      detail::num(time(k)) + " after " + detail::num(time(k - 1)) +
+                      "): read_csv would refuse the file; make t0 smaller (Experiment::set_t0)",
+                  at_time);
+    }
+  }
   write_csv_table(path, header, table, options.delimiter);
 }
 

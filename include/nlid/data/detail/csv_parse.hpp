@@ -595,6 +595,32 @@ inline double time_quantum(const CsvText& t, std::size_t time_col, char decimal_
   return std::pow(10.0, -decimals);
 }
 
+/// The first k whose step time(k) − time(k−1) is not the median step within `tolerance` (relative)
+/// plus a rounding allowance, or time.size() if every step is; `typical` receives the median step.
+/// `time` is finite and increasing with at least 2 stamps. Shared by the reader (`time_axis`) and
+/// `write_csv`, which must not write a time grid the reader refuses.
+inline Eigen::Index first_irregular_step(const Eigen::VectorXd& time, double tolerance, double& typical) {
+  const Eigen::Index n = time.size();
+  const Eigen::VectorXd steps = time.tail(n - 1) - time.head(n - 1);
+  std::vector<double> sorted(steps.data(), steps.data() + steps.size());
+  const auto mid = sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2);
+  std::nth_element(sorted.begin(), mid, sorted.end());
+  typical = *mid;
+  // Each stamp is a double, off its ideal time by up to half an ulp of |t| (and write_csv's
+  // t0 + k·ts by as much again), so with a large t0 and a short step (Unix time 1.7e9 in steps
+  // of 1e-5: one ulp is 2.4e-7) steps jitter by a few ulps of |t| that no tolerance relative
+  // to the step absorbs. A step and the median step both carry that error, hence 8 ulps. The
+  // allowance stays below a quarter of the step, so a dropped sample (a whole step more) is
+  // still caught; stamps too coarse for that are reported as non-uniform, as before.
+  const double t_abs = std::max(std::abs(time(0)), std::abs(time(n - 1)));
+  double rounding = 8.0 * std::numeric_limits<double>::epsilon() * t_abs;
+  if (tolerance < 1.0) rounding = std::min(rounding, 0.25 * (1.0 - tolerance) * typical);
+  for (Eigen::Index k = 1; k < n; ++k) {
+    if (!(std::abs(steps(k - 1) - typical) <= tolerance * typical + rounding)) return k;
+  }
+  return n;
+}
+
 /// Validates the time column and returns (ts, t0): every step is checked against the median
 /// step; `ts_override` > 0 then wins over the column's rate (a disagreement is noted), otherwise
 /// ts is inferred from the column. `*column_step` receives the median step (NaN with one row).
@@ -645,31 +671,18 @@ inline std::pair<double, double> time_axis(const CsvText& t, std::size_t time_co
                     std::to_string(t.lines[static_cast<std::size_t>(k - 1)]) + " is " + num(steps(k - 1)) + ")",
                 at_row(k));
   }
-  std::vector<double> sorted(steps.data(), steps.data() + steps.size());
-  const auto mid = sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2);
-  std::nth_element(sorted.begin(), mid, sorted.end());
-  const double typical = *mid;
+  double typical = 0.0;
+  const Eigen::Index k = first_irregular_step(time, tolerance, typical);
   *column_step = typical;
-  // Each stamp is a double, off its ideal time by up to half an ulp of |t| (and write_csv's
-  // t0 + k·ts by as much again), so with a large t0 and a short step (Unix time 1.7e9 in steps
-  // of 1e-5: one ulp is 2.4e-7) steps jitter by a few ulps of |t| that no tolerance relative
-  // to the step absorbs. A step and the median step both carry that error, hence 8 ulps. The
-  // allowance stays below a quarter of the step, so a dropped sample (a whole step more) is
-  // still caught; stamps too coarse for that are reported as non-uniform, as before.
-  const double t_abs = std::max(std::abs(time(0)), std::abs(time(n - 1)));
-  double rounding = 8.0 * std::numeric_limits<double>::epsilon() * t_abs;
-  if (tolerance < 1.0) rounding = std::min(rounding, 0.25 * (1.0 - tolerance) * typical);
-  for (Eigen::Index k = 1; k < n; ++k) {
+  if (k < n) {
     const double dev = std::abs(steps(k - 1) - typical) / typical;
-    if (!(std::abs(steps(k - 1) - typical) <= tolerance * typical + rounding)) {
-      throw Error("non-uniform time column: step " + num(steps(k - 1)) + " from row " +
-                      std::to_string(t.lines[static_cast<std::size_t>(k - 1)]) + " deviates by " +
-                      percent(dev) + " from the typical step " + num(typical) + " (tolerance " +
-                      percent(tolerance) +
-                      "); missing samples? cut the record at the gap or fill it, or raise "
-                      "CsvReadOptions::time_tolerance if the stamps only jitter",
-                  at_row(k));
-    }
+    throw Error("non-uniform time column: step " + num(steps(k - 1)) + " from row " +
+                    std::to_string(t.lines[static_cast<std::size_t>(k - 1)]) + " deviates by " +
+                    percent(dev) + " from the typical step " + num(typical) + " (tolerance " +
+                    percent(tolerance) +
+                    "); missing samples? cut the record at the gap or fill it, or raise "
+                    "CsvReadOptions::time_tolerance if the stamps only jitter",
+                at_row(k));
   }
   if (ts_override > 0.0) {
     if (std::abs(typical - ts_override) > tolerance * ts_override) {
