@@ -820,3 +820,27 @@ TEST_CASE("write_csv refuses a time grid that read_csv would refuse, rather than
   CHECK(back.t0() == unix_time.t0());
   CHECK(back.size() == 1000);
 }
+
+TEST_CASE("read_csv with decimal commas refuses a number holding a '.'", "[data][csv][errors]") {
+  // Such a '.' was read as a decimal point: "1.234" (German for 1234) as 1.234, and time stamps
+  // 0.123, 0.246, ... were snapped to ts = 0.1 (their resolution was counted at the commas only,
+  // so taken as whole seconds), 19 % off, without a word.
+  TempDir dir;
+  nlid::CsvReadOptions o;
+  o.delimiter = ';';
+  o.decimal_point = ',';
+  const std::string stamps = dir.write("stamps.csv", "t;u;y\n0;0;0\n0.123;0;0\n0.246;0;0\n0.369;0;0\n0.493;0;0\n");
+  nlid::Error err = error_of([&] { (void)nlid::read_csv(stamps, o); });
+  CHECK_THAT(err.what(), Contains("number '0.123' has a '.' but the decimal point is ','"));
+  CHECK(err.where().row == 3);
+  CHECK(err.where().column == 1);
+  err = error_of([&] { (void)nlid::read_csv(dir.write("k.csv", "t;u;y\n0;1,5;1.234\n1;2;3\n"), o); });
+  CHECK_THAT(err.what(), Contains("number '1.234' has a '.'"));
+  CHECK(err.where().column_name == "y");
+  // Text with a '.' is still just not a number; with decimal points such a file reads.
+  err = error_of([&] { (void)nlid::read_csv(dir.write("x.csv", "t;u;y\n0;1;a.b\n1;2;3\n"), o); });
+  CHECK_THAT(err.what(), Contains("non-numeric cell 'a.b'"));
+  nlid::CsvReadOptions dots;
+  dots.delimiter = ';';
+  CHECK(nlid::read_csv(stamps, dots).ts() == 0.123);
+}

@@ -77,7 +77,8 @@ struct CsvReadOptions {
   NonFinitePolicy non_finite = NonFinitePolicy::error;
   /// Field separator. ' ' splits on runs of spaces and tabs.
   char delimiter = ',';
-  /// Decimal separator of the numbers ('.' or ','; ',' needs another delimiter, e.g. ';').
+  /// Decimal separator of the numbers ('.' or ','; ',' needs another delimiter, e.g. ';', and
+  /// refuses a number holding a '.', which there is a thousands separator or a wrong option).
   char decimal_point = '.';
   /// Largest accepted relative deviation |Δt − T_s| / T_s of one time step. 1 % absorbs rounding
   /// of printed time stamps and logger jitter, yet flags a dropped sample (100 %).

@@ -278,6 +278,14 @@ inline double parse_cell(const std::string& cell, char decimal_point, const CsvT
   const auto where = [&] {
     return csv_at(t.file, t.lines[row], static_cast<long>(col) + 1, t.header[col]);
   };
+  // With decimal commas a '.' in a number is most likely a thousands separator ("1.234" for
+  // 1234), which read as a decimal point is 1000 times off; and a time column's printing
+  // resolution, counted at the commas, would be wrong (0.123, 0.246, ... snapped to ts = 0.1).
+  if (decimal_point != '.' && ptr == s.data() + s.size() && cell.find('.') != std::string::npos) {
+    throw Error("number '" + printable(cell) + "' has a '.' but the decimal point is '" +
+                    std::string(1, decimal_point) + "': a thousands separator? (CsvReadOptions::decimal_point)",
+                where());
+  }
   if (ec == std::errc::result_out_of_range && ptr == s.data() + s.size()) {
     // from_chars reports underflow (1e-400) and overflow (1e400) alike; only overflow is an
     // error: a number below the smallest double reads as the nearest double, ±0. Told apart
@@ -294,6 +302,7 @@ inline double parse_cell(const std::string& cell, char decimal_point, const CsvT
 
 /// True if `cell` reads as a number the way `parse_cell` reads it.
 inline bool is_number(const std::string& cell, char decimal_point) {
+  if (decimal_point != '.' && cell.find('.') != std::string::npos) return false;
   std::string s = cell;
   if (decimal_point != '.') std::replace(s.begin(), s.end(), decimal_point, '.');
   std::string_view v(s);
