@@ -243,6 +243,9 @@ class Json {
 
   /// Object member by key, inserted as null if missing. A null value first becomes an empty
   /// object, so `j["a"]["b"] = 1` builds nested objects. Throws if this is another type.
+  /// Members live in a vector: inserting one may move the others, as `push_back` moves vector
+  /// elements, so `j["new"] = j["a"]` copies from a dangling reference (the right side is
+  /// evaluated first). Copy first: `Json a = j["a"]; j["new"] = a;`.
   Json& operator[](std::string_view key) {
     if (is_null()) value_ = Object{};
     if (!is_object()) {
