@@ -75,6 +75,11 @@ bool csv_fuzz_attempt(F&& f, const std::string& path, long lines, const char* wh
       csv_fuzz_defect(std::string(who) + ": row outside the file: " + e.what());
     }
     if (e.where().column == 0) csv_fuzz_defect(std::string(who) + ": column 0: " + e.what());
+    // Cells and names are shown escaped: a raw NUL or line break would cut or garble the message.
+    const std::string_view what = e.what();
+    if (std::any_of(what.begin(), what.end(), [](char c) { return static_cast<unsigned char>(c) < 0x20; })) {
+      csv_fuzz_defect(std::string(who) + ": control byte in the message: " + nlid::detail::printable(e.what(), 400));
+    }
   } catch (const std::exception& e) {
     csv_fuzz_defect(std::string(who) + ": non-nlid exception: " + e.what());
   }
