@@ -181,9 +181,9 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   to.max_gap = 3;
   to.numeric_header = time_mode == 3;
   nlid::CsvTable table;
-  if (csv_fuzz_attempt([&] { table = nlid::read_csv_table(path, to); }, path, lines, "read_csv_table")) {
-    csv_fuzz_table(table, to);
-  }
+  const bool have_table =
+      csv_fuzz_attempt([&] { table = nlid::read_csv_table(path, to); }, path, lines, "read_csv_table");
+  if (have_table) csv_fuzz_table(table, to);
 
   nlid::CsvReadOptions ro;
   ro.delimiter = delim;
@@ -220,6 +220,20 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   nlid::Experiment e;
   if (csv_fuzz_attempt([&] { e = nlid::read_csv(path, ro, info); }, path, lines, "read_csv")) {
     csv_fuzz_experiment(e, ro, info, delim);
+    // Both readers parse and fill a column alike (same cells, policy and max_gap).
+    if (have_table) {
+      for (std::size_t i = 0; i < ro.inputs.size(); ++i) {
+        if (!csv_fuzz_same(table.col(ro.inputs[i]), e.u().col(static_cast<Eigen::Index>(i)))) {
+          csv_fuzz_defect("read_csv and read_csv_table disagree on input " + ro.inputs[i]);
+        }
+      }
+      for (std::size_t i = 0; i < ro.outputs.size(); ++i) {
+        if (!csv_fuzz_same(table.col(ro.outputs[i]), e.y().col(static_cast<Eigen::Index>(i)))) {
+          csv_fuzz_defect("read_csv and read_csv_table disagree on output " + ro.outputs[i]);
+        }
+      }
+      if (!ro.time_column.empty() && table.col(ro.time_column)(0) != e.t0()) csv_fuzz_defect("t0 differs");
+    }
     // The same file twice must fit one data set.
     if (!csv_fuzz_attempt([&] { (void)nlid::read_csv_dataset({path, path}, ro); }, path, lines, "read_csv_dataset")) {
       csv_fuzz_defect("read_csv_dataset refused a file read_csv accepts");
