@@ -14,6 +14,12 @@ inline constexpr int Dynamic = -1;
 /// overflow an int. The model-file loader and the model specs use the same limit.
 inline constexpr int max_model_order = 100000;
 
+/// Largest parameter count of one nonlinearity (a network's units × inputs, a tree's leaves ×
+/// inputs): far beyond any model nlid can estimate (2²⁴ ≈ 1.7·10⁷ values, 128 MiB of θ), and small
+/// enough that the size arithmetic of the maps (offsets, split tables) cannot overflow an int. The
+/// constructors refuse more, so a model file cannot make the loader allocate gigabytes.
+inline constexpr long long max_nonlinearity_parameters = 1LL << 24;
+
 /// Sum of sizes; `Dynamic` if any term is dynamic. Used by compositions to compute their own size.
 template <class... Ints>
 constexpr int size_sum(Ints... n) {

@@ -67,12 +67,14 @@ class TreePartition {
   TreePartition()
     requires(M != Dynamic && Depth != Dynamic)
   { reset_splits(); }
-  /// m inputs, depth D (1 … 12). Throws naming "m" or "depth".
+  /// m inputs, depth D (1 … 12). Throws naming "m" or "depth", and naming "m" if the tree would
+  /// have more than `max_nonlinearity_parameters` parameters.
   TreePartition(int m, int depth)
       : m_(detail::checked_size(m, M, 1, "m", "TreePartition")),
         depth_(detail::checked_size(depth, Depth, 1, "depth", "TreePartition")),
         norm_(m_) {
     if (depth_ > 12) throw Error("TreePartition: depth must be at most 12, got " + std::to_string(depth_), at_parameter("depth"));
+    detail::check_parameter_count((1LL << depth_) * (m_ + 1LL), "m", "TreePartition", 1 << depth_, "leaves", m_);
     reset_splits();
   }
 

@@ -78,11 +78,15 @@ class WaveletNet {
     requires(M != Dynamic && Units != Dynamic)
   = default;
   /// m inputs and n units (each must match the compile-time value when fixed). Throws naming
-  /// "m" or "units".
+  /// "m" or "units", and naming "units" if the network would have more than
+  /// `max_nonlinearity_parameters` parameters.
   WaveletNet(int m, int units)
       : m_(detail::checked_size(m, M, 1, "m", "WaveletNet")),
         units_(detail::checked_size(units, Units, 1, "units", "WaveletNet")),
-        norm_(m_) {}
+        norm_(m_) {
+    detail::check_parameter_count((LinearTerm ? m_ : 0) + 1 + static_cast<long long>(units_) * (m_ + 3LL), "units",
+                                  "WaveletNet", units_, "units", m_);
+  }
 
   /// Number of inputs m.
   [[nodiscard]] int input_dimension() const { return m_; }

@@ -19,6 +19,7 @@
 #include "nlid/core/batch.hpp"
 #include "nlid/core/error.hpp"
 #include "nlid/core/format.hpp"
+#include "nlid/core/sizes.hpp"
 
 namespace nlid::detail {
 
@@ -186,6 +187,19 @@ inline std::vector<std::string> input_names_or_default(const std::vector<std::st
     for (int j = 0; j < m; ++j) n.push_back("x[" + std::to_string(j) + "]");
   }
   return n;
+}
+
+/// Validates the parameter count of a map's sizes, computed in 64 bits by the caller: at most
+/// `max_nonlinearity_parameters` (core/sizes.hpp). Throws naming `parameter` (e.g. "units"), with
+/// the sizes asked for ("<size> <size_name> over <m> inputs").
+inline void check_parameter_count(long long count, const char* parameter, const char* component, int size,
+                                  const char* size_name, int m) {
+  if (count > max_nonlinearity_parameters) {
+    throw Error(std::string(component) + ": " + std::to_string(size) + " " + size_name + " over " + std::to_string(m) +
+                    " inputs would need " + std::to_string(count) + " parameters, more than the " +
+                    std::to_string(max_nonlinearity_parameters) + " a nonlinearity may have",
+                at_parameter(parameter));
+  }
 }
 
 /// Validates a runtime size against its compile-time twin (`Static` or `Dynamic`).

@@ -1,0 +1,87 @@
+// Model files found by the model_file fuzzer (tests/fuzz/model_file_fuzz.cpp): files that parse
+// and pass the member checks but describe a model that would overflow, allocate gigabytes or hang
+// when built, simulated, predicted or generated as C. Sizes a file can hold are refused at load
+// with an nlid::Error naming the file and the key path of the offending value; what only a use
+// makes too large (an initial state to fit, a state to write out in C) is refused by that use.
+#include <catch2/catch.hpp>
+
+#include <fstream>
+#include <iterator>
+#include <string>
+
+#include <Eigen/Core>
+
+#include "nlid/io/model_file.hpp"
+#include "nlid/models/any_model.hpp"
+#include "nlid/nonlinearities.hpp"
+#include "nlid/regressors/expression.hpp"
+
+#include "../support/scratch_dir.hpp"
+
+using namespace nlid;
+
+namespace mff_test {
+
+std::string mff_path(const std::string& name) { return (nlid_test::scratch_dir() / name).string(); }
+
+// The text of `model` saved as a model file.
+template <class M>
+std::string mff_saved_text(const M& model, const std::string& name) {
+  const std::string p = mff_path(name);
+  save_model(p, model);
+  std::ifstream in(p);
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+// `text` with the first `from` replaced by `to`.
+std::string mff_edited_file_text(const std::string& text, const std::string& from, const std::string& to) {
+  const auto i = text.find(from);
+  REQUIRE(i != std::string::npos);
+  std::string s = text;
+  s.replace(i, from.size(), to);
+  return s;
+}
+
+// `text` with the first `from` replaced by `to`, written to `name`; returns the path.
+std::string mff_edited_file(const std::string& text, const std::string& from, const std::string& to,
+                            const std::string& name) {
+  const std::string p = mff_path(name);
+  std::ofstream(p) << mff_edited_file_text(text, from, to);
+  return p;
+}
+
+// The message of the nlid::Error load_model(path) throws ("" if it loads; another exception
+// type propagates and fails the test).
+std::string mff_load_error(const std::string& path) {
+  try {
+    (void)load_model(path);
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return {};
+}
+
+DynamicNlarx mff_tree_model() {
+  DynamicNlarx m(RegressorList::lagged(1, 1, 1), AnyNonlinearity(TreePartition<Dynamic, Dynamic>(2, 2)), 0.01);
+  return m;
+}
+
+}  // namespace mff_test
+
+TEST_CASE("model file: a tree partition or network too large for an int parameter count is refused at load",
+          "[io][errors][fuzz]") {
+  using namespace mff_test;
+  using Catch::Contains;
+  // 4095 splits of 2^20 inputs: (leaves - 1) * m overflowed an int while the tree was built,
+  // before the file's parameter count was compared.
+  const std::string text = mff_saved_text(mff_tree_model(), "mff_tree.json");
+  const std::string p = mff_edited_file(mff_edited_file_text(text, "\"inputs\": 2", "\"inputs\": 1048576"),
+                                        "\"depth\": 2", "\"depth\": 12", "mff_tree_big.json");
+  CHECK_THAT(mff_load_error(p), Contains("TreePartition: 4096 leaves over 1048576 inputs would need") &&
+                                    Contains("structure.nonlinearity") && Contains(p));
+  // The maps themselves refuse such sizes (their parameter counts are ints).
+  CHECK_THROWS_WITH((TreePartition<Dynamic, Dynamic>(1 << 20, 12)), Contains("more than the 16777216"));
+  CHECK_THROWS_WITH((SigmoidNet<Dynamic, Dynamic>(1 << 20, 1 << 20)), Contains("SigmoidNet: 1048576 units"));
+  CHECK_THROWS_WITH((WaveletNet<Dynamic, Dynamic, false>(1 << 20, 1 << 20)), Contains("WaveletNet: 1048576 units"));
+  CHECK_NOTHROW(SigmoidNet<Dynamic, Dynamic>(1000, 100));
+}
