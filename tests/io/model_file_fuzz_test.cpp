@@ -85,3 +85,22 @@ TEST_CASE("model file: a tree partition or network too large for an int paramete
   CHECK_THROWS_WITH((WaveletNet<Dynamic, Dynamic, false>(1 << 20, 1 << 20)), Contains("WaveletNet: 1048576 units"));
   CHECK_NOTHROW(SigmoidNet<Dynamic, Dynamic>(1000, 100));
 }
+
+TEST_CASE("model file: regressor blocks are counted before they are built, up to what a nonlinearity takes",
+          "[io][errors][fuzz]") {
+  using namespace mff_test;
+  using Catch::Contains;
+  // 35 bytes per block made 100000 regressors each: a 1 MB file asked for billions before the
+  // nonlinearity's input count was compared.
+  const std::string text = mff_saved_text(mff_tree_model(), "mff_regs.json");
+  std::string many;
+  for (int i = 0; i < 11; ++i) many += "{\"type\": \"output_lags\", \"na\": 100000}, ";
+  const std::string p = mff_edited_file(text, "\"blocks\": [", "\"blocks\": [" + many, "mff_regs_many.json");
+  CHECK_THAT(mff_load_error(p), Contains("hold more than 1048576 regressors by block structure.regressors.blocks") &&
+                                    Contains(p));
+  // Up to the limit the blocks are built, and the nonlinearity's size is what is refused.
+  std::string some;
+  for (int i = 0; i < 3; ++i) some += "{\"type\": \"output_lags\", \"na\": 100000}, ";
+  const std::string q = mff_edited_file(text, "\"blocks\": [", "\"blocks\": [" + some, "mff_regs_some.json");
+  CHECK_THAT(mff_load_error(q), Contains("takes 2 inputs but there are 300002 regressors") && Contains(q));
+}

@@ -37,6 +37,7 @@
 #include <Eigen/Core>
 
 #include "nlid/core/error.hpp"
+#include "nlid/core/sizes.hpp"
 #include "nlid/io/json.hpp"
 #include "nlid/io/serial_common.hpp"
 #include "nlid/regressors/custom.hpp"
@@ -110,6 +111,20 @@ inline Expression custom_block_expression(const JsonView& b, const std::vector<s
   }
 }
 
+/// Most regressors a file's list may hold: as many inputs as a file's nonlinearity may take
+/// (its "inputs" are read up to 2²⁰). Counted before each block is built, so that a few bytes
+/// per block ("na": 100000) cannot make the reader build millions of regressors it will refuse.
+inline constexpr int max_file_regressors = 1 << 20;
+
+/// Fails at block `b` if adding `count` regressors to the `total` so far exceeds
+/// `max_file_regressors`.
+inline void check_regressor_total(const JsonView& b, const JsonView& blocks, long long total, long long count) {
+  if (total + count > max_file_regressors) {
+    b.fail("the regressor blocks at " + blocks.path_text() + " hold more than " + std::to_string(max_file_regressors) +
+           " regressors by block " + b.path_text() + " (a nonlinearity takes at most that many inputs)");
+  }
+}
+
 /// Builds a RegressorList from all blocks (the run-time reader).
 inline RegressorList regressor_list_from_blocks(const JsonView& blocks, std::size_t& next,
                                                 const std::vector<std::string>& input_names,
@@ -120,12 +135,16 @@ inline RegressorList regressor_list_from_blocks(const JsonView& blocks, std::siz
     const std::string& type = b.at("type").as_string();
     if (type == "output_lags") {
       b.check_keys({"type", "na"});
-      r.add_output_lags(read_int(b.at("na"), 0, 100000));
+      const int na = read_int(b.at("na"), 0, max_model_order);
+      check_regressor_total(b, blocks, r.size(), na);
+      r.add_output_lags(na);
     } else if (type == "input_lags") {
       b.check_keys({"type", "nb", "nk", "channel"});
-      r.add_input_lags(read_int(b.at("nb"), 0, 100000), read_int(b.at("nk"), 0, 100000),
-                       read_int(b.at("channel"), 0, 100000));
+      const int nb = read_int(b.at("nb"), 0, max_model_order);
+      check_regressor_total(b, blocks, r.size(), nb);
+      r.add_input_lags(nb, read_int(b.at("nk"), 0, max_model_order), read_int(b.at("channel"), 0, max_model_order));
     } else if (type == "custom") {
+      check_regressor_total(b, blocks, r.size(), 1);
       r.add_custom(custom_block_expression(b, input_names, output_name));
     } else {
       b.at("type").fail("unknown regressor block \"" + type + "\" at " + b.at("type").path_text() +
