@@ -104,3 +104,32 @@ TEST_CASE("model file: regressor blocks are counted before they are built, up to
   const std::string q = mff_edited_file(text, "\"blocks\": [", "\"blocks\": [" + some, "mff_regs_some.json");
   CHECK_THAT(mff_load_error(q), Contains("takes 2 inputs but there are 300002 regressors") && Contains(q));
 }
+
+TEST_CASE("model file: a grey box's integrator cannot ask for more sub-steps or adaptive steps than the integrator "
+          "takes",
+          "[io][errors][fuzz]") {
+  using namespace mff_test;
+  using Catch::Contains;
+  // 2^30 RK4 sub-steps per sample loaded, and the first simulation of 50 samples ran for hours.
+  const std::string text = mff_saved_text(make_greybox("first_order"), "mff_greybox.json");
+  const std::string p = mff_edited_file(text, "\"substeps\": 0", "\"substeps\": 1073741824", "mff_gb_substeps.json");
+  CHECK_THAT(mff_load_error(p), Contains("value 1073741824 at structure.integrator.substeps is out of range [0, 100000]") &&
+                                    Contains(p));
+  const std::string q = mff_edited_file(text, "\"max_substeps\": 2000", "\"max_substeps\": 100001", "mff_gb_max.json");
+  CHECK_THAT(mff_load_error(q), Contains("structure.integrator.max_substeps is out of range [0, 100000]"));
+  // An unreachable tolerance spent a budget of 2^31 - 1 adaptive steps on the first sample.
+  const std::string r = mff_edited_file(text, "\"max_adaptive_steps\": 100000", "\"max_adaptive_steps\": 2147483647",
+                                        "mff_gb_adaptive.json");
+  CHECK_THAT(mff_load_error(r), Contains("structure.integrator.max_adaptive_steps is out of range [0, 1000000]") &&
+                                    Contains(r));
+  // The C++ API has the same limits, so that every model it builds can be saved and read back.
+  IntegratorOptions o;
+  o.substeps = max_integrator_substeps + 1;
+  CHECK_THROWS_WITH(validate(o), Contains("substeps = 100001 is more than the 100000 sub-steps per sample"));
+  o.substeps = 0;
+  o.max_adaptive_steps = max_adaptive_step_budget + 1;
+  CHECK_THROWS_WITH(validate(o), Contains("max_adaptive_steps = 1000001 is more than the 1000000 steps"));
+  o.max_adaptive_steps = max_adaptive_step_budget;
+  o.max_substeps = max_integrator_substeps;
+  CHECK_NOTHROW(validate(o));
+}

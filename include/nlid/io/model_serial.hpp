@@ -631,13 +631,14 @@ inline IntegratorOptions integrator_from_json(const JsonView& v) {
   else if (m == "rk4") o.method = IntegratorMethod::rk4;
   else if (m == "dormand_prince") o.method = IntegratorMethod::dormand_prince;
   else v.at("method").fail("unknown integrator \"" + m + "\" at " + v.at("method").path_text() + " (accepted: euler, rk4, dormand_prince)");
-  o.substeps = read_int(v.at("substeps"), 0, 1 << 30);
-  o.min_substeps = read_int(v.at("min_substeps"), 0, 1 << 30);
-  o.max_substeps = read_int(v.at("max_substeps"), 0, 1 << 30);
+  // Bounded as `validate` bounds them (integrators.hpp): a file cannot ask for hours per sample.
+  o.substeps = read_int(v.at("substeps"), 0, max_integrator_substeps);
+  o.min_substeps = read_int(v.at("min_substeps"), 0, max_integrator_substeps);
+  o.max_substeps = read_int(v.at("max_substeps"), 0, max_integrator_substeps);
   o.stability_target = v.at("stability_target").as_number();
   o.relative_tolerance = v.at("relative_tolerance").as_number();
   o.absolute_tolerance = v.at("absolute_tolerance").as_number();
-  o.max_adaptive_steps = read_int(v.at("max_adaptive_steps"), 0, std::numeric_limits<int>::max());
+  o.max_adaptive_steps = read_int(v.at("max_adaptive_steps"), 0, max_adaptive_step_budget);
   return o;
 }
 

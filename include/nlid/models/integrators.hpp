@@ -48,6 +48,7 @@
 #include <cmath>
 #include <concepts>
 #include <limits>
+#include <string>
 #include <type_traits>
 
 #include <Eigen/Core>
@@ -72,6 +73,16 @@ enum class IntegratorMethod {
   rk4,             ///< classical Runge–Kutta, order 4, fixed sub-steps (default)
   dormand_prince,  ///< Dormand–Prince 5(4), adaptive step size with error control
 };
+
+/// Largest fixed sub-step count per sample (`IntegratorOptions::substeps`, `min_substeps`,
+/// `max_substeps`): fifty times the default ceiling of the automatic rule. More would only make a
+/// simulation of an ordinary record run for hours (a model file asking 2³⁰ sub-steps per sample
+/// would hang its reader's first simulation).
+inline constexpr int max_integrator_substeps = 100000;
+/// Largest step budget per sample of the adaptive method (`IntegratorOptions::max_adaptive_steps`):
+/// ten times the default. A budget that is never reached because the tolerance cannot be met
+/// (a relative tolerance of 1e-300) is spent in full before the run fails.
+inline constexpr int max_adaptive_step_budget = 1000000;
 
 /// Settings of the integrator used between two samples.
 struct IntegratorOptions {
@@ -112,6 +123,13 @@ inline void validate(const IntegratorOptions& o) {
   require(o.min_substeps >= 1, "min_substeps must be >= 1", at_parameter("min_substeps"));
   require(o.max_substeps >= o.min_substeps, "max_substeps must be >= min_substeps",
           at_parameter("max_substeps"));
+  if (o.substeps > max_integrator_substeps || o.max_substeps > max_integrator_substeps) {
+    const bool fixed = o.substeps > max_integrator_substeps;
+    throw Error(std::string(fixed ? "substeps" : "max_substeps") + " = " +
+                    std::to_string(fixed ? o.substeps : o.max_substeps) + " is more than the " +
+                    std::to_string(max_integrator_substeps) + " sub-steps per sample an integrator may take",
+                at_parameter(fixed ? "substeps" : "max_substeps"));
+  }
   require(o.stability_target > 0.0 && o.stability_target <= 2.5,
           "stability_target must be in (0, 2.5] (RK4 is unstable beyond h*rho = 2.78)",
           at_parameter("stability_target"));
@@ -121,6 +139,11 @@ inline void validate(const IntegratorOptions& o) {
           at_parameter("absolute_tolerance"));
   require(o.max_adaptive_steps >= 1, "max_adaptive_steps must be >= 1",
           at_parameter("max_adaptive_steps"));
+  if (o.max_adaptive_steps > max_adaptive_step_budget) {
+    throw Error("max_adaptive_steps = " + std::to_string(o.max_adaptive_steps) + " is more than the " +
+                    std::to_string(max_adaptive_step_budget) + " steps per sample the adaptive method may take",
+                at_parameter("max_adaptive_steps"));
+  }
 }
 
 /// Sub-steps per sample interval of length `h` for a system whose Jacobian has spectral radius
