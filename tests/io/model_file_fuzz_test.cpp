@@ -133,3 +133,21 @@ TEST_CASE("model file: a grey box's integrator cannot ask for more sub-steps or 
   o.max_substeps = max_integrator_substeps;
   CHECK_NOTHROW(validate(o));
 }
+
+TEST_CASE("model file: a grey box's parameter range or state window the model refuses is located in the file",
+          "[io][errors][fuzz]") {
+  using namespace mff_test;
+  using Catch::Contains;
+  const std::string text = mff_saved_text(make_greybox("first_order"), "mff_gb_range.json");
+  // range_lower > range_upper: GreyBox::set_range's error named the parameter but not the file.
+  const std::string p = mff_edited_file(text, "\"range_upper\": 10", "\"range_upper\": 0.01", "mff_gb_range_crossed.json");
+  CHECK_THAT(mff_load_error(p), Contains("range of 'tau' must be finite with lower <= upper") &&
+                                    Contains("structure.parameter_table[0]") && Contains(p));
+  // A log-spaced range through zero.
+  const std::string q = mff_edited_file(text, "\"range_lower\": 0.1", "\"range_lower\": -1", "mff_gb_range_log.json");
+  CHECK_THAT(mff_load_error(q), Contains("log-spaced range of 'tau' must be positive") && Contains(q));
+  const std::string r = mff_edited_file(text, "\"initial_state_window\": 2000", "\"initial_state_window\": -5",
+                                        "mff_gb_window.json");
+  CHECK_THAT(mff_load_error(r), Contains("initial-state window -5 at structure.initial_state_window must be >= 0") &&
+                                    Contains(r));
+}

@@ -758,14 +758,22 @@ struct ModelSerial<GreyBox<P>> {
       if (!(lo <= v && v <= hi)) {
         q.fail("value of '" + name + "' lies outside its bounds in the file (at " + q.path_text() + ")");
       }
-      // Open the bounds, set the value, then close them: the old bounds need not contain it.
-      const double inf = std::numeric_limits<double>::infinity();
-      m.set_bounds(name, -inf, inf);
-      m.set_parameter(name, v);
-      m.set_bounds(name, lo, hi);
       const double rl = read_extended_number(q.at("range_lower")), ru = read_extended_number(q.at("range_upper"));
-      if (std::isfinite(rl) && std::isfinite(ru)) m.set_range(name, rl, ru, q.at("log_scale").as_bool());
-      m.fix(name, q.at("fixed").as_bool());
+      const bool log_scale = q.at("log_scale").as_bool(), fixed = q.at("fixed").as_bool();
+      // The setters check what the file says (a range with lower > upper, a log range through
+      // zero): their errors name the parameter, located here at its entry in the file.
+      try {
+        // Open the bounds, set the value, then close them: the old bounds need not contain it.
+        const double inf = std::numeric_limits<double>::infinity();
+        m.set_bounds(name, -inf, inf);
+        m.set_parameter(name, v);
+        m.set_bounds(name, lo, hi);
+        if (std::isfinite(rl) && std::isfinite(ru)) m.set_range(name, rl, ru, log_scale);
+        m.fix(name, fixed);
+      } catch (const Error& e) {
+        if (!e.where().file.empty()) throw;
+        q.fail(e.message() + " (at " + q.path_text() + ")");
+      }
     }
     // The values were set one by one (set_parameter checks each alone); the relations between
     // them (the throttle's lower_stop < upper_stop) are checked once all are in, so that a file
@@ -781,7 +789,12 @@ struct ModelSerial<GreyBox<P>> {
       if (e.where().file.empty()) s.at("integrator").fail(e.message() + " (at " + s.at("integrator").path_text() + ")");
       throw;
     }
-    m.set_initial_state_window(static_cast<Eigen::Index>(s.at("initial_state_window").as_integer()));
+    const JsonView window = s.at("initial_state_window");
+    if (window.as_integer() < 0) {
+      window.fail("initial-state window " + std::to_string(window.as_integer()) + " at " + window.path_text() +
+                  " must be >= 0 (0 = whole record)");
+    }
+    m.set_initial_state_window(static_cast<Eigen::Index>(window.as_integer()));
     std::vector<Eigen::VectorXd> x0;
     const JsonView xs = file.at("estimated_initial_states");
     for (std::size_t i = 0; i < xs.as_array().size(); ++i) {
