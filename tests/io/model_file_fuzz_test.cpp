@@ -5,6 +5,7 @@
 // makes too large (an initial state to fit, a state to write out in C) is refused by that use.
 #include <catch2/catch.hpp>
 
+#include <cmath>
 #include <fstream>
 #include <iterator>
 #include <string>
@@ -150,4 +151,29 @@ TEST_CASE("model file: a grey box's parameter range or state window the model re
                                         "mff_gb_window.json");
   CHECK_THAT(mff_load_error(r), Contains("initial-state window -5 at structure.initial_state_window must be >= 0") &&
                                     Contains(r));
+}
+
+TEST_CASE("model file: a Hammerstein-Wiener model with a delay of 1e5 samples predicts with an error, not std::bad_alloc",
+          "[io][errors][fuzz]") {
+  using namespace mff_test;
+  using Catch::Contains;
+  DynamicHammersteinWiener hw(AnyNonlinearity(UnitGain{}), TransferFunctionBlock<Dynamic, Dynamic, Dynamic>(2, 0, 0),
+                              AnyNonlinearity(UnitGain{}), 0.01);
+  Eigen::VectorXd th(2);
+  th << 0.5, 0.25;
+  hw.set_parameters(th);
+  const std::string p =
+      mff_edited_file(mff_saved_text(hw, "mff_hw.json"), "\"nk\": 0", "\"nk\": 100000", "mff_hw_delay.json");
+  const AnyModel m = load_model(p);
+  Eigen::MatrixXd u(50, 1), y(50, 1);
+  for (int k = 0; k < 50; ++k) {
+    u(k, 0) = std::sin(0.3 * k);
+    y(k, 0) = 0.1 * k;
+  }
+  const Experiment e(u, y, 0.01, "short");
+  CHECK(m.simulate(e, InitialCondition::zero).rows() == 50);
+  // predict (and simulate from InitialCondition::estimate) fitted all 100001 register values: the
+  // Levenberg-Marquardt solve asked for 10^5 x 10^5 matrices.
+  CHECK_THROWS_WITH(m.predict(e, 1), Contains("cannot estimate an initial state of 100001 values (at most 1000"));
+  CHECK_THROWS_WITH(m.simulate(e, InitialCondition::estimate), Contains("use InitialCondition::zero or equilibrium"));
 }

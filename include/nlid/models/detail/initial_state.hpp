@@ -68,14 +68,28 @@ inline double divergence_limit(const Eigen::VectorXd& y) {
   return 1e3 * (1.0 + scale);
 }
 
+/// Most initial-state entries `estimate_initial_state` fits. Its Levenberg–Marquardt solve holds
+/// half a dozen p × p matrices and an N × p Jacobian: at p = 1000 that is 50 MB and a second per
+/// iteration; the 10⁵ states of a Hammerstein–Wiener block with a delay of 10⁵ samples asked for
+/// 500 GB and ended in std::bad_alloc.
+inline constexpr std::size_t max_estimated_initial_states = 1000;
+
 /// x0 with its `free` entries estimated (the others stay as in `base`). Throws
 /// `nlid::DivergenceError` (naming the first sample beyond the limit) if the simulation diverges
-/// from `base`, so that `compare` scores that record as diverged, as it does a zero start.
+/// from `base`, so that `compare` scores that record as diverged, as it does a zero start, and
+/// `nlid::Error` naming "initial" for more than `max_estimated_initial_states` free entries.
 template <class M>
 Eigen::VectorXd estimate_initial_state(const M& model, const Eigen::MatrixXd& u, const Eigen::VectorXd& y,
                                        std::span<const double> theta, Eigen::VectorXd base,
                                        std::vector<int> free, int max_iterations = 50) {
   if (free.empty()) return base;
+  if (free.size() > max_estimated_initial_states) {
+    throw Error("cannot estimate an initial state of " + std::to_string(free.size()) + " values (at most " +
+                    std::to_string(max_estimated_initial_states) +
+                    " are fitted: the model's delays and orders make its state that long); use "
+                    "InitialCondition::zero or equilibrium",
+                at_parameter("initial"));
+  }
   Eigen::VectorXd z(static_cast<Eigen::Index>(free.size()));
   for (std::size_t i = 0; i < free.size(); ++i) z(static_cast<Eigen::Index>(i)) = base(free[i]);
   const std::vector<int> free_copy = free;
