@@ -9,12 +9,16 @@
 #include <fstream>
 #include <iterator>
 #include <string>
+#include <vector>
 
 #include <Eigen/Core>
 
+#include "nlid/codegen/linear.hpp"
+#include "nlid/codegen/nlarx.hpp"
 #include "nlid/io/model_file.hpp"
 #include "nlid/models/any_model.hpp"
 #include "nlid/nonlinearities.hpp"
+#include "nlid/regressors.hpp"
 #include "nlid/regressors/expression.hpp"
 
 #include "../support/scratch_dir.hpp"
@@ -176,4 +180,28 @@ TEST_CASE("model file: a Hammerstein-Wiener model with a delay of 1e5 samples pr
   // Levenberg-Marquardt solve asked for 10^5 x 10^5 matrices.
   CHECK_THROWS_WITH(m.predict(e, 1), Contains("cannot estimate an initial state of 100001 values (at most 1000"));
   CHECK_THROWS_WITH(m.simulate(e, InitialCondition::estimate), Contains("use InitialCondition::zero or equilibrium"));
+}
+
+TEST_CASE("codegen refuses a lag window or delay line longer than its line budget before building it",
+          "[io][errors][fuzz]") {
+  using namespace mff_test;
+  using Catch::Contains;
+  // 100 inputs each delayed 99999 samples: a 5 kB model file generated 378 MB of C (and 200
+  // inputs of a nonlinear ARX model 738 MB, in a minute and 4.5 GB of memory).
+  const int nu = 100;
+  std::vector<Eigen::VectorXd> b(nu, Eigen::VectorXd::Constant(1, 0.1));
+  const std::vector<int> nk(nu, 99999);
+  const Arx arx(Eigen::VectorXd::Constant(1, -0.5), b, nk, 0.01);
+  CHECK_THROWS_WITH(generate_c(arx), Contains("codegen: the ARX model's state has 9999901 values, more than the "
+                                              "TraceLimits::max_lines = 2000000"));
+  const OutputError oe(b, std::vector<Eigen::VectorXd>(nu, Eigen::VectorXd::Constant(1, -0.5)), nk, 0.01);
+  CHECK_THROWS_WITH(generate_c(oe), Contains("codegen: the output-error model's state has 10000000 values"));
+  // (Typed regressors: a RegressorList's expressions trace only where codegen was included first.)
+  using Regs = RegressorSet<OutputLags<1>, InputLags<Dynamic, Dynamic, 199>>;
+  const Nlarx<Regs, LinearMap<2>> nlarx(Regs(OutputLags<1>{}, InputLags<Dynamic, Dynamic, 199>(1, 99999)), LinearMap<2>{},
+                                        0.01);
+  CHECK_THROWS_WITH(generate_c(nlarx), Contains("codegen: the nonlinear ARX model's state has 19999801 values"));
+  // A delay line within the budget is generated.
+  const Arx small(Eigen::VectorXd::Constant(1, -0.5), {Eigen::VectorXd::Constant(1, 0.1)}, {1000}, 0.01);
+  CHECK(generate_c(small).source.size() > 1000);
 }

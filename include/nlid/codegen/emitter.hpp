@@ -344,6 +344,19 @@ inline std::string ascii_text(const std::string& text) {
   return out;
 }
 
+/// Refuses a state of more values than the step's line budget (`TraceLimits::max_lines`, each
+/// state value is at least one generated line), before anything of its size is built. `nx` is
+/// counted in 64 bits by the caller: a lag window of many inputs each delayed 10⁵ samples (a few
+/// kilobytes of model file) would otherwise become gigabytes of C.
+inline void check_state_count(long long nx, const CodegenOptions& o, const char* kind) {
+  if (nx > o.limits.max_lines) {
+    throw Error(std::string("codegen: the ") + kind + " model's state has " + std::to_string(nx) +
+                    " values, more than the TraceLimits::max_lines = " + std::to_string(o.limits.max_lines) +
+                    " lines its step may have (its delays and lags make it that long)",
+                at_parameter("limits"));
+  }
+}
+
 /// The sample time of a sampled (discrete-time) model's code: the model's own, or `option` when
 /// the model has none; a different `option` is refused (it would relabel, not resample).
 inline double sampled_model_ts(double model_ts, double option) {

@@ -212,6 +212,9 @@ inline GeneratedCode generate_c(const Arx& model, const CodegenOptions& options 
   m.parameters = model.parameters();
   m.parameter_names = model.parameter_names();
   const std::vector<int> lags = codegen::detail::arx_input_lags(model);
+  long long states = na;
+  for (int l : lags) states += l;
+  codegen::check_state_count(states, options, "ARX");
   std::vector<int> off(static_cast<std::size_t>(nu));
   int nx = na;
   for (int i = 0; i < nu; ++i) {
@@ -327,6 +330,10 @@ inline GeneratedCode generate_c(const OutputError& model, const CodegenOptions& 
   // Single precision: each block with feedback in delta form (delta_form.hpp), its segment of
   // the state then holds its delta state instead of past inputs and outputs.
   std::vector<std::optional<codegen::DeltaBlock>> db(static_cast<std::size_t>(nu));
+  long long states = 0;  // the direct form's; a delta block has fewer
+  for (int i = 0; i < nu; ++i)
+    states += static_cast<long long>(codegen::detail::oe_input_lag(model, i)) + static_cast<long long>(model.f(i).size());
+  codegen::check_state_count(states, options, "output-error");
   int nx = 0;
   m.state_doc = "x = [";
   for (int i = 0; i < nu; ++i) {

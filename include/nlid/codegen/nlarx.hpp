@@ -44,6 +44,8 @@ GeneratedCode generate_c(const Nlarx<R, F>& model, const CodegenOptions& options
   m.name = options.name;
   m.kind = "nonlinear ARX";
   m.description = model.describe();
+  codegen::check_state_count(model.output_lag() + static_cast<long long>(model.num_inputs()) * model.input_lag(),
+                             options, "nonlinear ARX");
   m.nx = model.state_dimension();
   m.nu = model.num_inputs();
   m.ny = 1;
