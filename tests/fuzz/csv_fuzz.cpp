@@ -26,6 +26,7 @@
 #include <cstdlib>
 #include <exception>
 #include <filesystem>
+#include <limits>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -232,7 +233,18 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
           csv_fuzz_defect("read_csv and read_csv_table disagree on output " + ro.outputs[i]);
         }
       }
-      if (!ro.time_column.empty() && table.col(ro.time_column)(0) != e.t0()) csv_fuzz_defect("t0 differs");
+      if (!ro.time_column.empty()) {
+        const Eigen::VectorXd t = table.col(ro.time_column);
+        if (t(0) != e.t0()) csv_fuzz_defect("t0 differs");
+        // An inferred ts reproduces the last stamp: exactly, to its printing resolution (at most
+        // 1: stamps print at least whole units) or as the endpoint estimate (to rounding).
+        const double last = e.time()(e.size() - 1), tl = t(t.size() - 1);
+        const double slack = 1.0 + 16.0 * std::numeric_limits<double>::epsilon() * std::max(std::abs(t(0)), std::abs(tl));
+        if (ro.ts == 0.0 && !(std::abs(last - tl) <= slack)) {
+          csv_fuzz_defect("grid ends at " + nlid::detail::format_double(last) + ", the column at " +
+                          nlid::detail::format_double(tl));
+        }
+      }
     }
     // The same file twice must fit one data set.
     if (!csv_fuzz_attempt([&] { (void)nlid::read_csv_dataset({path, path}, ro); }, path, lines, "read_csv_dataset")) {
