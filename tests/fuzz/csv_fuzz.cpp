@@ -26,6 +26,7 @@
 #include <cstdlib>
 #include <exception>
 #include <filesystem>
+#include <initializer_list>
 #include <limits>
 #include <string>
 #include <string_view>
@@ -51,6 +52,12 @@ std::string csv_fuzz_path(const char* tag) {
     return std::string(t != nullptr && *t != '\0' ? t : "/tmp");
   }();
   return dir + "/nlid_csv_fuzz_" + std::to_string(static_cast<long>(getpid())) + "_" + tag + ".csv";
+}
+
+// The files of this process, removed when libFuzzer exits normally (a crash leaves them to look at).
+void csv_fuzz_cleanup() {
+  std::error_code ec;
+  for (const char* tag : {"in", "rt", "rtt"}) std::filesystem::remove(csv_fuzz_path(tag), ec);
 }
 
 bool csv_fuzz_same(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
@@ -153,6 +160,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   if (size < 1) return 0;
   const unsigned sel = data[0];
   const std::string_view text(reinterpret_cast<const char*>(data) + 1, size - 1);
+  static const bool cleanup_registered = std::atexit(csv_fuzz_cleanup) == 0;
+  (void)cleanup_registered;
   const std::string path = csv_fuzz_path("in");
   {
     std::FILE* f = std::fopen(path.c_str(), "wb");
