@@ -410,6 +410,29 @@ TEST_CASE("read_csv applies the non-finite policy", "[data][csv]") {
   CHECK_THAT(err.what(), Contains("empty cell (missing value)"));
 }
 
+TEST_CASE("a one-column file reads an empty line between samples as a missing value, not a skipped line") {
+  // Its empty cell is an empty line: skipped, the samples after it moved up one place in time.
+  TempDir dir;
+  const std::string p = dir.write("one_column.csv", "y\n\n1\n\n# note\n3\n4\n\n\n");
+  const nlid::Error err = error_of([&] { (void)nlid::read_csv_table(p); });
+  CHECK_THAT(err.what(), Contains("empty cell (missing value)"));
+  CHECK(err.where().row == 4);
+  nlid::CsvTableOptions keep;
+  keep.non_finite = nlid::NonFinitePolicy::keep;
+  const nlid::CsvTable k = nlid::read_csv_table(p, keep);
+  // The blank line after the header and those after the last sample are not samples.
+  REQUIRE(k.data.rows() == 4);
+  CHECK(k.data(0, 0) == 1.0);
+  CHECK(std::isnan(k.data(1, 0)));
+  CHECK(k.data(2, 0) == 3.0);
+  CHECK(k.data(3, 0) == 4.0);
+  nlid::CsvTableOptions interp;
+  interp.non_finite = nlid::NonFinitePolicy::interpolate;
+  CHECK(nlid::read_csv_table(p, interp).data(1, 0) == Approx(2.0));
+  // With two columns an empty line is no sample (its empty cells would be a ragged row).
+  CHECK(nlid::read_csv_table(dir.write("two_columns.csv", "u,y\n0,1\n\n1,2\n")).data.rows() == 2);
+}
+
 TEST_CASE("read_csv checks the time column", "[data][csv]") {
   TempDir dir;
   auto err = error_of([&] {

@@ -187,6 +187,10 @@ inline CsvText tokenize_csv(const std::string& path, char delimiter, char decima
   std::vector<std::string> fields;
   long line_no = 0;
   bool have_header = false;
+  // In a one-column file an empty cell is an empty line: between two samples it is a missing
+  // value (the missing-value policy decides), not a line to skip, or the samples after it would
+  // shift by one without a word. Blank lines after the last sample end the file as usual.
+  std::vector<long> blank_cells;
   std::size_t pos = 0;
   while (pos < s.size()) {
     std::size_t eol = s.find('\n', pos);
@@ -198,6 +202,7 @@ inline CsvText tokenize_csv(const std::string& path, char delimiter, char decima
     const std::string_view content = trim_blanks(line, true);
     if (content.empty() || content.front() == '#') {
       if (!have_header && !content.empty()) t.comment_before_header = true;
+      if (have_header && content.empty() && t.header.size() == 1 && !t.rows.empty()) blank_cells.push_back(line_no);
       continue;
     }
     split_csv_line(line, delimiter, fields, path, line_no);
@@ -222,6 +227,11 @@ inline CsvText tokenize_csv(const std::string& path, char delimiter, char decima
                       "), found " + std::to_string(fields.size()) + separator_hint(t.header),
                   csv_at(path, line_no));
     }
+    for (const long blank : blank_cells) {
+      t.rows.push_back({std::string()});
+      t.lines.push_back(blank);
+    }
+    blank_cells.clear();
     t.rows.push_back(fields);
     t.lines.push_back(line_no);
   }
