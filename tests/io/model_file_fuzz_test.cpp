@@ -15,8 +15,11 @@
 
 #include "nlid/codegen/linear.hpp"
 #include "nlid/codegen/nlarx.hpp"
+#include "nlid/diagnose/effects.hpp"
+#include "nlid/io/augmented_serial.hpp"
 #include "nlid/io/model_file.hpp"
 #include "nlid/models/any_model.hpp"
+#include "nlid/models/physics/catalogue.hpp"
 #include "nlid/nonlinearities.hpp"
 #include "nlid/regressors.hpp"
 #include "nlid/regressors/expression.hpp"
@@ -204,4 +207,43 @@ TEST_CASE("codegen refuses a lag window or delay line longer than its line budge
   // A delay line within the budget is generated.
   const Arx small(Eigen::VectorXd::Constant(1, -0.5), {Eigen::VectorXd::Constant(1, 0.1)}, {1000}, 0.01);
   CHECK(generate_c(small).source.size() > 1000);
+}
+
+TEST_CASE("model file: an augmented grey box's dead time must be 0 to 100000 samples over its whole bounds",
+          "[io][errors][fuzz]") {
+  using namespace mff_test;
+  using Catch::Contains;
+  GreyBox<physics::MassSpringDamper> g;
+  AugmentedModel<AnyPhysics> m(make_physics("mass_spring_damper"), g.parameter_info(), 0.01);
+  DataScales s;
+  s.ts = 0.01;
+  s.q_lo = 0.0;
+  s.q_hi = 2.0;
+  s.q_mid = 1.0;
+  s.speed = 3.0;
+  s.accel = 30.0;
+  s.stiffness = 100.0;
+  s.u_lo = 0.0;
+  s.u_hi = 1.0;
+  s.u_abs = 1.0;
+  const auto dead = make_effect_candidates(effect_kind("dead_time"), s);
+  REQUIRE(!dead.empty());
+  m.add_effect(dead[0].effect);
+  const std::string text = mff_saved_text(m, "mff_dead.json");
+  const auto at = text.find("\"effect\": \"dead_time\"");
+  REQUIRE(at != std::string::npos);
+  const auto edit_after = [&](const std::string& from, const std::string& to) {
+    std::string t = text;
+    const auto i = t.find(from, at);
+    REQUIRE(i != std::string::npos);
+    t.replace(i, from.size(), to);
+    return t;
+  };
+  // A negative dead time read the input before the record's start (an Eigen index out of range).
+  const std::string p = mff_edited_file(edit_after("\"lower\": 0,", "\"lower\": -1,"), "{", "{", "mff_dead_neg.json");
+  CHECK_THAT(mff_load_error(p), Contains("effect dead_time: the bounds of 'tau' must lie in [0, 1000] s") &&
+                                    Contains("structure.effects[0]") && Contains(p));
+  // 1e300 s overflowed the int sample count (UBSan); 1e6 s generated 500 MB of C.
+  const std::string q = mff_edited_file(edit_after("\"upper\": 0.5,", "\"upper\": 1e300,"), "{", "{", "mff_dead_huge.json");
+  CHECK_THAT(mff_load_error(q), Contains("got [0, 1e+300]") && Contains(q));
 }

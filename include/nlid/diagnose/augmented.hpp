@@ -59,6 +59,7 @@
 #include "nlid/core/format.hpp"
 #include "nlid/core/initial_condition.hpp"
 #include "nlid/core/sample_time.hpp"
+#include "nlid/core/sizes.hpp"
 #include "nlid/data/experiment.hpp"
 #include "nlid/diagnose/effects.hpp"
 #include "nlid/estimation/levenberg_marquardt.hpp"
@@ -417,6 +418,18 @@ void AugmentedModel<P>::add_effect(Effect effect) {
     require(std::isfinite(q.value) && q.value >= q.lower && q.value <= q.upper,
             "effect " + effect.label() + ": parameter '" + q.name + "' = " + std::to_string(q.value) +
                 " is not finite or outside its bounds",
+            at_parameter(effect.name() + "." + q.name));
+  }
+  if (effect.kind == EffectKind::dead_time) {
+    // τ / ts is a count of samples (a delay line in the simulation and in generated C): every value
+    // the bounds allow must be one, 0 … max_model_order like any delay. A negative τ read before the
+    // record's start, 1e300 s overflowed the int count, 1e6 s generated 500 MB of C.
+    const ParameterInfo& q = effect.params.front();
+    require(q.lower >= 0.0 && q.upper / ts_ <= static_cast<double>(max_model_order),
+            "effect " + effect.label() + ": the bounds of '" + q.name + "' must lie in [0, " +
+                detail::format_g(max_model_order * ts_) + "] s (0 … " + std::to_string(max_model_order) +
+                " samples of " + detail::format_g(ts_) + " s), got [" + detail::format_g(q.lower) + ", " +
+                detail::format_g(q.upper) + "]",
             at_parameter(effect.name() + "." + q.name));
   }
   const bool needs_width = effect.kind == EffectKind::coulomb_friction || effect.kind == EffectKind::preload ||
