@@ -130,6 +130,44 @@ int main(int argc, char** argv) {
     h.set_parameters(th);
     save_model(dir + "/series_nl.json", h, stamped);
   }
+  save_model(dir + "/greybox_mass_spring_damper.json", make_greybox("mass_spring_damper"), stamped);
+  save_model(dir + "/greybox_two_tank.json", make_greybox("two_tank"), stamped);
+  save_model(dir + "/greybox_rigid_body.json", make_greybox("rigid_body"), stamped);
+  {
+    DynamicHammersteinWienerSeries nln(AnyNonlinearity(Saturation(-1.0, 1.0)), L(1, 1, 0), AnyNonlinearity(Poly1d<Dynamic>(2)),
+                                       0.01);
+    Eigen::VectorXd th = Eigen::VectorXd::Constant(nln.num_parameters(), 0.25);
+    th(0) = -1.0;
+    th(1) = 1.0;
+    nln.set_parameters(th);
+    save_model(dir + "/series_nln.json", nln, stamped);
+  }
+  {
+    // Every effect the diagnosis can add, one file each, on the mass-spring-damper baseline.
+    GreyBox<physics::MassSpringDamper> g;
+    DataScales s;
+    s.ts = 0.01;
+    s.q_lo = 0.0;
+    s.q_hi = 2.0;
+    s.q_mid = 1.0;
+    s.speed = 3.0;
+    s.accel = 30.0;
+    s.stiffness = 100.0;
+    s.u_lo = 0.0;
+    s.u_hi = 1.0;
+    s.u_abs = 1.0;
+    for (EffectKind k : all_effect_kinds()) {
+      const auto c = make_effect_candidates(k, s);
+      if (c.empty()) continue;
+      AugmentedModel<AnyPhysics> m(make_physics("mass_spring_damper"), g.parameter_info(), 0.01);
+      try {
+        m.add_effect(c[0].effect);
+      } catch (const Error&) {
+        continue;
+      }
+      save_model(dir + "/augmented_msd_" + effect_name(k) + ".json", m, stamped);
+    }
+  }
   {
     GreyBox<physics::FirstOrder> g;
     AugmentedModel<AnyPhysics> m(make_physics("first_order"), g.parameter_info(), 0.01);
