@@ -34,6 +34,7 @@
 #include "nlid/nonlinearities/sigmoid_network.hpp"
 #include "nlid/regressors.hpp"
 
+#include "../support/decimal_comma_locale.hpp"
 #include "../support/generated_c.hpp"
 
 
@@ -86,6 +87,35 @@ TEST_CASE("C literals read back to the same double", "[codegen]") {
   CHECK(nlid::codegen::c_literal(90.0) == "90.0");
   CHECK(nlid::codegen::c_literal(-1.5) == "(-1.5)");
   CHECK(nlid::codegen::c_literal(std::numeric_limits<double>::infinity()) == "HUGE_VAL");
+}
+
+TEST_CASE("generated C is the same under a locale with decimal commas", "[codegen]") {
+  // snprintf follows LC_NUMERIC: a program that had set de_DE got "0,5" in its generated C, which
+  // in an initialiser list compiles to two other numbers.
+  using Block = nlid::TransferFunctionBlock<2, 2, 1>;
+  using Model = nlid::HammersteinWiener<nlid::PwLinear<3>, Block, nlid::Saturation>;
+  Model m(nlid::PwLinear<3>{}, Block{}, nlid::Saturation{}, 0.01);
+  Eigen::VectorXd th = Eigen::VectorXd::LinSpaced(m.num_parameters(), 0.125, 0.875);
+  m.set_parameters(th);
+  nlid::CodegenOptions o;
+  o.name = "hw_locale";
+  const nlid::GeneratedCode in_c = nlid::generate_c(m, o);
+  o.precision = nlid::codegen::Precision::single_precision;
+  const nlid::GeneratedCode single_in_c = nlid::generate_c(m, o);
+  const nlid_test::DecimalCommaLocale comma;
+  if (nlid_test::DecimalCommaLocale::required()) REQUIRE(comma.active());
+  if (!comma.active()) {
+    WARN("no locale with decimal commas installed: not checked");
+    return;
+  }
+  CHECK(nlid::codegen::c_literal(0.5) == "0.5");
+  CHECK(nlid::detail::format_g(-1.25e-7, 3) == "-1.25e-07");
+  const nlid::GeneratedCode g = nlid::generate_c(m, o);
+  CHECK(g.source == single_in_c.source);
+  o.precision = nlid::codegen::Precision::double_precision;
+  const nlid::GeneratedCode d = nlid::generate_c(m, o);
+  CHECK(d.source == in_c.source);
+  CHECK(d.header == in_c.header);
 }
 
 TEST_CASE("single-precision C literals and names read back to the nearest float", "[codegen]") {

@@ -6,6 +6,7 @@
 
 #include <catch2/catch.hpp>
 
+#include "../support/decimal_comma_locale.hpp"
 #include "../support/error_of.hpp"
 
 #include <chrono>
@@ -738,7 +739,7 @@ TEST_CASE("write_csv_table quotes a first name that starts with a byte-order mar
 TEST_CASE("read_csv reads the same numbers and sample time under a locale with decimal commas", "[data][csv]") {
   // strtod (which read cells below the smallest double) and snprintf (which rounded sample-time
   // candidates) follow LC_NUMERIC: under de_DE "1.5e-400" read as 1, and a sample time printed
-  // with fixed decimals was not recovered. Skipped where no such locale is installed.
+  // with fixed decimals was not recovered. The test build makes the locale (NLID_TEST_LOCPATH).
   TempDir dir;
   std::ostringstream os;
   os << "t,u,y\n";
@@ -750,18 +751,9 @@ TEST_CASE("read_csv reads the same numbers and sample time under a locale with d
   const nlid::Experiment in_c = nlid::read_csv(path);
   REQUIRE(in_c.ts() == 1.0 / 51200.0);
 
-  struct RestoreNumericLocale {
-    std::string saved = std::setlocale(LC_NUMERIC, nullptr);
-    ~RestoreNumericLocale() { std::setlocale(LC_NUMERIC, saved.c_str()); }
-  } restore;
-  bool comma = false;
-  for (const char* name : {"de_DE.UTF-8", "de_DE.utf8", "de_DE", "fr_FR.UTF-8", "fr_FR.utf8", "fr_FR"}) {
-    if (std::setlocale(LC_NUMERIC, name) != nullptr && std::string(std::localeconv()->decimal_point) == ",") {
-      comma = true;
-      break;
-    }
-  }
-  if (!comma) {
+  const nlid_test::DecimalCommaLocale comma;
+  if (nlid_test::DecimalCommaLocale::required()) REQUIRE(comma.active());
+  if (!comma.active()) {
     WARN("no locale with decimal commas installed: not checked");
     return;
   }

@@ -43,6 +43,7 @@
 
 #include "nlid/codegen/trace_scalar.hpp"
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 
 namespace nlid::codegen {
 
@@ -84,11 +85,7 @@ inline Eigen::VectorXd delta_state_from_tdf2(int n, const Eigen::VectorXd& s) {
 // "[v[first] … v[last]]" with 9 significant digits (the float values in the code).
 inline std::string coefficient_list(const std::vector<double>& v, std::size_t first) {
   std::string s = "[";
-  char b[32];
-  for (std::size_t i = first; i < v.size(); ++i) {
-    std::snprintf(b, sizeof b, "%s%.9g", i > first ? " " : "", v[i]);
-    s += b;
-  }
+  for (std::size_t i = first; i < v.size(); ++i) s += (i > first ? " " : "") + nlid::detail::format_g(v[i], 9);
   return s + "]";
 }
 

@@ -52,6 +52,7 @@
 
 #include "nlid/ad/dual.hpp"
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/nonlinearities/detail/common.hpp"
 
 namespace nlid {
@@ -112,9 +113,8 @@ inline std::string c_literal(double v) {
     const char* huge = single ? "HUGE_VALF" : "HUGE_VAL";
     return shown > 0 ? std::string(huge) : "(-" + std::string(huge) + ")";
   }
-  char b[40];
-  std::snprintf(b, sizeof b, single ? "%.9g" : "%.17g", shown);
-  std::string s = b;
+  // Not snprintf: it follows LC_NUMERIC, and "0,5" in an initialiser list is two numbers.
+  std::string s = nlid::detail::format_g(shown, single ? 9 : 17);
   if (s.find_first_of(".e") == std::string::npos) s += ".0";
   if (single) s += "f";
   return shown < 0 || (shown == 0 && std::signbit(shown)) ? "(" + s + ")" : s;
