@@ -13,6 +13,7 @@
 
 #include <Eigen/Core>
 
+#include "../support/decimal_comma_locale.hpp"
 #include "../support/error_of.hpp"
 #include "nlid/io/augmented_serial.hpp"
 #include "nlid/io/series_serial.hpp"
@@ -341,6 +342,15 @@ TEST_CASE("model specs carry a regularization lambda into the estimation", "[io]
   CHECK_THROWS_WITH(parse_model_spec("nlarx:na=2,nb=2,nk=0:linear:lambda=inf"), Contains("is not a finite number >= 0"));
   CHECK_THROWS_WITH(parse_model_spec("nlarx:na=2,nb=2,nk=0:linear:lambda=1x"), Contains("is not a finite number >= 0"));
   CHECK_THROWS_WITH(parse_model_spec("nlarx:na=2,nb=2,nk=0:linear:lambda=1:lambda=2"), Contains("'lambda' is given twice"));
+  CHECK(parse_model_spec("nlarx:na=2,nb=2,nk=0:linear:lambda=+0.25").lambda == 0.25);
+  CHECK_THROWS_WITH(parse_model_spec("nlarx:na=2,nb=2,nk=0:linear:lambda=+-1"), Contains("is not a finite number >= 0"));
+  CHECK_THROWS_WITH(parse_model_spec("nlarx:na=2,nb=2,nk=0:linear:lambda=+"), Contains("is not a finite number >= 0"));
+  {
+    // std::stod followed LC_NUMERIC: under a decimal-comma locale "lambda=0.5" was refused.
+    const nlid_test::DecimalCommaLocale comma;
+    if (nlid_test::DecimalCommaLocale::required()) REQUIRE(comma.active());
+    if (comma.active()) CHECK(parse_model_spec("nlarx:na=2,nb=2,nk=0:sigmoidnet:3:lambda=0.5").lambda == 0.5);
+  }
   // Through the fit: a linear-in-θ NARX, prediction focus, so the estimate is the ridge answer
   // (ΦᵀΦ + λI)⁻¹Φᵀy over the rows [y(t-1) u(t-1) 1].
   const int n = 200;

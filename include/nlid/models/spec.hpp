@@ -48,6 +48,7 @@
 /// below; idempotent).
 
 #include <algorithm>
+#include <charconv>
 #include <cctype>
 #include <chrono>
 #include <cmath>
@@ -418,13 +419,16 @@ inline ModelSpec parse_model_spec(const std::string& text) {
                     s.family == "wiener" || s.family == "greybox",
                 "model spec '" + text + "': lambda applies to nlarx, hw, wh, hammerstein, wiener and greybox models",
                 at_parameter(k));
-        std::size_t pos = 0;
+        // from_chars, not stod: stod follows LC_NUMERIC, so under a decimal-comma locale
+        // "lambda=0.5" was refused. A leading '+' is accepted, as stod did.
         double x = -1.0;
-        try {
-          x = std::stod(v, &pos);
-        } catch (...) {
-          pos = 0;
-        }
+        const bool plus = !v.empty() && v.front() == '+';
+        const char* first = v.data() + (plus ? 1 : 0);
+        const char* last = v.data() + v.size();
+        const auto [end, ec] = std::from_chars(first, last, x);
+        const std::size_t pos = ec == std::errc() && !(plus && (*first == '-' || *first == '+'))
+                                    ? static_cast<std::size_t>(end - v.data())
+                                    : 0;
         require(pos == v.size() && !v.empty() && std::isfinite(x) && x >= 0.0,
                 "'lambda=" + v + "' in model spec '" + text + "' is not a finite number >= 0", at_parameter(k));
         s.lambda = x;
