@@ -121,8 +121,13 @@ void model_fuzz_use(const nlid::AnyModel& m, const std::string& copy_path) {
   (void)m.history_length();
   (void)m.has_predictor();
   (void)m.describe();
+  // A grey box's estimated initial condition runs a Levenberg-Marquardt fit of simulations with
+  // up to max_substeps RK4 steps per sample: a stiff but valid file (a throttle stop of 1e14 1/s^2)
+  // takes half a second natively, many under the sanitizers. Grey boxes get a shorter record.
   const bool costly = model_fuzz_costly(m);
-  const nlid::Experiment e = model_fuzz_record(nu, ny, ts > 0 ? ts : 0.01, costly ? 5 : 50);
+  const bool greybox =
+      m.target<nlid::DynamicGreyBox>() != nullptr || m.target<nlid::AugmentedModel<nlid::AnyPhysics>>() != nullptr;
+  const nlid::Experiment e = model_fuzz_record(nu, ny, ts > 0 ? ts : 0.01, costly ? 5 : greybox ? 10 : 50);
 
   Eigen::MatrixXd y0;
   const bool simulated = model_fuzz_try("simulate(zero)", [&] { y0 = m.simulate(e, nlid::InitialCondition::zero); });
