@@ -52,6 +52,15 @@ std::string model_fuzz_path(const char* tag) {
   return dir + "/nlid_model_fuzz_" + std::to_string(static_cast<long>(getpid())) + "_" + tag + ".json";
 }
 
+// Removes the per-process files when libFuzzer exits normally (a crash keeps them for a look).
+struct ModelFuzzCleanup {
+  std::string in, copy;
+  ~ModelFuzzCleanup() {
+    std::remove(in.c_str());
+    std::remove(copy.c_str());
+  }
+};
+
 bool model_fuzz_bits_equal(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
   if (a.rows() != b.rows() || a.cols() != b.cols()) return false;
   for (Eigen::Index i = 0; i < a.size(); ++i) {
@@ -177,6 +186,7 @@ void model_fuzz_use(const nlid::AnyModel& m, const std::string& copy_path) {
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   static const std::string path = model_fuzz_path("in");
   static const std::string copy = model_fuzz_path("copy");
+  static const ModelFuzzCleanup cleanup{path, copy};
   {
     std::ofstream f(path, std::ios::binary | std::ios::trunc);
     f.write(reinterpret_cast<const char*>(data), static_cast<std::streamsize>(size));
