@@ -201,6 +201,13 @@ TEST_CASE("Json string errors: lone surrogates, bad escapes, raw control charact
   CHECK(parse_error(R"("\ud83d\u0041")").message() ==
         "JSON parse error: high surrogate not followed by a low surrogate in \\u escape");
   CHECK(parse_error(R"("\x")").message() == "JSON parse error: invalid escape '\\x' in string");
+  // A control byte after the backslash is named in hex: a NUL in the text cut what() short there,
+  // losing the file and position.
+  const nlid::Error nul = parse_error(std::string("\"\\\0\"", 4));
+  CHECK(nul.message() == "JSON parse error: invalid escape: backslash before byte 0x00 in string");
+  CHECK(std::string(nul.what()).find("t.json") != std::string::npos);
+  CHECK(parse_error("\"\\\xc3\xa9\"").message() ==
+        "JSON parse error: invalid escape: backslash before byte 0xc3 in string");
   CHECK(parse_error(R"("\u12G4")").message() ==
         "JSON parse error: \\u escape needs four hex digits");
   CHECK(parse_error("\"a\nb\"").message() ==

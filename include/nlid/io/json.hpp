@@ -1158,9 +1158,16 @@ class JsonParser {
         return;
       case 'u':
         break;
-      default:
+      default: {
+        // The byte itself only when printable: a NUL would end what() there, file name and all.
+        const auto b = static_cast<unsigned char>(e);
         pos_ = at;
+        if (b < 0x20 || b >= 0x7F) {
+          fail(std::string("invalid escape: backslash before byte 0x") + "0123456789abcdef"[b >> 4] +
+               "0123456789abcdef"[b & 15] + " in string");
+        }
         fail(std::string("invalid escape '\\") + e + "' in string");
+      }
     }
     std::uint32_t cp = hex4(at);
     if (cp >= 0xD800 && cp <= 0xDBFF) {
