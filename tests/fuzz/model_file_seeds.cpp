@@ -9,6 +9,7 @@
 
 #include <Eigen/Core>
 
+#include "../support/msd_scales.hpp"
 #include "nlid/diagnose/effects.hpp"
 #include "nlid/io/augmented_serial.hpp"
 #include "nlid/io/series_serial.hpp"
@@ -145,17 +146,7 @@ int main(int argc, char** argv) {
   {
     // Every effect the diagnosis can add, one file each, on the mass-spring-damper baseline.
     GreyBox<physics::MassSpringDamper> g;
-    DataScales s;
-    s.ts = 0.01;
-    s.q_lo = 0.0;
-    s.q_hi = 2.0;
-    s.q_mid = 1.0;
-    s.speed = 3.0;
-    s.accel = 30.0;
-    s.stiffness = 100.0;
-    s.u_lo = 0.0;
-    s.u_hi = 1.0;
-    s.u_abs = 1.0;
+    const DataScales s = nlid_test::msd_effect_scales();
     for (EffectKind k : all_effect_kinds()) {
       const auto c = make_effect_candidates(k, s);
       if (c.empty()) continue;
@@ -171,17 +162,7 @@ int main(int argc, char** argv) {
   {
     GreyBox<physics::FirstOrder> g;
     AugmentedModel<AnyPhysics> m(make_physics("first_order"), g.parameter_info(), 0.01);
-    DataScales s;
-    s.ts = 0.01;
-    s.q_lo = 0.0;
-    s.q_hi = 2.0;
-    s.q_mid = 1.0;
-    s.speed = 3.0;
-    s.accel = 30.0;
-    s.stiffness = 100.0;
-    s.u_lo = 0.0;
-    s.u_hi = 1.0;
-    s.u_abs = 1.0;
+    const DataScales s = nlid_test::msd_effect_scales();
     const auto dz = make_effect_candidates(effect_kind("input_deadzone"), s);
     if (!dz.empty()) m.add_effect(dz[0].effect);
     save_model(dir + "/augmented_first_order.json", m, stamped);

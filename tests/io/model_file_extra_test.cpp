@@ -15,6 +15,7 @@
 
 #include "../support/decimal_comma_locale.hpp"
 #include "../support/error_of.hpp"
+#include "../support/msd_scales.hpp"
 #include "nlid/io/augmented_serial.hpp"
 #include "nlid/io/series_serial.hpp"
 #include "nlid/models/spec.hpp"  // nlid-fit's specs: must coexist with the series serialiser
@@ -62,17 +63,7 @@ TEST_CASE("model file: augmented grey-box (baseline + effects) loads at run time
   physics::MassSpringDamper msd;
   GreyBox<physics::MassSpringDamper> g(msd);
   AugmentedModel<AnyPhysics> m(make_physics("mass_spring_damper"), g.parameter_info(), 0.01);
-  DataScales s;
-  s.ts = 0.01;
-  s.q_lo = 0.0;
-  s.q_hi = 2.0;
-  s.q_mid = 1.0;
-  s.speed = 3.0;
-  s.accel = 30.0;
-  s.stiffness = 100.0;
-  s.u_lo = 0.0;
-  s.u_hi = 1.0;
-  s.u_abs = 1.0;
+  const DataScales s = nlid_test::msd_effect_scales();
   const auto coulomb = make_effect_candidates(effect_kind("coulomb_friction"), s);
   REQUIRE(!coulomb.empty());
   m.add_effect(coulomb[0].effect);

@@ -25,6 +25,7 @@
 #include "nlid/regressors/expression.hpp"
 
 #include "../support/scratch_dir.hpp"
+#include "../support/msd_scales.hpp"
 
 using namespace nlid;
 
@@ -215,17 +216,7 @@ TEST_CASE("model file: an augmented grey box's dead time must be 0 to 100000 sam
   using Catch::Contains;
   GreyBox<physics::MassSpringDamper> g;
   AugmentedModel<AnyPhysics> m(make_physics("mass_spring_damper"), g.parameter_info(), 0.01);
-  DataScales s;
-  s.ts = 0.01;
-  s.q_lo = 0.0;
-  s.q_hi = 2.0;
-  s.q_mid = 1.0;
-  s.speed = 3.0;
-  s.accel = 30.0;
-  s.stiffness = 100.0;
-  s.u_lo = 0.0;
-  s.u_hi = 1.0;
-  s.u_abs = 1.0;
+  const DataScales s = nlid_test::msd_effect_scales();
   const auto dead = make_effect_candidates(effect_kind("dead_time"), s);
   REQUIRE(!dead.empty());
   m.add_effect(dead[0].effect);
