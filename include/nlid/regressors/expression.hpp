@@ -209,8 +209,12 @@ class Expression {
             case Op::sub: a = a - b; break;
             case Op::mul: a = a * b; break;
             case Op::div: a = a / b; break;
-            case Op::min: a = nlid::min(a, b); break;
-            case Op::max: a = nlid::max(a, b); break;
+            // Unqualified, so that overloads declared after this header (the code generator's
+            // TraceScalar) are found by argument-dependent lookup when run<T> is instantiated: a
+            // qualified nlid::min saw only the overloads declared before it, and a program that
+            // included this header before nlid/codegen could not generate C for these models.
+            case Op::min: a = min(a, b); break;
+            case Op::max: a = max(a, b); break;
             case Op::pow: a = power(a, b); break;
             default: break;
           }
