@@ -894,16 +894,6 @@ inline Eigen::VectorXd check_linear_parameters(const JsonView& file, const std::
   return check_count(p.at("stddev"), true);
 }
 
-/// Rethrows a constructor error of a linear model located at the structure.
-template <class Fn>
-auto located(const JsonView& where, Fn&& fn) {
-  try {
-    return fn();
-  } catch (const Error& e) {
-    if (!e.where().file.empty()) throw;
-    where.fail(e.message() + " (at " + where.path_text() + ")");
-  }
-}
 }  // namespace detail
 
 /// Arx: "structure": {"a": [a₁…], "b": [[b₁…], …], "nk": [...], "offset": c}.

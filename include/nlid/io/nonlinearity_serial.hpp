@@ -133,17 +133,6 @@ Eigen::VectorXd exact_scale(const F& f) {
   return s;
 }
 
-/// Builds a map from sizes read in the file; a constructor error (sizes the map refuses, such as
-/// more parameters than `max_nonlinearity_parameters`) is located at the map's object `v`.
-template <class Fn>
-auto build_located(const JsonView& v, Fn&& build) {
-  try {
-    return build();
-  } catch (const Error& e) {
-    if (!e.where().file.empty()) throw;
-    v.fail(e.message() + " (at " + v.path_text() + ")");
-  }
-}
 
 template <class F>
 Json network_to_json(const F& f, const char* type) {
@@ -255,7 +244,7 @@ struct NonlinearitySerial<SigmoidNet<M, U, L>> {
   /// Builds the network.
   static SigmoidNet<M, U, L> load(const JsonView& v) {
     detail::expect_nonlinearity_type(v, "sigmoidnet");
-    SigmoidNet<M, U, L> f = detail::build_located(v, [&] {
+    SigmoidNet<M, U, L> f = detail::located(v, [&] {
       return SigmoidNet<M, U, L>(read_int(v.at("inputs"), 1, 1 << 20), read_int(v.at("units"), 1, 1 << 20));
     });
     restore(v, f);
@@ -273,7 +262,7 @@ struct NonlinearitySerial<WaveletNet<M, U, L>> {
   /// Builds the network.
   static WaveletNet<M, U, L> load(const JsonView& v) {
     detail::expect_nonlinearity_type(v, "wavenet");
-    WaveletNet<M, U, L> f = detail::build_located(v, [&] {
+    WaveletNet<M, U, L> f = detail::located(v, [&] {
       return WaveletNet<M, U, L>(read_int(v.at("inputs"), 1, 1 << 20), read_int(v.at("units"), 1, 1 << 20));
     });
     restore(v, f);
@@ -421,7 +410,7 @@ struct NonlinearitySerial<TreePartition<M, D>> {
   /// Builds the tree.
   static TreePartition<M, D> load(const JsonView& v) {
     detail::expect_nonlinearity_type(v, "treepartition");
-    TreePartition<M, D> f = detail::build_located(
+    TreePartition<M, D> f = detail::located(
         v, [&] { return TreePartition<M, D>(read_int(v.at("inputs"), 1, 1 << 20), read_int(v.at("depth"), 1, 12)); });
     restore(v, f);
     return f;

@@ -205,4 +205,20 @@ namespace nlid {
   return r;
 }
 
+namespace detail {
+/// Runs `fn`, which builds part of a model from values read at `where` (a nonlinearity from its
+/// sizes, a linear model or grey box from its structure); an error of the constructor, which
+/// knows no file (sizes it refuses, such as more parameters than `max_nonlinearity_parameters`),
+/// is rethrown located at `where`: file, key path, line and column.
+template <class Fn>
+auto located(const JsonView& where, Fn&& fn) {
+  try {
+    return fn();
+  } catch (const Error& e) {
+    if (!e.where().file.empty()) throw;
+    where.fail(e.message() + " (at " + where.path_text() + ")");
+  }
+}
+}  // namespace detail
+
 }  // namespace nlid
