@@ -14,9 +14,9 @@
 //   may be non-finite: log(0), 1/0 are legal); the window and the values give the same double,
 //   bit for bit, and the dual's value part is the double's;
 // - parsing text() again gives the same evaluation;
-// - `to_c` returns C text of a size proportional to the expression, and that C, evaluated,
-//   gives the expression's value wherever the expression's value is finite (fmax / fmin treat
-//   NaN differently from nlid::max / min, so non-finite values are not compared);
+// - `to_c` returns C text of a size proportional to the expression (up to max_c_size with
+//   nested sign(), past which it throws nlid::Error), and that C, evaluated, gives the
+//   expression's value wherever that is finite;
 // - as a custom regressor of a RegressorList and of a nonlinear ARX model it reports the lags
 //   of the expression, its regressor column equals the expression evaluated on the data, and a
 //   simulation either runs or throws nlid::Error.
@@ -313,19 +313,31 @@ void expr_fuzz_parsed(const nlid::Expression& e, std::string_view text, const st
   const nlid::Expression again = nlid::Expression::parse(e.text(), names, output);
   if (!expr_fuzz_same(again.evaluate(ExprFuzzWindow<double>{}), v)) expr_fuzz_defect("parse(text()) evaluates differently", text);
 
-  // C text: proportional to the expression, and the same value where that is finite.
-  const std::string c = e.to_c([&](const nlid::SignalRef& s) {
-    for (std::size_t i = 0; i < sig.size(); ++i)
-      if (sig[i] == s) return "s" + std::to_string(i);
-    return std::string("s_unknown");
-  });
+  // C text: proportional to the expression (sign() writes its operand twice, so nested signs
+  // may double it up to max_c_size, past which to_c throws), and the same value where that is
+  // finite.
+  bool has_sign = false;
+  for (const auto& nd : prog) has_sign = has_sign || nd.op == Op::sign;
+  std::string c;
+  try {
+    c = e.to_c([&](const nlid::SignalRef& s) {
+      for (std::size_t i = 0; i < sig.size(); ++i)
+        if (sig[i] == s) return "s" + std::to_string(i);
+      return std::string("s_unknown");
+    });
+  } catch (const nlid::Error& err) {
+    if (!has_sign) expr_fuzz_defect(std::string("to_c refused an expression without sign(): ") + err.what(), text);
+    expr_fuzz_as_regressor(e, text, v);
+    return;
+  }
   if (c.empty()) expr_fuzz_defect("to_c wrote nothing", text);
-  if (c.size() > 64 * text.size() + 64) {
+  if (c.size() > (has_sign ? nlid::Expression::max_c_size : 64 * text.size() + 64)) {
     expr_fuzz_defect("to_c wrote " + std::to_string(c.size()) + " bytes for " + std::to_string(text.size()), text);
   }
   double cv = 0;
+  ExprFuzzC creader(c, vals);
   try {
-    cv = ExprFuzzC(c, vals).run();
+    cv = creader.run();
   } catch (const std::runtime_error& err) {
     expr_fuzz_defect(std::string(err.what()) + " in '" + c + "'", text);
   }

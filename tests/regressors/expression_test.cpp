@@ -194,6 +194,26 @@ TEST_CASE("expression: C code for generated models") {
         "(-pow(u, 2.0))");
 }
 
+TEST_CASE("expression: C code of deeply nested sign() is refused, not allocated") {
+  // Found by tests/fuzz/expression_fuzz.cpp: sign() writes its operand twice, so the C text
+  // doubled per nested sign — 40 of them (a 300-byte expression) asked for 40 GiB.
+  const auto name_expr_c = [](const nlid::SignalRef&) { return std::string("y"); };
+  std::string nested = "y1(t-1)";
+  for (int i = 0; i < 20; ++i) nested = "sign(" + nested + ")";
+  const Expression deep = Expression::parse(nested);
+  CHECK(deep.evaluate_values<double>(std::vector<double>{-2.0}) == -1.0);  // evaluation is unaffected
+  try {
+    (void)deep.to_c(name_expr_c);
+    FAIL("to_c wrote the C text of 20 nested signs");
+  } catch (const nlid::Error& e) {
+    CHECK_THAT(e.what(), Catch::Contains("sign()") && Catch::Contains("split it"));
+  }
+  // A few nested signs still have their C form.
+  CHECK(Expression::parse("sign(sign(y1(t-1)))").to_c(name_expr_c) ==
+        "((((y) > 0 ? 1.0 : ((y) < 0 ? -1.0 : 0.0))) > 0 ? 1.0 : ((((y) > 0 ? 1.0 : ((y) < 0 ? -1.0 : 0.0))) < 0 "
+        "? -1.0 : 0.0))");
+}
+
 TEST_CASE("custom_regressor(text) and RegressorList equal the compile-time regressors") {
   const auto spring_text = nlid::custom_regressor("max(y1(t-1),90)+min(y1(t-1),15)-105");
   const auto spring_fn = nlid::custom_regressor<nlid::OutputLag<1>>(

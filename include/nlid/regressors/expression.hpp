@@ -143,8 +143,13 @@ class Expression {
     });
   }
 
+  /// Longest C text `to_c` writes (characters): sign() writes its operand twice, so nested signs
+  /// double the text; past this length `to_c` refuses rather than allocating gigabytes.
+  static constexpr std::size_t max_c_size = std::size_t{1} << 20;
+
   /// The expression as C99 source (fmax, fmin, pow, fabs, …; fully parenthesised), each signal
-  /// spelled by `signal_name(ref)`: what a code generator emits for a custom regressor.
+  /// spelled by `signal_name(ref)`: what a code generator emits for a custom regressor. Throws
+  /// `nlid::Error` if the text would exceed `max_c_size` (sign() nested about 15 deep).
   template <class NameFn>
   [[nodiscard]] std::string to_c(NameFn&& signal_name) const {
     std::vector<std::string> st;
@@ -155,7 +160,16 @@ class Expression {
         case Op::neg: st.back() = "(-" + st.back() + ")"; break;
         case Op::abs: case Op::sqrt: case Op::exp: case Op::log: case Op::tanh: case Op::sin:
         case Op::cos: st.back() = std::string(c_function(n.op)) + "(" + st.back() + ")"; break;
-        case Op::sign: st.back() = "((" + st.back() + ") > 0 ? 1.0 : ((" + st.back() + ") < 0 ? -1.0 : 0.0))"; break;
+        case Op::sign:
+          // C99 has no sign function that gives 0 at 0 and at NaN, as run() does, so the operand
+          // is written twice and each nested sign() doubles the text: 40 nested signs in 300
+          // bytes of expression asked for 40 GiB. Refuse a text past max_c_size instead.
+          require(2 * st.back().size() + 40 <= max_c_size,
+                  "expression '" + text_ + "': its C form would exceed " + std::to_string(max_c_size) +
+                      " characters (each nested sign() writes its argument twice); split it into several regressors",
+                  at_parameter("expression"));
+          st.back() = "((" + st.back() + ") > 0 ? 1.0 : ((" + st.back() + ") < 0 ? -1.0 : 0.0))";
+          break;
         default: {
           std::string b = std::move(st.back());
           st.pop_back();
