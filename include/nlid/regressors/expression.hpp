@@ -150,6 +150,11 @@ class Expression {
   /// The expression as C99 source (fmax, fmin, pow, fabs, …; fully parenthesised), each signal
   /// spelled by `signal_name(ref)`: what a code generator emits for a custom regressor. Throws
   /// `nlid::Error` if the text would exceed `max_c_size` (sign() nested about 15 deep).
+  /// C's fmax / fmin differ from nlid::max / min (x >= y ? x : y, as `evaluate` computes) where
+  /// an operand is NaN — fmax(1, NaN) is 1, max(1, NaN) NaN — or both are zeros of opposite
+  /// sign: the ternary form would write both operands twice, doubling the text per nested
+  /// min/max. For those values the C differs from `evaluate` (nlid's own code generator traces
+  /// `evaluate` and does match it).
   template <class NameFn>
   [[nodiscard]] std::string to_c(NameFn&& signal_name) const {
     std::vector<std::string> st;
