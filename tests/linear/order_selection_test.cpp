@@ -3,9 +3,11 @@
 #include <catch2/catch.hpp>
 
 #include <cmath>
+#include <string>
 
 #include "linear_test_util.hpp"
 #include "nlid/linear/order_selection.hpp"
+#include "../support/decimal_comma_locale.hpp"
 
 namespace {
 Eigen::VectorXd vec(std::initializer_list<double> v) {
@@ -135,4 +137,41 @@ TEST_CASE("Order selection checks validation data like estimation data", "[linea
   const nlid::Experiment s3(v.u().topRows(40), v.y().topRows(40), 0.1, "s3");
   const nlid::OrderSelection sel = nlid::arx_order_selection(e, nlid::Dataset{s1, s3}, grid);
   CHECK(sel.best(nlid::OrderCriterion::validation_loss).orders.na == 2);
+}
+
+namespace {
+// The message of the error arx_order_selection throws for validation data at another sample time.
+std::string order_selection_ts_message(const nlid::Experiment& e, const nlid::Experiment& v) {
+  try {
+    (void)nlid::arx_order_selection(e, v);
+  } catch (const nlid::Error& err) {
+    return err.what();
+  }
+  return "(no error)";
+}
+}  // namespace
+
+TEST_CASE("Order selection's table, chart and sample-time error read the same under a decimal-comma locale",
+          "[linear][order][locale]") {
+  const nlid::Experiment est = nlid_test::arx_data(truth(), nlid_test::white_noise(600, 1, 21), 0.3, 22, "est");
+  const nlid::Experiment val = nlid_test::arx_data(truth(), nlid_test::white_noise(400, 1, 23), 0.3, 24, "val");
+  nlid::ArxOrderGrid grid;
+  grid.na = {1, 2};
+  grid.nb = {1, 2};
+  grid.nk = {1};
+  const nlid::OrderSelection sel = nlid::arx_order_selection(est, val, grid);
+  const std::string table = sel.table(), chart = sel.bar_chart(30);
+  const nlid::Experiment slow(val.u(), val.y(), 0.125, "slow");
+  const std::string ts_error = order_selection_ts_message(est, slow);
+  REQUIRE(ts_error.find("model sample time 0.1 s differs from the sample time 0.125 s of") != std::string::npos);
+  REQUIRE(table.find('.') != std::string::npos);
+  const nlid_test::DecimalCommaLocale comma;
+  if (nlid_test::DecimalCommaLocale::required()) REQUIRE(comma.active());
+  if (!comma.active()) {
+    WARN("no locale with decimal commas installed: not checked");
+    return;
+  }
+  CHECK(sel.table() == table);
+  CHECK(sel.bar_chart(30) == chart);
+  CHECK(order_selection_ts_message(est, slow) == ts_error);
 }

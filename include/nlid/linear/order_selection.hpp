@@ -31,6 +31,7 @@
 #include <Eigen/Core>
 
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/core/initial_condition.hpp"
 #include "nlid/data/dataset.hpp"
 #include "nlid/linear/arx.hpp"
@@ -140,13 +141,13 @@ struct OrderSelection {
         os << line;
         continue;
       }
-      std::snprintf(line, sizeof line, "%-16s %3d %12.5g %12.6g %12.6g", x.orders.str().c_str(),
-                    x.num_parameters, x.loss, x.aic, x.mdl);
-      os << line;
-      if (has_validation) {
-        std::snprintf(line, sizeof line, " %12.5g %9.2f", *x.validation_loss, *x.validation_fit);
-        os << line;
-      }
+      std::snprintf(line, sizeof line, "%-16s %3d", x.orders.str().c_str(), x.num_parameters);
+      os << line << ' ' << detail::right_aligned(detail::format_g(x.loss, 5), 12) << ' '
+         << detail::right_aligned(detail::format_g(x.aic, 6), 12) << ' '
+         << detail::right_aligned(detail::format_g(x.mdl, 6), 12);
+      if (has_validation)
+        os << ' ' << detail::right_aligned(detail::format_g(*x.validation_loss, 5), 12) << ' '
+           << detail::right_aligned(detail::format_fixed(*x.validation_fit, 2), 9);
       std::string mark;
       if (k == ia) mark += " <AIC";
       if (k == im) mark += " <MDL";
@@ -187,8 +188,7 @@ struct OrderSelection {
       const int len = vmax > 0 ? static_cast<int>(std::lround(width * v / vmax)) : 0;
       std::snprintf(line, sizeof line, "d=%2d %-16s |", d, candidates[b].orders.str().c_str());
       os << line << std::string(static_cast<std::size_t>(std::max(len, v > 0 ? 1 : 0)), '#');
-      std::snprintf(line, sizeof line, " %.4g %%", v);
-      os << line;
+      os << ' ' << detail::format_g(v, 4) << " %";
       // The criteria's picks need not be the lowest-loss model at their d; name them if not.
       for (auto [idx, name] : {std::pair{ia, "AIC"}, std::pair{im, "MDL"}})
         if (candidates[idx].num_parameters == d)

@@ -48,6 +48,7 @@
 #include <Eigen/SVD>
 
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/core/sizes.hpp"
 #include "nlid/core/initial_condition.hpp"
 #include "nlid/data/dataset.hpp"
@@ -251,9 +252,7 @@ inline BdFit fit_b_d(const Dataset& data, const Eigen::MatrixXd& a, const Eigen:
         // it): past 1e150 its squares overflow and B, then the whole model, would come out NaN.
         if (!(x.cwiseAbs().maxCoeff() <= 1e150)) {
           const double radius = Eigen::EigenSolver<Eigen::MatrixXd>(a, false).eigenvalues().cwiseAbs().maxCoeff();
-          char buf[64];
-          std::snprintf(buf, sizeof buf, "%.6g", radius);
-          throw Error(who + ": the estimated A is unstable (an eigenvalue at |z| = " + buf +
+          throw Error(who + ": the estimated A is unstable (an eigenvalue at |z| = " + detail::format_g(radius, 6) +
                           ") and its response overflows within the " + std::to_string(N) +
                           " samples of " + linear_experiment_label(ex, e) +
                           "; set SubspaceOptions::enforce_stability or choose a lower order",

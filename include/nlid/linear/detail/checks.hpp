@@ -10,6 +10,7 @@
 #include <Eigen/Core>
 
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/core/sample_time.hpp"
 #include "nlid/data/experiment.hpp"
 
@@ -45,10 +46,8 @@ inline void check_linear_experiment(const Experiment& e, int nu, int ny, double 
                     linear_experiment_label(e, index, set) + " has " + std::to_string(e.num_outputs()),
                 where);
   if (ts > 0 && !same_sample_time(e.ts(), ts)) {
-    char buf[160];
-    std::snprintf(buf, sizeof buf, "model sample time %.9g s differs from the sample time %.9g s of ",
-                  ts, e.ts());
-    throw Error(who + ": " + buf + linear_experiment_label(e, index, set) +
+    throw Error(who + ": model sample time " + format_g(ts, 9) + " s differs from the sample time " +
+                    format_g(e.ts(), 9) + " s of " + linear_experiment_label(e, index, set) +
                     " (delays are counted in samples; resample the data or the model)",
                 where);
   }
@@ -78,8 +77,7 @@ void check_free_response(const Eigen::VectorXd& h, const std::string& who, const
                          Roots roots) {
   if (h.allFinite() && (h.size() == 0 || h.cwiseAbs().maxCoeff() <= 1e150)) return;
   const Eigen::VectorXcd r = roots();
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.6g", r.size() > 0 ? r.cwiseAbs().maxCoeff() : 0.0);
+  const std::string buf = format_g(r.size() > 0 ? r.cwiseAbs().maxCoeff() : 0.0, 6);
   throw Error(who + ": InitialCondition::estimate needs the free response of 1/" + poly + ", which overflows over " +
                   std::to_string(h.size()) + " samples: " + poly + " is unstable (a pole at |z| = " + buf +
                   "); use InitialCondition::zero or a shorter record",
