@@ -276,6 +276,26 @@ TEST_CASE("power and min/max with plain scalars", "[ad][dual]") {
   CHECK(nlid::square(3.0) == 9.0);
 }
 
+TEST_CASE("abs of a dual at -0 is +0 with the right-hand slope, as std::abs", "[ad][dual]") {
+  // Found by tests/fuzz/expression_fuzz.cpp ("abs(0 / u1(t))" with u1(t) < 0): abs returned the
+  // dual itself at -0, sign bit and all, so 1/abs(x) was -inf where the double gives +inf.
+  using D = Dual<double, 1>;
+  const D z = nlid::abs(D::variable(-0.0, 0));
+  CHECK(!std::signbit(z.a));
+  CHECK(z.v[0] == 1.0);  // the right-hand slope at the kink, as at +0
+  CHECK(1.0 / z.a == std::numeric_limits<double>::infinity());
+  CHECK(!std::signbit(nlid::abs(Dual<float, 2>(-0.0f)).a));
+  // Nested duals: the inner value loses its sign bit, its derivatives are kept.
+  using DD = Dual<D, 1>;
+  DD nested;
+  nested.a = D::variable(-0.0, 0);
+  nested.v[0] = D(2.0);
+  const DD an = nlid::abs(nested);
+  CHECK(!std::signbit(an.a.a));
+  CHECK(an.a.v[0] == 1.0);
+  CHECK(an.v[0].a == 2.0);
+}
+
 TEST_CASE("infinite slopes do not poison unrelated gradient components", "[ad][dual]") {
   using D = Dual<double, 2>;
   // sqrt at 0 seeded only in component 0: component 1 must stay exactly 0, not ∞·0 = NaN.

@@ -404,7 +404,15 @@ using std::abs, std::exp, std::log, std::sqrt, std::sin, std::cos, std::tan, std
 
 // |x|' = sign(x) x'   (at 0 the right-hand slope +1 is used, like Ceres)
 /// Absolute value.
-template <class T, int N> Dual<T, N> abs(const Dual<T, N>& x) { return x.a < T(0) ? -x : x; }
+template <class T, int N> Dual<T, N> abs(const Dual<T, N>& x) {
+  if (x.a < T(0)) return -x;
+  // The value is |x.a|, as std::abs gives: returning x at -0 kept the sign bit, so 1/abs(x) was
+  // -inf on duals where doubles give +inf, and sign(1/abs(x)) -1 against +1 (found by the
+  // expression fuzzer: estimation and simulation of a custom regressor saw different functions).
+  Dual<T, N> r = x;
+  r.a = abs(x.a);
+  return r;
+}
 // exp(x)' = exp(x) x'
 /// Exponential.
 template <class T, int N> Dual<T, N> exp(const Dual<T, N>& x) { const T e = exp(x.a); return detail::chain(x, e, e); }
