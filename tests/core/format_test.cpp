@@ -38,31 +38,31 @@ std::string format_test_printf(const char* fmt, double v) {
 }
 }  // namespace
 
-TEST_CASE("format_fixed and format_g: the same text as printf in the C locale", "[core][format]") {
+TEST_CASE("format_f and format_g: the same text as printf in the C locale", "[core][format]") {
   const double inf = std::numeric_limits<double>::infinity();
   const double values[] = {0.0, -0.0, 0.5, 0.125, 2.5, -2.5, 99.95, 99.995, 1.0 / 3.0, -2.0 / 3.0, 1e-7,
                            123456.789, -98765.4321, 1e21, 1e300, std::numeric_limits<double>::max(),
                            std::numeric_limits<double>::denorm_min(), inf, -inf};
   for (double v : values) {
     CAPTURE(v);
-    CHECK(nlid::detail::format_fixed(v, 0) == format_test_printf("%.0f", v));
-    CHECK(nlid::detail::format_fixed(v, 1) == format_test_printf("%.1f", v));
-    CHECK(nlid::detail::format_fixed(v, 2) == format_test_printf("%.2f", v));
-    CHECK(nlid::detail::format_fixed(v, 4) == format_test_printf("%.4f", v));
-    CHECK(nlid::detail::with_plus(nlid::detail::format_fixed(v, 1)) == format_test_printf("%+.1f", v));
+    CHECK(nlid::detail::format_f(v, 0) == format_test_printf("%.0f", v));
+    CHECK(nlid::detail::format_f(v, 1) == format_test_printf("%.1f", v));
+    CHECK(nlid::detail::format_f(v, 2) == format_test_printf("%.2f", v));
+    CHECK(nlid::detail::format_f(v, 4) == format_test_printf("%.4f", v));
+    CHECK(nlid::detail::with_plus(nlid::detail::format_f(v, 1)) == format_test_printf("%+.1f", v));
     CHECK(nlid::detail::with_plus(format_g(v, 3)) == format_test_printf("%+.3g", v));
     CHECK(format_g(v) == format_test_printf("%g", v));
     CHECK(format_g(v, 3) == format_test_printf("%.3g", v));
     CHECK(format_g(v, 17) == format_test_printf("%.17g", v));
-    CHECK(nlid::detail::right_aligned(nlid::detail::format_fixed(v, 2), 10) == format_test_printf("%10.2f", v));
+    CHECK(nlid::detail::right_aligned(nlid::detail::format_f(v, 2), 10) == format_test_printf("%10.2f", v));
     CHECK(nlid::detail::right_aligned(format_g(v, 5), 12) == format_test_printf("%12.5g", v));
   }
-  CHECK(nlid::detail::format_fixed(std::numeric_limits<double>::quiet_NaN(), 1) == "nan");
-  CHECK(nlid::detail::with_plus(nlid::detail::format_fixed(inf, 1)) == "+inf");
-  CHECK(nlid::detail::format_fixed(-inf, 1) == "-inf");
-  CHECK(nlid::detail::format_fixed(12.345, 2) == "12.35");  // 12.345 is 12.3450000000000006...
-  CHECK(nlid::detail::format_fixed(99.5, 0) + " %" == "100 %");
-  CHECK(nlid::detail::format_fixed(-0.04, 1) == "-0.0");  // printf keeps the sign of what rounds to 0
+  CHECK(nlid::detail::format_f(std::numeric_limits<double>::quiet_NaN(), 1) == "nan");
+  CHECK(nlid::detail::with_plus(nlid::detail::format_f(inf, 1)) == "+inf");
+  CHECK(nlid::detail::format_f(-inf, 1) == "-inf");
+  CHECK(nlid::detail::format_f(12.345, 2) == "12.35");  // 12.345 is 12.3450000000000006...
+  CHECK(nlid::detail::format_f(99.5, 0) + " %" == "100 %");
+  CHECK(nlid::detail::format_f(-0.04, 1) == "-0.0");  // printf keeps the sign of what rounds to 0
 }
 
 TEST_CASE("right_aligned and left_aligned pad like %10s and %-12s, never cut", "[core][format]") {
@@ -73,7 +73,7 @@ TEST_CASE("right_aligned and left_aligned pad like %10s and %-12s, never cut", "
   CHECK(nlid::detail::right_aligned("", 2) == "  ");
 }
 
-TEST_CASE("format_fixed, format_g and with_plus write '.' under a decimal-comma LC_NUMERIC", "[core][format][locale]") {
+TEST_CASE("format_f, format_g and with_plus write '.' under a decimal-comma LC_NUMERIC", "[core][format][locale]") {
   const std::string c_fixed = format_test_printf("%.2f", 1234.5);
   const nlid_test::DecimalCommaLocale comma;
   if (nlid_test::DecimalCommaLocale::required()) REQUIRE(comma.active());
@@ -82,8 +82,8 @@ TEST_CASE("format_fixed, format_g and with_plus write '.' under a decimal-comma 
     return;
   }
   REQUIRE(format_test_printf("%.2f", 1234.5) == "1234,50");  // the locale is the one printf follows
-  CHECK(nlid::detail::format_fixed(1234.5, 2) == c_fixed);
-  CHECK(nlid::detail::format_fixed(-0.25, 1) == "-0.2");
+  CHECK(nlid::detail::format_f(1234.5, 2) == c_fixed);
+  CHECK(nlid::detail::format_f(-0.25, 1) == "-0.2");
   CHECK(format_g(0.5) == "0.5");
-  CHECK(nlid::detail::with_plus(nlid::detail::format_fixed(3.25, 1)) == "+3.2");
+  CHECK(nlid::detail::with_plus(nlid::detail::format_f(3.25, 1)) == "+3.2");
 }

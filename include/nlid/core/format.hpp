@@ -15,8 +15,9 @@
 /// format_g is `%.*g`: short for round numbers, scientific for very large or small ones; each
 /// caller picks the digits its reader needs (4 in toolbox-style coefficient tables, 6 in equations
 /// and error messages, 10 where a time or sample value must be told apart from its neighbours).
-/// format_fixed is `%.*f`, with_plus adds the `+` flag, and right_aligned / left_aligned give the
-/// field width (`%10s` / `%-12s`) of a table column.
+/// format_f is `%.*f`, with_plus adds the `+` flag, and right_aligned / left_aligned give the
+/// field width (`%10s` / `%-12s`) of a table column. (detail::format_fixed in io/svg_chart.hpp is
+/// another function: chart tick labels, which write "NaN" and drop the sign of -0.)
 
 #include <charconv>
 #include <cstddef>
@@ -37,9 +38,9 @@ inline std::string format_g(double v, int digits = 6) {
 }
 
 /// `v` with `decimals` digits after the point (`%.*f` in the C locale), e.g.
-/// format_fixed(12.345, 2) == "12.35", format_fixed(99.5, 0) == "100"; non-finite values read
+/// format_f(12.345, 2) == "12.35", format_f(99.5, 0) == "100"; non-finite values read
 /// "inf", "-inf" and "nan" as printf writes them.
-inline std::string format_fixed(double v, int decimals) {
+inline std::string format_f(double v, int decimals) {
   // Fixed notation writes every integer digit: 309 for the largest double, plus sign, point and
   // the decimals, which are capped so the whole text always fits.
   char buf[448];
@@ -50,7 +51,7 @@ inline std::string format_fixed(double v, int decimals) {
 }
 
 /// `text` of a number with the sign always written (printf's `+` flag, as in `%+.1f`):
-/// with_plus(format_fixed(2.0, 1)) == "+2.0"; a text that starts with '-' (also "-0.0" and "-inf")
+/// with_plus(format_f(2.0, 1)) == "+2.0"; a text that starts with '-' (also "-0.0" and "-inf")
 /// is returned as it is.
 inline std::string with_plus(std::string text) {
   if (text.empty() || text.front() != '-') text.insert(text.begin(), '+');

@@ -147,7 +147,7 @@ struct OrderSelection {
          << detail::right_aligned(detail::format_g(x.mdl, 6), 12);
       if (has_validation)
         os << ' ' << detail::right_aligned(detail::format_g(*x.validation_loss, 5), 12) << ' '
-           << detail::right_aligned(detail::format_fixed(*x.validation_fit, 2), 9);
+           << detail::right_aligned(detail::format_f(*x.validation_fit, 2), 9);
       std::string mark;
       if (k == ia) mark += " <AIC";
       if (k == im) mark += " <MDL";
