@@ -4,8 +4,9 @@
 //
 // Contract checked here:
 // - bad text throws nlid::Error naming the parameter "expression", with a 1-based column inside
-//   the text (at most one past its end, counted in code points) that the message repeats; any
-//   other exception, a sanitizer report or a hang is a defect;
+//   the text (at most one past its end, counted in code points) that the message repeats, and a
+//   message that is UTF-8 when the text is; any other exception, a sanitizer report or a hang
+//   is a defect;
 // - a parsed expression keeps its text, its program is a valid postfix sequence whose stack
 //   never exceeds `max_stack`, every signal it lists is read, lags are within the language's
 //   bounds (output lag >= 1, input lag >= 0, both <= 100000; input channels u1 ... u1000 or the
@@ -41,6 +42,7 @@
 
 #include "nlid/ad/dual.hpp"
 #include "nlid/core/error.hpp"
+#include "nlid/core/utf8.hpp"
 #include "nlid/data/experiment.hpp"
 #include "nlid/models/nlarx.hpp"
 #include "nlid/nonlinearities/linear.hpp"
@@ -368,6 +370,11 @@ void expr_fuzz_one(std::string_view text, const std::vector<std::string>& names,
     if (err.where().parameter != "expression") expr_fuzz_defect("error does not name the expression", text);
     if (err.message().find("at column " + std::to_string(col)) == std::string::npos) {
       expr_fuzz_defect(std::string("error message does not give its column: ") + err.what(), text);
+    }
+    // A message about well-formed text is well-formed: it quotes characters, not bytes of them.
+    if (nlid::first_invalid_utf8(text) == std::string_view::npos &&
+        nlid::first_invalid_utf8(err.message()) != std::string::npos) {
+      expr_fuzz_defect(std::string("error message about UTF-8 text is not UTF-8: ") + err.what(), text);
     }
     return;
   }

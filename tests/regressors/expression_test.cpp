@@ -169,6 +169,18 @@ TEST_CASE("expression: errors name the column of the bad token") {
   CHECK(error_column(deep) == -1);  // left-nested sums need only two slots
 }
 
+TEST_CASE("expression: errors quote a whole non-ASCII character, a malformed byte in hex") {
+  // Found by tests/fuzz/expression_fuzz.cpp: the message quoted the first byte of "é" alone,
+  // which made it malformed UTF-8 (shown as a replacement character, if at all).
+  std::string msg;
+  CHECK(error_column("1 \xC3\xA9", &msg) == 3);
+  CHECK_THAT(msg, Catch::Contains("unexpected '\xC3\xA9' after a complete expression"));
+  CHECK(error_column("max(1,2\xE2\x82\xAC)", &msg) == 8);
+  CHECK_THAT(msg, Catch::Contains("but found '\xE2\x82\xAC'"));
+  CHECK(error_column("1 \xFF", &msg) == 3);
+  CHECK_THAT(msg, Catch::Contains("unexpected '\\xFF'"));
+}
+
 TEST_CASE("expression: deep nesting is an error with a column, not a stack overflow") {
   // A recursive-descent parser recurses once per '(' or sign; without a bound these texts
   // overflowed the C++ stack (a crash) before the value-stack check could run.

@@ -52,6 +52,7 @@
 #include "nlid/ad/dual.hpp"
 #include "nlid/core/error.hpp"
 #include "nlid/core/sizes.hpp"
+#include "nlid/core/utf8.hpp"
 #include "nlid/regressors/concepts.hpp"
 
 namespace nlid {
@@ -301,7 +302,7 @@ class ExpressionParser {
     if (p_ >= s_.size()) fail(p_, "empty expression; expected e.g. 'max(y1(t-1),90)'");
     expr();
     skip();
-    if (p_ < s_.size()) fail(p_, "unexpected '" + std::string(1, s_[p_]) + "' after a complete expression");
+    if (p_ < s_.size()) fail(p_, "unexpected '" + char_at(p_) + "' after a complete expression");
     // Stack depth of the postfix program.
     int depth = 0, most = 0;
     for (const auto& n : e_.program_) {
@@ -374,7 +375,7 @@ class ExpressionParser {
     }
     if ((c >= '0' && c <= '9') || c == '.') { number(); return; }
     if (is_name_start(c)) { name(); return; }
-    fail(p_, "unexpected '" + std::string(1, c) + "'; expected a number, signal, function or '('");
+    fail(p_, "unexpected '" + char_at(p_) + "'; expected a number, signal, function or '('");
   }
   void number() {
     const std::size_t start = p_;
@@ -519,7 +520,7 @@ class ExpressionParser {
   void expect(char c, const std::string& what) {
     skip();
     if (!peek(c)) {
-      fail(p_, "expected " + what + (p_ < s_.size() ? "but found '" + std::string(1, s_[p_]) + "'" : "but the expression ended"));
+      fail(p_, "expected " + what + (p_ < s_.size() ? "but found '" + char_at(p_) + "'" : "but the expression ended"));
     }
     ++p_;
   }
@@ -527,6 +528,15 @@ class ExpressionParser {
     Expression::Node n;
     n.op = op;
     e_.program_.push_back(n);
+  }
+  // The character at pos as a message quotes it: its whole UTF-8 sequence (the first byte of
+  // "é" alone made the message malformed UTF-8), a malformed byte as \xHH.
+  std::string char_at(std::size_t pos) const {
+    const std::size_t n = detail::utf8_sequence_length(s_, pos);
+    if (n > 0) return std::string(s_.substr(pos, n));
+    const char* hex = "0123456789ABCDEF";
+    const auto b = static_cast<unsigned char>(s_[pos]);
+    return std::string("\\x") + hex[b >> 4] + hex[b & 15];
   }
   // 1-based column in code points (UTF-8 continuation bytes do not count), as an editor shows it.
   long column(std::size_t pos) const {
