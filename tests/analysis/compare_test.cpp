@@ -3,12 +3,14 @@
 
 #include <cmath>
 #include <limits>
+#include <string>
 #include <vector>
 
 #include "nlid/analysis/compare.hpp"
 #include "nlid/linear/arx.hpp"
 #include "nlid/linear/output_error.hpp"
 #include "nlid/linear/state_space.hpp"
+#include "../support/decimal_comma_locale.hpp"
 
 namespace {
 // A toy model: output = gain * input (one column per input), for testing compare itself.
@@ -166,4 +168,23 @@ TEST_CASE("a diverging simulation is a result of compare, other errors are not",
   CHECK(ua.simulated[0].size() == 0);
   const nlid::Experiment broken(ramp(10, 1.0), ramp(10, 2.0), 0.1, "broken");
   CHECK_THROWS_WITH(nlid::compare(SometimesDiverging{}, nlid::Dataset{a, broken}), Catch::Contains("cannot read this record"));
+}
+
+TEST_CASE("compare's table and the FitTable read the same under a decimal-comma locale", "[analysis][compare][locale]") {
+  const nlid::Experiment a(ramp(10, 1.0), ramp(10, 2.0), 0.1, "a");
+  const nlid::Experiment b(ramp(20, -1.0), ramp(20, -2.0), 0.1, "b");
+  const nlid::CompareResult r = nlid::compare(Gain{1.3}, nlid::Dataset{a, b});
+  nlid::FitTable fits;
+  fits.add("gain", r);
+  const std::string table = r.table(), fit_table = fits.str();
+  REQUIRE(table.find('.') != std::string::npos);  // the fits, with two decimals
+  REQUIRE(fit_table.find('.') != std::string::npos);
+  const nlid_test::DecimalCommaLocale comma;
+  if (nlid_test::DecimalCommaLocale::required()) REQUIRE(comma.active());
+  if (!comma.active()) {
+    WARN("no locale with decimal commas installed: not checked");
+    return;
+  }
+  CHECK(r.table() == table);
+  CHECK(fits.str() == fit_table);
 }

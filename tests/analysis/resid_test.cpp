@@ -16,6 +16,7 @@
 #include "nlid/models/physics/throttle.hpp"
 #include "nlid/nonlinearities/linear.hpp"
 #include "nlid/regressors.hpp"
+#include "../support/decimal_comma_locale.hpp"
 
 namespace {
 Eigen::VectorXd white(int n, unsigned seed, double sd = 1.0) {
@@ -270,4 +271,21 @@ TEST_CASE("resid chart: stems and the confidence band as SVG", "[analysis][resid
     CHECK(s95.find("95 % confidence") != std::string::npos);
     CHECK(s95.find("99 % confidence") == std::string::npos);
   }
+}
+
+TEST_CASE("resid's verdict, report and chart label read the same under a decimal-comma locale", "[analysis][resid][locale]") {
+  nlid::ResidOptions o;
+  o.confidence = 0.995;
+  const nlid::ResidAnalysis r = nlid::resid({white(1000, 31, 0.25)}, {white(1000, 32)}, o);
+  const std::string report = r.report(), svg = nlid::resid_chart_svg(r.whiteness);
+  REQUIRE(report.rfind("residuals (given residuals, N = 1000, 99.5 % confidence, rms 0.", 0) == 0);
+  REQUIRE(svg.find("99.5 % confidence") != std::string::npos);
+  const nlid_test::DecimalCommaLocale comma;
+  if (nlid_test::DecimalCommaLocale::required()) REQUIRE(comma.active());
+  if (!comma.active()) {
+    WARN("no locale with decimal commas installed: not checked");
+    return;
+  }
+  CHECK(r.report() == report);
+  CHECK(nlid::resid_chart_svg(r.whiteness) == svg);
 }

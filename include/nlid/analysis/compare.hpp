@@ -35,6 +35,7 @@
 #include "nlid/analysis/concepts.hpp"
 #include "nlid/analysis/fit.hpp"
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/core/initial_condition.hpp"
 #include "nlid/data/dataset.hpp"
 
@@ -93,9 +94,9 @@ struct CompareResult {
       os << buf;
       for (Eigen::Index j = 0; j < fit.cols(); ++j) {
         const double f = fit(static_cast<Eigen::Index>(e), j);
-        if (f == -std::numeric_limits<double>::infinity()) std::snprintf(buf, sizeof buf, " %10s", "diverged");
-        else std::snprintf(buf, sizeof buf, " %10.2f", f);
-        os << buf;
+        os << ' '
+           << detail::right_aligned(f == -std::numeric_limits<double>::infinity() ? "diverged" : detail::format_f(f, 2),
+                                    10);
       }
       if (e < diverged_at.size() && diverged_at[e] >= 0) os << "  (diverged at sample " << diverged_at[e] << ")";
       os << "\n";
@@ -205,9 +206,8 @@ class FitTable {
         std::string cell = "-";
         for (const auto& [col, v] : r.cells)
           if (col == k) {
-            char buf[32];
-            std::snprintf(buf, sizeof buf, "%.1f %%", v);
-            cell = v == -std::numeric_limits<double>::infinity() ? std::string("diverged") : std::string(buf);
+            cell = v == -std::numeric_limits<double>::infinity() ? std::string("diverged")
+                                                                 : detail::format_f(v, 1) + " %";
           }
         os << " | " << pad(cell, w[k], true);
       }

@@ -43,6 +43,7 @@
 #include <Eigen/Core>
 
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/data/detail/dft_table.hpp"
 #include "nlid/data/experiment.hpp"
 
@@ -114,13 +115,12 @@ struct DistortionAnalysis {
   [[nodiscard]] std::string report() const {
     char buf[256];
     std::string s;
-    std::snprintf(buf, sizeof buf, "Distortion analysis: %d periods of %ld samples, %zu excited lines (%.4g to %.4g Hz), ",
-                  periods, static_cast<long>(period), excited.size(), excited.empty() ? 0.0 : frequency(excited.front()),
-                  excited.empty() ? 0.0 : frequency(excited.back()));
-    s += buf;
+    s += "Distortion analysis: " + std::to_string(periods) + " periods of " + std::to_string(period) + " samples, " +
+         std::to_string(excited.size()) + " excited lines (" +
+         detail::format_g(excited.empty() ? 0.0 : frequency(excited.front()), 4) + " to " +
+         detail::format_g(excited.empty() ? 0.0 : frequency(excited.back()), 4) + " Hz), ";
     if (excited_level > 0.0) {
-      std::snprintf(buf, sizeof buf, "output %.1f dB above the noise\n", snr_db());
-      s += buf;
+      s += "output " + detail::format_f(snr_db(), 1) + " dB above the noise\n";
     } else {
       s += "no output at the excited lines\n";
     }
@@ -135,8 +135,8 @@ struct DistortionAnalysis {
         std::snprintf(buf, sizeof buf, "  %s distortion: no level on %zu lines (no output to compare it with)\n", what,
                       lines.size());
       } else {
-        std::snprintf(buf, sizeof buf, "  %s distortion: %.1f dB above the noise on %zu lines: %s\n", what, level_db,
-                      lines.size(), detected ? "present" : "not detected");
+        std::snprintf(buf, sizeof buf, "  %s distortion: %s dB above the noise on %zu lines: %s\n", what,
+                      detail::format_f(level_db, 1).c_str(), lines.size(), detected ? "present" : "not detected");
       }
       s += buf;
     };
@@ -148,11 +148,9 @@ struct DistortionAnalysis {
       s += "  no conclusion: the output at the excited lines is at the DFT's rounding floor (constant, or not a "
            "response to this input)\n";
     } else if (!conclusive()) {
-      std::snprintf(buf, sizeof buf,
-                    "  no conclusion: the output at the excited lines is only %.1f dB above the noise (needs more than "
-                    "%.1f dB): too noisy, or not a response to this input\n",
-                    snr_db(), threshold_db);
-      s += buf;
+      s += "  no conclusion: the output at the excited lines is only " + detail::format_f(snr_db(), 1) +
+           " dB above the noise (needs more than " + detail::format_f(threshold_db, 1) +
+           " dB): too noisy, or not a response to this input\n";
     } else if (even_detected() || odd_detected()) {
       s += "  a linear model leaves this distortion unexplained; a nonlinear structure is warranted\n";
     } else if (even_measurable() && odd_measurable()) {
@@ -227,10 +225,9 @@ struct DistortionAnalysis {
     spread = std::sqrt(spread / static_cast<double>(p * period));
     const double variation = std::sqrt((mean_period.array() - mean_period.mean()).square().mean());
     if (variation > 0.0 && spread > 0.1 * variation) {
-      char buf[96];
-      std::snprintf(buf, sizeof buf, "%.3g %%", 100.0 * spread / variation);
       throw Error("distortion analysis: the input does not repeat every " + std::to_string(period) +
-                      " samples (its periods differ from their mean by " + buf +
+                      " samples (its periods differ from their mean by " +
+                      detail::format_g(100.0 * spread / variation, 3) + " %" +
                       " of the input's variation, RMS); the analysis needs a periodic input: give its period, and skip "
                       "the periods before the steady state",
                   at_parameter("period"));

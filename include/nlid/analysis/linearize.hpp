@@ -52,6 +52,7 @@
 
 #include "nlid/ad/dual.hpp"
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/core/initial_condition.hpp"
 #include "nlid/data/experiment.hpp"
 #include "nlid/linear/state_space.hpp"
@@ -92,11 +93,7 @@ struct Linearization {
 
   /// Operating point, matrices, discrete (and continuous) poles and the static gain, as text.
   [[nodiscard]] std::string describe() const {
-    auto num = [](double v) {
-      char b[32];
-      std::snprintf(b, sizeof b, "%.6g", v);
-      return std::string(b);
-    };
+    auto num = [](double v) { return detail::format_g(v, 6); };
     auto vec = [&](const Eigen::VectorXd& v) {
       std::string s = "[";
       for (Eigen::Index i = 0; i < v.size(); ++i) s += (i ? ", " : "") + num(v(i));

@@ -76,6 +76,7 @@
 #include <Eigen/Eigenvalues>
 
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/core/initial_condition.hpp"
 #include "nlid/data/dataset.hpp"
 #include "nlid/data/experiment.hpp"
@@ -158,10 +159,9 @@ struct ResidAnalysis {
   /// One-paragraph verdict, e.g. "residuals (one-step prediction, N = 3998, 99 % confidence): white;
   /// independent of u1".
   [[nodiscard]] std::string verdict() const {
-    char head[160];
-    std::snprintf(head, sizeof head, "residuals (%s, N = %ld, %g %% confidence, rms %.4g): ", source.c_str(),
-                  static_cast<long>(num_samples), 100.0 * confidence, residual_rms);
-    std::string s = head;
+    std::string s = "residuals (" + source + ", N = " + std::to_string(num_samples) + ", " +
+                    detail::format_g(100.0 * confidence) + " % confidence, rms " + detail::format_g(residual_rms, 4) +
+                    "): ";
     s += white() ? "white" : "not white (" + whiteness.verdict() + ")";
     for (const auto& t : inputs) {
       s += t.passed ? "; independent of " + t.input
@@ -173,11 +173,9 @@ struct ResidAnalysis {
   [[nodiscard]] std::string report() const {
     std::string s = verdict() + "\n";
     auto line = [&s](const CorrelationTest& t) {
-      char b[200];
-      std::snprintf(b, sizeof b, "  %-32s Q = %.4g (limit %.4g), max |r|/sigma = %.3g (limit %.3g): %s\n",
-                    t.name.c_str(), t.statistic, t.statistic_limit, t.max_normalised, t.max_limit,
-                    t.verdict().c_str());
-      s += b;
+      s += "  " + detail::left_aligned(t.name, 32) + " Q = " + detail::format_g(t.statistic, 4) + " (limit " +
+           detail::format_g(t.statistic_limit, 4) + "), max |r|/sigma = " + detail::format_g(t.max_normalised, 3) +
+           " (limit " + detail::format_g(t.max_limit, 3) + "): " + t.verdict() + "\n";
     };
     line(whiteness);
     for (const auto& t : inputs) line(t);
@@ -575,9 +573,7 @@ inline std::string resid_chart_svg(const CorrelationTest& t) {
   chart.line("r(tau)", x, y, "#1f77b4");
   double b = 0.0;
   for (std::size_t i = 0; i < t.bound.size(); ++i) b = std::max(b, t.bound[i]);
-  char label[64];
-  std::snprintf(label, sizeof label, "%g %% confidence", 100.0 * t.confidence);
-  if (b > 0.0) chart.band(-b, b, label);
+  if (b > 0.0) chart.band(-b, b, detail::format_g(100.0 * t.confidence) + " % confidence");
   double top = 1.5 * b;
   for (double v : t.value) top = std::max(top, 1.1 * std::abs(v));
   if (!(top > 0.0)) top = 1.0;
