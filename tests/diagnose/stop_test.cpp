@@ -9,6 +9,7 @@
 #include "nlid/diagnose/report.hpp"
 #include "nlid/models/physics/catalogue.hpp"
 #include "synth.hpp"
+#include "../support/decimal_comma_locale.hpp"
 
 using namespace nlid;
 
@@ -56,4 +57,23 @@ TEST_CASE("diagnosis stopped at its effect limit says more may be missing", "[di
   CHECK_FALSE(d.floor_after.consistent);
   CHECK_THAT(d.explanation, Catch::Contains("stopped at its limit of 1 effect(s) (max_effects), so more may be missing"));
   CHECK_THAT(d.explanation, !Catch::Contains("No further catalogue effect improved"));
+}
+
+TEST_CASE("diagnosis summary, explanation, model description and HTML report read the same under a decimal-comma locale",
+          "[diagnose][explain][locale]") {
+  const auto d = diagnose_two_effects(1);
+  REQUIRE(d.effects.size() == 1u);
+  const std::string summary = diagnosis_summary(d), why = explain(d), model = d.model.describe(),
+                    html = diagnosis_report(d).str();
+  REQUIRE(summary.find("validation fit ") != std::string::npos);
+  const nlid_test::DecimalCommaLocale comma;
+  if (nlid_test::DecimalCommaLocale::required()) REQUIRE(comma.active());
+  if (!comma.active()) {
+    WARN("no locale with decimal commas installed: not checked");
+    return;
+  }
+  CHECK(diagnosis_summary(d) == summary);
+  CHECK(explain(d) == why);
+  CHECK(d.model.describe() == model);
+  CHECK(diagnosis_report(d).str() == html);
 }

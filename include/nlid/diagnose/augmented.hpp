@@ -858,11 +858,7 @@ Eigen::MatrixXd AugmentedModel<P>::simulate(const Experiment& e, InitialConditio
 template <Physics P>
 std::string AugmentedModel<P>::describe() const {
   auto unit = [&](const std::string& s) { return detail::substitute_units(s, y_unit_, u_unit_); };
-  auto num = [](double v) {
-    char b[32];
-    std::snprintf(b, sizeof b, "%.6g", v);
-    return std::string(b);
-  };
+  auto num = [](double v) { return detail::format_g(v, 6); };
   std::string s = "Augmented grey-box model (sample time " + num(ts_) + " s)\n";
   std::string bname = "custom";
   if constexpr (requires(const P& q) { { q.name() } -> std::convertible_to<std::string>; }) bname = phys_.name();
@@ -876,10 +872,8 @@ std::string AugmentedModel<P>::describe() const {
   }
   s += "  parameters:\n";
   for (const ParameterInfo& q : parameter_info()) {
-    char line[200];
-    std::snprintf(line, sizeof line, "    %-28s = %-14s %-14s%s\n", q.name.c_str(), num(q.value).c_str(),
-                  unit(q.unit).c_str(), q.fixed ? " (fixed)" : "");
-    s += line;
+    s += "    " + detail::left_aligned(q.name, 28) + " = " + detail::left_aligned(num(q.value), 14) + " " +
+         detail::left_aligned(unit(q.unit), 14) + (q.fixed ? " (fixed)" : "") + "\n";
   }
   return s;
 }

@@ -27,6 +27,7 @@
 
 #include <Eigen/Core>
 
+#include "nlid/core/format.hpp"
 #include "nlid/diagnose/diagnose.hpp"
 #include "nlid/diagnose/effects.hpp"
 #include "nlid/diagnose/locate.hpp"
@@ -48,24 +49,14 @@ inline std::string mismatch_location(const Mismatch& m, const std::string& y_uni
 
 namespace detail {
 
-inline std::string g3(double v) {
-  char b[40];
-  std::snprintf(b, sizeof b, "%.3g", v);
-  return b;
-}
+inline std::string g3(double v) { return format_g(v, 3); }
 
-inline std::string pct(double v) {
-  char b[40];
-  std::snprintf(b, sizeof b, "%.0f %%", 100.0 * v);
-  return b;
-}
+inline std::string pct(double v) { return format_f(100.0 * v, 0) + " %"; }
 
 inline std::string fits_text(const Eigen::VectorXd& f) {
   std::string s;
   for (Eigen::Index i = 0; i < f.size(); ++i) {
-    char b[40];
-    std::snprintf(b, sizeof b, "%s%.1f", i ? "/" : "", f(i));
-    s += b;
+    s += (i ? "/" : "") + format_f(f(i), 1);
   }
   return s + " %";
 }
@@ -73,9 +64,7 @@ inline std::string fits_text(const Eigen::VectorXd& f) {
 inline std::string gains_text(const Eigen::VectorXd& before, const Eigen::VectorXd& after) {
   std::string s;
   for (Eigen::Index i = 0; i < before.size() && i < after.size(); ++i) {
-    char b[40];
-    std::snprintf(b, sizeof b, "%s%+.1f", i ? "/" : "", after(i) - before(i));
-    s += b;
+    s += (i ? "/" : "") + with_plus(format_f(after(i) - before(i), 1));
   }
   return s + " points";
 }

@@ -43,6 +43,7 @@
 #include <Eigen/Core>
 
 #include "nlid/core/atomic_file.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/diagnose/diagnose.hpp"
 #include "nlid/io/html_report.hpp"
 #include "nlid/io/json.hpp"
@@ -111,10 +112,8 @@ inline Json json_effect_params(const Effect& e) {
 }
 
 inline std::string fit_cell(double v) {
-  char b[32];
   if (!std::isfinite(v)) return "diverged";
-  std::snprintf(b, sizeof b, "%.1f", v);
-  return b;
+  return format_f(v, 1);
 }
 
 inline std::vector<double> to_std(const Eigen::VectorXd& v) { return std::vector<double>(v.data(), v.data() + v.size()); }
@@ -313,9 +312,7 @@ HtmlReport diagnosis_report(const Diagnosis<P>& d) {
       for (Eigen::Index k = 0; k < c.fit_val.size(); ++k) {
         fits += (k ? " / " : "") + detail::fit_cell(c.fit_val(k));
         if (k < rr.fit_val_before.size()) {
-          char b[32];
-          std::snprintf(b, sizeof b, "%s%+.1f", k ? " / " : "", c.fit_val(k) - rr.fit_val_before(k));
-          gain += b;
+          gain += (k ? " / " : "") + detail::with_plus(detail::format_f(c.fit_val(k) - rr.fit_val_before(k), 1));
         }
       }
       rows.push_back({static_cast<int>(i + 1), c.effect.label(), c.ok ? fits : "failed: " + c.error, gain,

@@ -288,9 +288,7 @@ namespace detail {
 inline std::string format_fits(const Eigen::VectorXd& f) {
   std::string s;
   for (Eigen::Index i = 0; i < f.size(); ++i) {
-    char b[32];
-    std::snprintf(b, sizeof b, "%s%.1f", i ? "/" : "", f(i));
-    s += b;
+    s += (i ? "/" : "") + format_f(f(i), 1);
   }
   return s;
 }
@@ -341,12 +339,9 @@ SearchResult<P> search_effects(const AugmentedModel<P>& start, std::vector<Eigen
       break;
     }
     if (rr.gate.consistent) {
-      char b[200];
-      std::snprintf(b, sizeof b,
-                    "the validation residual is consistent with the noise floor (energy ratio %.3f <= %.3f)",
-                    rr.gate.ratio, rr.gate.bound);
       out.stop = SearchStop::noise_floor;
-      out.stop_reason = b;
+      out.stop_reason = "the validation residual is consistent with the noise floor (energy ratio " +
+                        detail::format_f(rr.gate.ratio, 3) + " <= " + detail::format_f(rr.gate.bound, 3) + ")";
       out.rounds.push_back(rr);
       break;
     }
@@ -474,12 +469,12 @@ SearchResult<P> search_effects(const AugmentedModel<P>& start, std::vector<Eigen
       }
     }
     for (const CandidateResult& c : rr.candidates) {
-      char b[240];
-      std::snprintf(b, sizeof b, "  %-28s fit_val %-18s score %10.1f  z %8.1f  share %6.3f%s%s",
-                    c.effect.label().c_str(), c.ok ? detail::format_fits(c.fit_val).c_str() : "failed",
-                    c.stats.score, c.stats.z, c.stats.relevance, c.refined ? "  refined" : "",
-                    c.stats.significant ? "  significant" : "");
-      say(b);
+      say("  " + detail::left_aligned(c.effect.label(), 28) + " fit_val " +
+          detail::left_aligned(c.ok ? detail::format_fits(c.fit_val) : std::string("failed"), 18) + " score " +
+          detail::right_aligned(detail::format_f(c.stats.score, 1), 10) + "  z " +
+          detail::right_aligned(detail::format_f(c.stats.z, 1), 8) + "  share " +
+          detail::right_aligned(detail::format_f(c.stats.relevance, 3), 6) + (c.refined ? "  refined" : "") +
+          (c.stats.significant ? "  significant" : ""));
     }
     if (rr.accepted < 0) {
       out.stop = SearchStop::none_significant;
