@@ -142,12 +142,12 @@ struct MultiStartSummary {
     s += "  candidate    start cost    final cost  iterations  status\n";
     for (std::size_t i = 0; i < starts.size(); ++i) {
       const StartResult& r = starts[i];
-      char line[160];
-      std::snprintf(line, sizeof line, "  %9d  %12.6g  %12.6g  %10d  %s%s\n", r.candidate,
-                    r.start_cost, r.cost, r.summary.iterations,
-                    r.error.empty() ? to_string(r.summary.status) : "failed",
-                    static_cast<int>(i) == best ? "  <- best" : "");
-      s += line;
+      s += "  " + detail::right_aligned(std::to_string(r.candidate), 9) + "  " +
+           detail::right_aligned(detail::format_g(r.start_cost, 6), 12) + "  " +
+           detail::right_aligned(detail::format_g(r.cost, 6), 12) + "  " +
+           detail::right_aligned(std::to_string(r.summary.iterations), 10) + "  " +
+           (r.error.empty() ? std::string(to_string(r.summary.status)) : std::string("failed")) +
+           (static_cast<int>(i) == best ? "  <- best" : "") + "\n";
       if (!r.error.empty()) s += "             " + r.error + "\n";
     }
     return s;

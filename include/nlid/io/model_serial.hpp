@@ -32,6 +32,7 @@
 #include <Eigen/Core>
 
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/core/initial_condition.hpp"
 #include "nlid/data/dataset.hpp"
 #include "nlid/estimation/uncertainty.hpp"
@@ -244,11 +245,7 @@ inline void write_info_uncertainty(Json& j, const ModelFileInfo& info, const std
           "model file: the uncertainty to save has " + std::to_string(u.stddev.size()) + " standard deviations for " +
               std::to_string(u.theta.size()) + " unknowns",
           at_parameter("uncertainty"));
-  auto number = [](double v) {
-    char b[40];
-    std::snprintf(b, sizeof b, "%.17g", v);
-    return std::string(b);
-  };
+  auto number = [](double v) { return detail::format_g(v, 17); };
   for (Eigen::Index i = 0; i < n; ++i) {
     const auto iu = static_cast<std::size_t>(i);
     const std::string& name = names[iu];

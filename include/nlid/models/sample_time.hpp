@@ -42,6 +42,7 @@
 #include <unsupported/Eigen/MatrixFunctions>
 
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/linear/arx.hpp"
 #include "nlid/linear/output_error.hpp"
 #include "nlid/linear/polynomial.hpp"
@@ -73,15 +74,11 @@ struct SampleTimeReport {
 namespace detail {
 
 inline void check_new_ts(double ts) {
-  require(ts > 0 && std::isfinite(ts), "new sample time must be positive and finite, got " + std::to_string(ts),
+  require(ts > 0 && std::isfinite(ts), "new sample time must be positive and finite, got " + detail::format_f(ts, 6),
           at_parameter("ts"));
 }
 
-inline std::string fmt_seconds(double s) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.6g s", s);
-  return buf;
-}
+inline std::string fmt_seconds(double s) { return format_g(s, 6) + " s"; }
 
 }  // namespace detail
 
@@ -119,7 +116,7 @@ inline std::string fmt_seconds(double s) {
     const Eigen::VectorXcd ev = Eigen::EigenSolver<Eigen::MatrixXd>(sys.a(), false).eigenvalues();
     for (Eigen::Index i = 0; i < ev.size(); ++i) {
       if (ev(i).real() <= 0 && std::abs(ev(i).imag()) <= 1e-12 * std::max(1.0, std::abs(ev(i)))) {
-        throw Error("the discrete model has a pole at z = " + std::to_string(ev(i).real()) +
+        throw Error("the discrete model has a pole at z = " + detail::format_f(ev(i).real(), 6) +
                         ", on the negative real axis or at 0; it has no continuous-time (zero-order-hold) "
                         "equivalent, so its sample time cannot be converted exactly",
                     at_parameter("A"));

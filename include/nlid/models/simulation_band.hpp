@@ -186,12 +186,10 @@ struct SimulationBand {
     }
     std::sort(order.begin(), order.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
     std::string s;
-    char buf[160];
     for (std::size_t q = 0; q < std::min<std::size_t>(3, order.size()); ++q) {
       const Eigen::Index i = order[q].second;
-      std::snprintf(buf, sizeof buf, "%s%s %+.3g (%.3g sigma)", q > 0 ? ", " : "",
-                    parameter_names[static_cast<std::size_t>(i)].c_str(), d[i], order[q].first);
-      s += buf;
+      s += (q > 0 ? ", " : "") + parameter_names[static_cast<std::size_t>(i)] + " " +
+           detail::with_plus(detail::format_g(d[i], 3)) + " (" + detail::format_g(order[q].first, 3) + " sigma)";
     }
     return s;
   }
@@ -224,8 +222,8 @@ inline void check_band_parameters(const ParameterUncertainty& u, const Eigen::Ve
     }
     const double a = p[i], b = u.theta[i];
     require(std::abs(a - b) <= 1e-9 * std::max({1.0, std::abs(a), std::abs(b)}),
-            "simulation_band: parameter '" + name + "' is " + std::to_string(a) +
-                " in the model but the uncertainty was computed at " + std::to_string(b) +
+            "simulation_band: parameter '" + name + "' is " + detail::format_f(a, 6) +
+                " in the model but the uncertainty was computed at " + detail::format_f(b, 6) +
                 " (recompute parameter_uncertainty after changing the model)",
             at_parameter(name));
   }
@@ -391,7 +389,7 @@ inline SimulationBand start_band(const Dataset& data, int ny, std::vector<std::s
                                  std::vector<std::string> names) {
   require(data.size() > 0, "simulation_band: the data set has no experiments", at_parameter("data"));
   require(std::isfinite(o.band_sigmas) && o.band_sigmas > 0.0,
-          "simulation_band: band_sigmas must be positive, got " + std::to_string(o.band_sigmas),
+          "simulation_band: band_sigmas must be positive, got " + detail::format_f(o.band_sigmas, 6),
           at_parameter("band_sigmas"));
   for (std::size_t i = 0; i < u.unidentifiable.size(); ++i) {
     require(u.unidentifiable[i].size() == u.theta.size(),

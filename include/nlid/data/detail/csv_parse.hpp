@@ -566,11 +566,7 @@ inline double snap_sample_time(const Eigen::VectorXd& t, double quantum) {
   return est;
 }
 
-inline std::string percent(double x) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.3g %%", 100.0 * x);
-  return buf;
-}
+inline std::string percent(double x) { return format_g(100.0 * x, 3) + " %"; }
 
 inline std::string num(double x) { return format_g(x, 10); }
 
