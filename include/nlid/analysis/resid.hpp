@@ -346,7 +346,7 @@ inline ResidAnalysis resid(const std::vector<Eigen::VectorXd>& residuals, const 
   require(options.max_lag >= 1, "resid: max_lag must be >= 1, got " + std::to_string(options.max_lag),
           at_parameter("max_lag"));
   require(options.confidence > 0.0 && options.confidence < 1.0,
-          "resid: confidence must be in (0, 1), got " + std::to_string(options.confidence),
+          "resid: confidence must be in (0, 1), got " + detail::format_f(options.confidence, 6),
           at_parameter("confidence"));
   require(!residuals.empty() && residuals.size() == inputs.size(),
           "resid: need one input matrix per residual sequence (got " + std::to_string(residuals.size()) +

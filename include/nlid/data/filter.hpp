@@ -174,7 +174,7 @@ inline void check_lowpass_args(int order, double cutoff) {
     throw Error(
         "cutoff must lie strictly between 0 and 1 (fraction of the Nyquist frequency), "
         "got " +
-            std::to_string(cutoff),
+            detail::format_f(cutoff, 6),
         at_parameter("cutoff"));
   }
   if (cutoff < min_lowpass_cutoff) {
@@ -226,7 +226,7 @@ inline SosFilter lowpass_from_prototype(int order, double cutoff, double sh, dou
 inline SosFilter chebyshev1_lowpass(int order, double ripple_db, double cutoff) {
   detail::check_lowpass_args(order, cutoff);
   if (!(ripple_db > 0.0 && ripple_db <= 10.0)) {
-    throw Error("pass-band ripple must be in (0, 10] dB, got " + std::to_string(ripple_db),
+    throw Error("pass-band ripple must be in (0, 10] dB, got " + detail::format_f(ripple_db, 6),
                 at_parameter("ripple_db"));
   }
   const double eps = std::sqrt(std::pow(10.0, ripple_db / 10.0) - 1.0);

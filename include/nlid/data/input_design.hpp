@@ -99,7 +99,7 @@ inline void check_levels(const InputLevels& l) {
 inline void check_band(const InputBand& b) {
   require(b.low >= 0.0 && b.high <= 1.0 && b.low < b.high,
           "input design: band must satisfy 0 <= low < high <= 1 (fractions of the Nyquist frequency), got [" +
-              std::to_string(b.low) + ", " + std::to_string(b.high) + "]",
+              detail::format_f(b.low, 6) + ", " + detail::format_f(b.high, 6) + "]",
           at_parameter("band"));
 }
 
@@ -285,7 +285,7 @@ inline std::uint32_t prbs_next_state(int bits, std::uint32_t state) {
   }
   require(!k.empty(),
           "multisine: no DFT line of a " + std::to_string(period) + "-sample period lies in the band [" +
-              std::to_string(o.band.low) + ", " + std::to_string(o.band.high) +
+              detail::format_f(o.band.low, 6) + ", " + detail::format_f(o.band.high, 6) +
               "] (lines are 2/period apart in fractions of Nyquist); widen the band or lengthen the period",
           at_parameter("band"));
   return k;

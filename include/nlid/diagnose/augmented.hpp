@@ -416,7 +416,7 @@ void AugmentedModel<P>::add_effect(Effect effect) {
           at_parameter(effect.name()));
   for (ParameterInfo& q : effect.params) {
     require(std::isfinite(q.value) && q.value >= q.lower && q.value <= q.upper,
-            "effect " + effect.label() + ": parameter '" + q.name + "' = " + std::to_string(q.value) +
+            "effect " + effect.label() + ": parameter '" + q.name + "' = " + detail::format_f(q.value, 6) +
                 " is not finite or outside its bounds",
             at_parameter(effect.name() + "." + q.name));
   }
@@ -471,8 +471,8 @@ void AugmentedModel<P>::set_parameters(const Eigen::Ref<const Eigen::VectorXd>& 
   for (Eigen::Index i = 0; i < theta.size(); ++i) {
     const ParameterInfo& q = info[static_cast<std::size_t>(i)];
     require(std::isfinite(theta(i)) && theta(i) >= q.lower && theta(i) <= q.upper,
-            "augmented model: value " + std::to_string(theta(i)) + " is not finite or outside [" +
-                std::to_string(q.lower) + ", " + std::to_string(q.upper) + "]",
+            "augmented model: value " + detail::format_f(theta(i), 6) + " is not finite or outside [" +
+                detail::format_f(q.lower, 6) + ", " + detail::format_f(q.upper, 6) + "]",
             at_parameter(q.name));
   }
   // θ starts with the baseline's values, in the physics' order.

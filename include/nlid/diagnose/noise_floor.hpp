@@ -54,6 +54,7 @@
 #include <Eigen/Core>
 
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/data/dataset.hpp"
 #include "nlid/data/resample.hpp"
 
@@ -319,7 +320,7 @@ inline NoiseFloor estimate_noise_floor(const Dataset& data, int output, int deci
   }
   f.inflation = infl;
   f.method += ", propagated through decimation by " + std::to_string(decimation) +
-              " (variance gain " + std::to_string(var) + ")";
+              " (variance gain " + detail::format_f(var, 6) + ")";
   return f;
 }
 

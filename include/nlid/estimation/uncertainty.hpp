@@ -279,7 +279,7 @@ ParameterUncertainty parameter_uncertainty(const Pb& problem, const Eigen::Vecto
   check_size(options.lower_bounds.size(), "lower_bounds");
   check_size(options.upper_bounds.size(), "upper_bounds");
   require(options.rank_tolerance > 0.0 && options.rank_tolerance < 1.0,
-          std::string(who) + "rank_tolerance must be in (0, 1), got " + std::to_string(options.rank_tolerance),
+          std::string(who) + "rank_tolerance must be in (0, 1), got " + detail::format_f(options.rank_tolerance, 6),
           at_parameter("rank_tolerance"));
   require(options.max_lag >= -1, std::string(who) + "max_lag must be >= 0, or -1 for automatic; got " +
                                      std::to_string(options.max_lag),

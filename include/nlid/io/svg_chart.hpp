@@ -48,6 +48,7 @@
 
 #include "nlid/core/atomic_file.hpp"
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/core/utf8.hpp"
 
 namespace nlid {
@@ -176,7 +177,7 @@ class LineChart {
     }
     if (!(s.width > 0 && s.width < 100)) {
       throw Error("series '" + s.name + "': line width must be in (0, 100) px, got " +
-                  std::to_string(s.width));
+                  detail::format_f(s.width, 6));
     }
     series_.push_back(std::move(s));
     return *this;
