@@ -241,6 +241,20 @@ TEST_CASE("ARX describe prints A(q) and B(q) like the toolbox", "[linear][arx]")
   CHECK(d.find("Sample time: 0.1 s") != std::string::npos);
 }
 
+TEST_CASE("ARX and OE describe name the degree instead of factoring a huge A or F", "[linear][arx]") {
+  // Found by tests/fuzz/spec_fuzz.cpp: describe() of linear:arx:na=54096 (a valid order) built
+  // the 54096 x 54096 companion matrix of A, 23 GB, to list the poles.
+  Eigen::VectorXd a_high = Eigen::VectorXd::Zero(600);
+  a_high(0) = -0.5;
+  const Arx arx_high(a_high, {vec({1.0})}, {1}, 0.1);
+  CHECK_THAT(arx_high.describe(), Catch::Contains("Poles: not listed (degree 600, above 500)"));
+  CHECK(arx_high.poles().size() == 600);  // asked for explicitly, they are still computed
+  CHECK_THAT(Arx(vec({-0.5}), {vec({1.0})}, {1}, 0.1).describe(), Catch::Contains("Poles: 0.5\n"));
+  const nlid::OutputError oe_high({vec({1.0})}, {a_high}, {0}, 0.1);
+  CHECK_THAT(oe_high.describe(), Catch::Contains("Poles: not listed (degree 600, above 500)"));
+  CHECK_THAT(nlid::OutputError({vec({1.0})}, {vec({-0.5})}, {0}, 0.1).describe(), Catch::Contains("Poles: 0.5\n"));
+}
+
 TEST_CASE("ARX rejects bad orders and data with located messages", "[linear][arx]") {
   const Experiment e = nlid_test::arx_data(siso_truth(), nlid_test::white_noise(100, 1, 71), 0.0, 0, "good");
   SECTION("negative orders") {

@@ -94,6 +94,18 @@ TEST_CASE("polynomials round trip, with and without the delay's zeros", "[models
   CHECK_THAT(d, Catch::Contains("B(q) = 0.5 q^-1 + 0.25 q^-2") && Catch::Contains("F(q) = 1 - 1.5 q^-1 + 0.7 q^-2"));
 }
 
+TEST_CASE("A linear block's describe names the degree instead of factoring a huge F", "[models][linear_block]") {
+  // Found by tests/fuzz/spec_fuzz.cpp: describe() factored F through its companion matrix, nf²
+  // doubles (nf = 10^5 is a valid order: 80 GB), to list the poles.
+  const nlid::TransferFunctionBlock<Dynamic, Dynamic, Dynamic> high(1, 600, 0);
+  std::vector<double> theta_high(601, 0.0);
+  theta_high[1] = -0.5;
+  CHECK_THAT(high.describe(theta_high), Catch::Contains("poles: not listed (degree 600, above 500)"));
+  const nlid::TransferFunctionBlock<Dynamic, Dynamic, Dynamic> low(1, 1, 0);
+  const std::vector<double> theta_low{1.0, -0.5};
+  CHECK_THAT(low.describe(theta_low), Catch::Contains("poles: 0.5\n"));
+}
+
 TEST_CASE("Dynamic twin and float/Dual scalars give the same output", "[models][linear_block]") {
   const Eigen::VectorXd w = excitation(100);
   Eigen::VectorXd theta(5);

@@ -379,7 +379,7 @@ class Arx {
       os << format_stddev(sd(k));
       os << "\n";
     }
-    os << "Poles: " << format_roots(poles()) << "\n";
+    os << "Poles: " << describe_roots(a_polynomial()) << "\n";  // not factored past max_described_root_degree
     os << "Sample time: " << format_number(ts_, 6) << " s\n";
     if (!report_.method.empty()) os << report_.str();
     return os.str();

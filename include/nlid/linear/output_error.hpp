@@ -375,7 +375,11 @@ class OutputError {
       os << format_stddev(sd(kf));
       os << "\n";
     }
-    os << "Poles: " << format_roots(poles()) << "\n";
+    // Not factored past max_described_root_degree (polynomial.hpp): an F of order 10^5 is valid.
+    Eigen::Index degree = 0;
+    for (int i = 0; i < num_inputs(); ++i) degree = std::max(degree, detail::root_degree(f_polynomial(i)));
+    os << "Poles: " << (degree > max_described_root_degree ? detail::roots_not_described(degree) : format_roots(poles()))
+       << "\n";
     os << "Sample time: " << format_number(ts_, 6) << " s\n";
     if (!report_.method.empty()) os << report_.str();
     return os.str();

@@ -226,6 +226,33 @@ inline std::string format_roots(const Eigen::VectorXcd& r, int digits = 4) {
   return s.empty() ? std::string("(none)") : s;
 }
 
+/// Largest degree whose roots a model's describe() lists. Roots are the eigenvalues of the
+/// companion matrix, degree² doubles and O(degree³) time: describe() of an ARX model with the
+/// valid order na = 54096 asked for 23 GB (found by the model-spec fuzzer). Past this degree
+/// describe() gives the degree instead; poles() and zeros() still compute the roots if asked.
+inline constexpr Eigen::Index max_described_root_degree = 500;
+
+namespace detail {
+/// Degree in z of P(q) as `roots` factors it (leading zero coefficients are delays).
+inline Eigen::Index root_degree(const Eigen::VectorXd& p) {
+  Eigen::Index first = 0;
+  while (first < p.size() && p(first) == 0.0) ++first;
+  return std::max<Eigen::Index>(p.size() - first - 1, 0);
+}
+/// What describe() prints instead of the roots of a polynomial of this degree.
+inline std::string roots_not_described(Eigen::Index degree) {
+  return "not listed (degree " + std::to_string(degree) + ", above " + std::to_string(max_described_root_degree) + ")";
+}
+}  // namespace detail
+
+/// `format_roots(roots(p))` for a model's describe(), or a note with the degree past
+/// `max_described_root_degree`.
+template <int = 0>
+std::string describe_roots(const Eigen::VectorXd& p, int digits = 4) {
+  const Eigen::Index degree = detail::root_degree(p);
+  return degree > max_described_root_degree ? detail::roots_not_described(degree) : format_roots(roots(p), digits);
+}
+
 /// A rational transfer operator G(q) = B(q)/A(q) with sample time `ts` (one input-output pair).
 struct TransferFunction {
   Eigen::VectorXd numerator;    ///< B(q) coefficients, ascending powers of q^-1

@@ -212,7 +212,7 @@ class TransferFunctionBlock {
                     " " + std::to_string(nk_) + "]: x(t) = B(q)/F(q) w(t)\n";
     s += "  B(q) = " + format_polynomial(b) + "\n";
     s += "  F(q) = " + format_polynomial(f) + "\n";
-    if (nf_ > 0) s += "  poles: " + format_roots(roots(f)) + "\n";
+    if (nf_ > 0) s += "  poles: " + describe_roots(f) + "\n";  // not factored past max_described_root_degree
     const double den = f.sum();
     s += "  static gain B(1)/F(1) = " + (std::abs(den) > 1e-12 ? format_number(b.sum() / den) : std::string("inf")) + "\n";
     return s;
