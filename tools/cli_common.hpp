@@ -26,6 +26,7 @@
 
 #include "nlid/core/atomic_file.hpp"
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/data/experiment.hpp"
 
 namespace nlid_tools {
@@ -345,8 +346,7 @@ inline void check_inputs_vary(const std::vector<const nlid::Experiment*>& record
       const std::string name = static_cast<std::size_t>(j) < names.size() ? names[static_cast<std::size_t>(j)] : "u";
       std::string list;
       for (std::size_t i = 0; i < files.size(); ++i) list += (i ? ", " : "") + files[i];
-      char value[40];
-      std::snprintf(value, sizeof value, "%.10g", lo);
+      const std::string value = nlid::detail::format_g(lo, 10);
       nlid::Location l;
       l.column_name = name;
       l.parameter = flag;

@@ -31,6 +31,7 @@
 
 #include "nlid/codegen.hpp"
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/core/sample_time.hpp"
 #include "nlid/io/augmented_serial.hpp"  // repaired models from nlid-diagnose --save
 #include "nlid/models/any_model.hpp"
@@ -190,9 +191,8 @@ int main(int argc, char** argv) {
     nlid::register_series_model_kind();
     const nlid::AnyModel m = nlid::load_model(model);
     if (ts > 0 && m.ts() > 0 && !nlid::same_sample_time(ts, m.ts())) {
-      char buf[160];
-      std::snprintf(buf, sizeof buf, "--ts %.10g s differs from the model's sample time %.10g s", ts, m.ts());
-      throw nlid::Error(std::string(buf) + " (" + model + "); a sampled model runs at the rate it was estimated at",
+      throw nlid::Error("--ts " + nlid::detail::format_g(ts, 10) + " s differs from the model's sample time " +
+                            nlid::detail::format_g(m.ts(), 10) + " s (" + model + "); a sampled model runs at the rate it was estimated at",
                         nlid::at_parameter("--ts"));
     }
     if (m.kind() == "greybox" && !(ts > 0) && !(m.ts() > 0))
@@ -227,10 +227,8 @@ int main(int argc, char** argv) {
           no_steady_state = e.message();  // reported below, after the range (which may explain it)
         }
         if (simulated && y.rows() > 0 && !y.row(0).allFinite()) {
-          char buf[160];
-          std::snprintf(buf, sizeof buf, "the equilibrium of %s for the input held at --u0 %s is not finite (output %g)",
-                        model.c_str(), u0_shown.c_str(), y(0, 0));
-          throw nlid::Error(std::string(buf) + ": the generated initial state would be inf/nan - choose an input within "
+          throw nlid::Error("the equilibrium of " + model + " for the input held at --u0 " + u0_shown +
+                                " is not finite (output " + nlid::detail::format_g(y(0, 0)) + "): the generated initial state would be inf/nan - choose an input within "
                                                "the model's operating range",
                             nlid::at_parameter("--u0"));
         }

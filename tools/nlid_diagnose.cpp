@@ -19,6 +19,7 @@
 #include <string>
 #include <vector>
 
+#include "nlid/core/format.hpp"
 #include "nlid/core/sample_time.hpp"
 #include "nlid/data/csv.hpp"
 #include "nlid/diagnose.hpp"
@@ -136,7 +137,7 @@ int main(int argc, char** argv) {
     if (!quiet) {
       opt.progress = [t0](const std::string& s) {
         const double t = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-        std::fprintf(stderr, "[%6.1f s] %s\n", t, s.c_str());
+        std::fprintf(stderr, "[%s s] %s\n", nlid::detail::right_aligned(nlid::detail::format_f(t, 1), 6).c_str(), s.c_str());
       };
     }
     auto read = [&](const std::vector<std::string>& files) {

@@ -20,6 +20,7 @@
 
 #include "nlid/analysis/fit.hpp"
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/core/sample_time.hpp"
 #include "nlid/core/utf8.hpp"
 #include "nlid/data/csv.hpp"
@@ -170,10 +171,11 @@ void print_fit_row(const char* role, const nlid::AnyModel& m, const nlid::Experi
   const double rmse = std::sqrt(d.squaredNorm() / static_cast<double>(d.size()));
   try {
     const double f = nlid::fit_percent(Eigen::VectorXd(e.y().col(0)), Eigen::VectorXd(y.col(0)));
-    std::printf("%-12s %-30s %10.4f %14.6g\n", role, e.name().c_str(), f, rmse);
+    std::printf("%-12s %-30s %10s %14s\n", role, e.name().c_str(), nlid::detail::format_f(f, 4).c_str(),
+                nlid::detail::format_g(rmse, 6).c_str());
   } catch (const nlid::Error& err) {
-    std::printf("%-12s %-30s %10s %14.6g  (fit %% not defined: %s)\n", role, e.name().c_str(), "-", rmse,
-                err.message().c_str());
+    std::printf("%-12s %-30s %10s %14s  (fit %% not defined: %s)\n", role, e.name().c_str(), "-",
+                nlid::detail::format_g(rmse, 6).c_str(), err.message().c_str());
     return;
   }
 }
@@ -230,11 +232,11 @@ int main(int argc, char** argv) {
       nlid_tools::check_inputs_vary(records, a.est, "--est");
     }
     if (val.size() > 0 && !nlid::same_sample_time(val.ts(), est.ts())) {
-      // %.10g: std::to_string's six decimals printed 20 µs as "0.000020" for both sides
-      char buf[160];
-      std::snprintf(buf, sizeof buf, "validation data have sample time %.10g s, estimation data %.10g s (relative difference %.3g)",
-                    val.ts(), est.ts(), std::abs(val.ts() - est.ts()) / est.ts());
-      throw nlid::Error(std::string(buf) + "; resample one of them to the other's rate first",
+      // 10 digits: std::to_string's six decimals printed 20 µs as "0.000020" for both sides
+      throw nlid::Error("validation data have sample time " + nlid::detail::format_g(val.ts(), 10) +
+                            " s, estimation data " + nlid::detail::format_g(est.ts(), 10) +
+                            " s (relative difference " + nlid::detail::format_g(std::abs(val.ts() - est.ts()) / est.ts(), 3) +
+                            "); resample one of them to the other's rate first",
                         nlid::at_parameter("--val"));
     }
     double yss = 0.0;
@@ -263,10 +265,11 @@ int main(int argc, char** argv) {
       const double fit = yss > 0 ? 100.0 * (1.0 - std::sqrt(std::max(0.0, 2.0 * r.cost) / yss)) : 0.0;
       char buf[160];
       if (penalised)
-        std::snprintf(buf, sizeof buf, "  iteration %4d  cost %.6g (with the lambda penalty)%s\n", r.iteration, r.cost,
-                      r.step_accepted ? "" : "  (step rejected)");
+        std::snprintf(buf, sizeof buf, "  iteration %4d  cost %s (with the lambda penalty)%s\n", r.iteration,
+                      nlid::detail::format_g(r.cost, 6).c_str(), r.step_accepted ? "" : "  (step rejected)");
       else
-        std::snprintf(buf, sizeof buf, "  iteration %4d  cost %.6g  fit %.4f %%%s\n", r.iteration, r.cost, fit,
+        std::snprintf(buf, sizeof buf, "  iteration %4d  cost %s  fit %s %%%s\n", r.iteration,
+                      nlid::detail::format_g(r.cost, 6).c_str(), nlid::detail::format_f(fit, 4).c_str(),
                       r.step_accepted ? "" : "  (step rejected)");
       std::cerr << buf;
       return true;
@@ -292,9 +295,11 @@ int main(int argc, char** argv) {
                 << "\n";
     }
     stage = "simulating the saved model";
-    std::printf("model %s (%s), %zu parameters, estimated in %.2f s", a.model.c_str(), m.kind().c_str(),
-                static_cast<std::size_t>(m.parameters().size()), secs);
-    if (after >= 0.005) std::printf(" (then %.2f s for the parameters' uncertainty and the simulation band)", after);
+    std::printf("model %s (%s), %zu parameters, estimated in %s s", a.model.c_str(), m.kind().c_str(),
+                static_cast<std::size_t>(m.parameters().size()), nlid::detail::format_f(secs, 2).c_str());
+    if (after >= 0.005)
+      std::printf(" (then %s s for the parameters' uncertainty and the simulation band)",
+                  nlid::detail::format_f(after, 2).c_str());
     std::printf("\n");
     // The start the table's free runs use (the model's own: measured past outputs for a nonlinear
     // ARX model, estimated initial states for a grey box, ...): nlid-sim --x0 with it reproduces them.

@@ -29,6 +29,7 @@
 #include "cli_common.hpp"
 #include "nlid/core/atomic_file.hpp"
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/data/input_design.hpp"
 
 namespace {
@@ -153,12 +154,9 @@ int main(int argc, char** argv) {
           throw UsageError("(2^--bits - 1) x --periods x --hold is more than 2^31 samples");
         stage = "generating the PRBS";
         u = nlid::prbs(bits, periods, levels, hold);
-        char buf[200];
-        std::snprintf(
-            buf, sizeof buf,
-            "period %ld chips of %.6g s; spectrum flat to about %.6g Hz, first null at %.6g Hz",
-            (1L << bits) - 1, hold * ts, 0.44 / (hold * ts), 1.0 / (hold * ts));
-        what = buf;
+        what = "period " + std::to_string((1L << bits) - 1) + " chips of " + nlid::detail::format_g(hold * ts, 6) +
+               " s; spectrum flat to about " + nlid::detail::format_g(0.44 / (hold * ts), 6) +
+               " Hz, first null at " + nlid::detail::format_g(1.0 / (hold * ts), 6) + " Hz";
       } else if (signal == "multisine") {
         nlid::MultisineOptions o;
         o.band = band;
@@ -178,12 +176,10 @@ int main(int argc, char** argv) {
         const std::vector<Eigen::Index> k = nlid::multisine_lines(period, o);
         u = nlid::multisine(period, o);
         const double df = 1.0 / (static_cast<double>(period) * ts);
-        char buf[200];
-        std::snprintf(buf, sizeof buf,
-                      "%zu lines from %.6g Hz to %.6g Hz (spacing %.6g Hz), period %.6g s",
-                      k.size(), static_cast<double>(k.front()) * df,
-                      static_cast<double>(k.back()) * df, df, static_cast<double>(period) * ts);
-        what = buf;
+        what = std::to_string(k.size()) + " lines from " + nlid::detail::format_g(static_cast<double>(k.front()) * df, 6) +
+               " Hz to " + nlid::detail::format_g(static_cast<double>(k.back()) * df, 6) + " Hz (spacing " +
+               nlid::detail::format_g(df, 6) + " Hz), period " +
+               nlid::detail::format_g(static_cast<double>(period) * ts, 6) + " s";
       } else {
         const long n = nlid_tools::parse_integer("--samples", required("--samples"), 2, 1L << 31);
         if (signal == "random-steps") {
@@ -198,17 +194,14 @@ int main(int argc, char** argv) {
                                  levels, seed);
           long steps = 1;
           for (Eigen::Index i = 1; i < u.size(); ++i) steps += u[i] != u[i - 1] ? 1 : 0;
-          char buf[200];
-          std::snprintf(buf, sizeof buf, "%ld steps held %.6g to %.6g s", steps, lo * ts, hi * ts);
-          what = buf;
+          what = std::to_string(steps) + " steps held " + nlid::detail::format_g(lo * ts, 6) + " to " +
+                 nlid::detail::format_g(hi * ts, 6) + " s";
         } else {
           stage = "generating the " + signal + " signal";
           u = signal == "random-binary" ? nlid::random_binary(n, band, levels, seed)
                                         : nlid::random_gaussian(n, band, levels, seed);
-          char buf[200];
-          std::snprintf(buf, sizeof buf, "band %.6g to %.6g Hz", band.low * 0.5 / ts,
-                        band.high * 0.5 / ts);
-          what = buf;
+          what = "band " + nlid::detail::format_g(band.low * 0.5 / ts, 6) + " to " +
+                 nlid::detail::format_g(band.high * 0.5 / ts, 6) + " Hz";
         }
       }
     } catch (const nlid::Error& e) {
@@ -231,16 +224,18 @@ int main(int argc, char** argv) {
     stage = "writing " + out;
     std::string text = "t," + column + "\n";
     text.reserve(static_cast<std::size_t>(u.size()) * 40);
-    char buf[96];
     for (Eigen::Index i = 0; i < u.size(); ++i) {
-      std::snprintf(buf, sizeof buf, "%.17g,%.17g\n", static_cast<double>(i) * ts, u[i]);
-      text += buf;
+      text += nlid::detail::format_g(static_cast<double>(i) * ts, 17);
+      text += ',';
+      text += nlid::detail::format_g(u[i], 17);
+      text += '\n';
     }
     nlid::write_file_atomically(out, text);
     std::fprintf(stderr,
-                 "nlid-input: %s, %ld samples (%.6g s at ts %.6g s), %.6g to %.6g; %s -> %s\n",
-                 signal.c_str(), static_cast<long>(u.size()), static_cast<double>(u.size()) * ts,
-                 ts, u.minCoeff(), u.maxCoeff(), what.c_str(), out.c_str());
+                 "nlid-input: %s, %ld samples (%s s at ts %s s), %s to %s; %s -> %s\n", signal.c_str(),
+                 static_cast<long>(u.size()), nlid::detail::format_g(static_cast<double>(u.size()) * ts, 6).c_str(),
+                 nlid::detail::format_g(ts, 6).c_str(), nlid::detail::format_g(u.minCoeff(), 6).c_str(),
+                 nlid::detail::format_g(u.maxCoeff(), 6).c_str(), what.c_str(), out.c_str());
     return nlid_tools::exit_ok;
   });
 }

@@ -29,6 +29,7 @@
 
 #include "nlid/core/atomic_file.hpp"
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/core/sample_time.hpp"
 #include "nlid/data/csv.hpp"
 #include "nlid/data/resample.hpp"
@@ -185,10 +186,10 @@ int main(int argc, char** argv) {
       }
     }
     if (m.ts() > 0 && !nlid::same_sample_time(e.ts(), m.ts())) {
-      // %.10g, not std::to_string's six decimals, which print 20 µs as "0.000020" for both sides
-      char buf[192];
-      std::snprintf(buf, sizeof buf, " has sample time %.10g s but the model %.10g s (relative difference %.3g)",
-                    e.ts(), m.ts(), std::abs(e.ts() - m.ts()) / m.ts());
+      // 10 digits, not std::to_string's six decimals, which print 20 µs as "0.000020" for both sides
+      const std::string buf = " has sample time " + nlid::detail::format_g(e.ts(), 10) + " s but the model " +
+                              nlid::detail::format_g(m.ts(), 10) + " s (relative difference " +
+                              nlid::detail::format_g(std::abs(e.ts() - m.ts()) / m.ts(), 3) + ")";
       std::string hint = "resample the data or re-estimate the model";
       const double ratio = m.ts() / e.ts();
       const double whole = std::round(ratio);
@@ -196,7 +197,7 @@ int main(int argc, char** argv) {
         hint = "the model's sample time is " + std::to_string(static_cast<long>(whole) * decimate) +
                " times the file's: use --decimate " + std::to_string(static_cast<long>(whole) * decimate);
       throw nlid::Error("sample-time mismatch: " + input + (decimate > 1 ? " decimated by " + std::to_string(decimate) : "") +
-                        std::string(buf) + "; the model is " + model + " - " + hint);
+                        buf + "; the model is " + model + " - " + hint);
     }
     // A free run: from zero or an equilibrium the simulation needs no output (a zero column of
     // the right size); measured and estimated starts read the record's. Within the tolerance the
@@ -216,13 +217,12 @@ int main(int argc, char** argv) {
       for (Eigen::Index i = 0; i < col.size() && first < 0; ++i)
         if (!r.contains(col(i))) first = i;
       if (first < 0) continue;
-      char buf[320];
-      std::snprintf(buf, sizeof buf,
-                    "nlid-sim: note: the input leaves the range of the model's estimation data (%.6g to %.6g) from "
-                    "sample %ld on (t = %.10g s; the input spans %.6g to %.6g): the model extrapolates there\n",
-                    r.lower, r.upper, static_cast<long>(first), e.t0() + static_cast<double>(first) * e.ts(), col.minCoeff(),
-                    col.maxCoeff());
-      std::cerr << buf;
+      std::cerr << "nlid-sim: note: the input leaves the range of the model's estimation data ("
+                << nlid::detail::format_g(r.lower, 6) << " to " << nlid::detail::format_g(r.upper, 6) << ") from sample "
+                << static_cast<long>(first) << " on (t = "
+                << nlid::detail::format_g(e.t0() + static_cast<double>(first) * e.ts(), 10)
+                << " s; the input spans " << nlid::detail::format_g(col.minCoeff(), 6) << " to "
+                << nlid::detail::format_g(col.maxCoeff(), 6) << "): the model extrapolates there\n";
     }
     stage = "simulating " + model;
     sizes = std::to_string(e.size()) + " samples";
@@ -233,8 +233,8 @@ int main(int argc, char** argv) {
     // inf/NaN. Both end in the same message, naming the file, the time and the data row.
     const auto diverged = [&](long i, const std::string& value) {
       char buf[200];
-      std::snprintf(buf, sizeof buf, "the simulated output is not finite%s from sample %ld on (t = %.10g s",
-                    value.c_str(), i, t(static_cast<Eigen::Index>(i)));
+      std::snprintf(buf, sizeof buf, "the simulated output is not finite%s from sample %ld on (t = %s s",
+                    value.c_str(), i, nlid::detail::format_g(t(static_cast<Eigen::Index>(i)), 10).c_str());
       nlid::Location l;
       l.file = input;
       return nlid::Error(std::string(buf) +
@@ -262,12 +262,8 @@ int main(int argc, char** argv) {
       if (!y.row(i).allFinite()) {
         Eigen::Index j = 0;
         while (std::isfinite(y(i, j))) ++j;
-        char value[60];
-        if (ny == 1) {
-          std::snprintf(value, sizeof value, " (%g)", y(i, j));
-        } else {
-          std::snprintf(value, sizeof value, " (y%ld = %g)", static_cast<long>(j + 1), y(i, j));
-        }
+        const std::string value = ny == 1 ? " (" + nlid::detail::format_g(y(i, j)) + ")"
+                                          : " (y" + std::to_string(j + 1) + " = " + nlid::detail::format_g(y(i, j)) + ")";
         throw diverged(static_cast<long>(i), value);
       }
     }
@@ -296,10 +292,9 @@ int main(int argc, char** argv) {
     for (std::size_t i = 0; i < header.size(); ++i) text += (i ? "," : "") + nlid::detail::quote_if_needed(header[i], ',');
     text += '\n';
     text.reserve(static_cast<std::size_t>(e.size()) * 26 * header.size());
-    char buf[32];
     const auto put = [&](double v, bool last) {
-      std::snprintf(buf, sizeof buf, last ? "%.17g\n" : "%.17g,", v);
-      text += buf;
+      text += nlid::detail::format_g(v, 17);
+      text += last ? '\n' : ',';
     };
     for (Eigen::Index i = 0; i < y.rows(); ++i) {
       put(t(i), false);

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/data/csv.hpp"
 #include "cli_common.hpp"
 
@@ -117,13 +118,9 @@ inline bool header_has(const std::string& path, const std::string& name, char de
   return !read_header(path, delimiter, fields) || std::find(fields.begin(), fields.end(), name) != fields.end();
 }
 
-/// A sample time for messages: "%.10g s" (std::to_string's six decimals print 20 µs as
-/// "0.000020" whatever the digits after).
-inline std::string format_seconds(double s) {
-  char buf[40];
-  std::snprintf(buf, sizeof buf, "%.10g s", s);
-  return buf;
-}
+/// A sample time for messages: 10 significant digits and " s" (std::to_string's six decimals
+/// print 20 µs as "0.000020" whatever the digits after).
+inline std::string format_seconds(double s) { return nlid::detail::format_g(s, 10) + " s"; }
 
 /// `CsvReadOptions` for reading `path` with these options: with `--ts` and no time column in the
 /// file, the file is read without one (t₀ = 0). Only the default name may be missing: a --time
