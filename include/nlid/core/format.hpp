@@ -2,7 +2,8 @@
 /// @file
 /// The one number-to-text conversion of nlid: every number in its messages, error texts, reports,
 /// tables, model descriptions, files and generated code, and in the command-line tools' output,
-/// goes through these functions instead of printf's %f/%g/%e.
+/// goes through these functions instead of printf's %f/%g/%e or std::to_string(double) (which is
+/// printf's %f).
 ///
 /// printf follows the C library's LC_NUMERIC: a program that calls setlocale for a decimal-comma
 /// language (de_DE) would get "0,5" from it. Here the text comes from std::to_chars, which is
