@@ -4,6 +4,7 @@
 // the helpers are named.
 #include <catch2/catch.hpp>
 
+#include "../support/decimal_comma_locale.hpp"
 #include "../support/error_of.hpp"
 
 #include <atomic>
@@ -228,4 +229,32 @@ TEST_CASE("StackedProblem checks argument sizes like the other adapters", "[esti
   REQUIRE(part.evaluate(th, r1, &J1));
   CHECK(r.tail(10) == r1);
   CHECK(J.topRows(10) == J1);
+}
+
+TEST_CASE("multi-start report reads the same under a decimal-comma locale", "[estimation][multi_start][locale]") {
+  nlid::MultiStartSummary m;
+  m.starts.resize(2);
+  m.starts[0].candidate = 0;
+  m.starts[0].start_cost = 12.5;
+  m.starts[0].cost = 0.03125;
+  m.starts[1].candidate = 3;
+  m.starts[1].start_cost = 7.25;
+  m.starts[1].cost = 0.0312625;
+  m.best = 0;
+  m.best_cost = 0.03125;
+  m.num_within_tolerance = 2;
+  m.num_candidates = 16;
+  m.num_evaluable = 15;
+  m.num_sampled_parameters = 2;
+  m.seconds = 0.75;
+  m.sequence = "halton";
+  const std::string report = m.report();
+  REQUIRE(report.find("          0          12.5       0.03125") != std::string::npos);
+  const nlid_test::DecimalCommaLocale comma;
+  if (nlid_test::DecimalCommaLocale::required()) REQUIRE(comma.active());
+  if (!comma.active()) {
+    WARN("no locale with decimal commas installed: not checked");
+    return;
+  }
+  CHECK(m.report() == report);
 }
