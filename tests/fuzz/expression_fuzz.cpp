@@ -42,6 +42,7 @@
 
 #include "nlid/ad/dual.hpp"
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/core/utf8.hpp"
 #include "nlid/data/experiment.hpp"
 #include "nlid/models/nlarx.hpp"
@@ -316,7 +317,9 @@ void expr_fuzz_parsed(const nlid::Expression& e, std::string_view text, const st
   using D = nlid::Dual<double, 2>;
   const D dv = e.evaluate(ExprFuzzWindow<D>{});
   if (!expr_fuzz_same(dv.a, v)) {
-    expr_fuzz_defect("dual value " + std::to_string(dv.a) + " differs from the double value " + std::to_string(v), text);
+    expr_fuzz_defect("dual value " + nlid::detail::format_g(dv.a, 17) + " differs from the double value " +
+                         nlid::detail::format_g(v, 17),
+                     text);
   }
 
   // The text parses again to the same evaluation.
@@ -352,7 +355,9 @@ void expr_fuzz_parsed(const nlid::Expression& e, std::string_view text, const st
     expr_fuzz_defect(std::string(err.what()) + " in '" + c + "'", text);
   }
   if (std::isfinite(v) && !creader.nan_minmax && cv != v) {
-    expr_fuzz_defect("C text '" + c + "' gives " + std::to_string(cv) + ", the expression " + std::to_string(v), text);
+    expr_fuzz_defect("C text '" + c + "' gives " + nlid::detail::format_g(cv, 17) + ", the expression " +
+                         nlid::detail::format_g(v, 17),
+                     text);
   }
 
   expr_fuzz_as_regressor(e, text, v);
