@@ -38,6 +38,7 @@
 
 #include "nlid/ad/dual.hpp"
 #include "nlid/core/error.hpp"
+#include "nlid/core/format.hpp"
 #include "nlid/core/sizes.hpp"
 #include "nlid/linear/polynomial.hpp"
 
@@ -179,7 +180,7 @@ class TransferFunctionBlock {
     require(f.size() == nf + 1, "F has " + std::to_string(f.size()) + " coefficients; the block needs nf + 1 = " +
                                     std::to_string(nf + 1),
             at_parameter("F"));
-    require(f(0) == 1.0, "F must be monic (F(0) = 1), got " + std::to_string(f(0)), at_parameter("F"));
+    require(f(0) == 1.0, "F must be monic (F(0) = 1), got " + detail::format_f(f(0), 6), at_parameter("F"));
     // A NaN here would surface much later as a "diverging" simulation or an unwritable file.
     require(b.allFinite(), "B has a non-finite coefficient", at_parameter("B"));
     require(f.allFinite(), "F has a non-finite coefficient", at_parameter("F"));
