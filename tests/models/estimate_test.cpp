@@ -406,6 +406,22 @@ TEST_CASE("estimation refuses bad data, naming the experiment", "[models][estima
                     Catch::Contains("fixed has 2 entries; the model has 7 parameters"));
 }
 
+TEST_CASE("a Hammerstein-Wiener delay as long as every record is refused before initialisation", "[models][estimate]") {
+  // The series estimator ran in full on such data (found by tests/fuzz/spec_fuzz.cpp, wh with
+  // nk = 40960 on 60 samples); Hammerstein-Wiener estimation stopped in its initialisation with
+  // "too few samples to initialise the linear block". Both now say what is wrong.
+  using TfLongDelay = nlid::TransferFunctionBlock<nlid::Dynamic, nlid::Dynamic, nlid::Dynamic>;
+  using HwLongDelay = nlid::HammersteinWiener<nlid::UnitGain, TfLongDelay, nlid::Saturation>;
+  const Eigen::MatrixXd u = random_steps(40, -1, 1, 5);
+  Eigen::VectorXd y(40);
+  for (int t = 0; t < 40; ++t) y(t) = std::tanh(u(t, 0));
+  const nlid::Dataset d{nlid::Experiment(u, y, 1.0, "short")};
+  const HwLongDelay late(nlid::UnitGain{}, TfLongDelay(1, 1, 40), nlid::Saturation{});
+  CHECK_THROWS_WITH(nlid::estimate(late, d),
+                    Catch::Contains("Hammerstein-Wiener model delays its input by 40 samples") &&
+                        Catch::Contains("longest estimation record (40 samples)"));
+}
+
 TEST_CASE("more free parameters than residuals is refused before initialisation", "[models][estimate]") {
   // 20 samples, [2 2 1] lags: 18 residuals. A 3-unit network with linear term has 4 + 1 + 3·6 = 23
   // parameters; 2 units have 17.

@@ -70,6 +70,21 @@ std::span<const T> cspan(const std::vector<T>& v) {
 }
 }  // namespace
 
+TEST_CASE("a series delaying its input by every record's length is refused before initialisation", "[models][series]") {
+  // Found by tests/fuzz/spec_fuzz.cpp (wh:nb=4,nf=2,nk=40960:poly1d:8:nb=4,nf=3,nk=6 fitted to 60
+  // samples): the estimation ran in full although no output sample depends on the input.
+  const nlid::Dataset sixty(simulate_truth(gaussian_input(60, 3)));
+  const WhD late(TfD(2, 2, 30), nlid::Poly1d<Dynamic>(3), TfD(2, 1, 30));
+  CHECK_THROWS_WITH(nlid::estimate(late, sixty),
+                    Catch::Contains("Wiener-Hammerstein model delays its input by 60 samples") &&
+                        Catch::Contains("no output sample depends on the input"));
+  WhD late_copy = late;
+  CHECK_THROWS_WITH(nlid::initialize_series(late_copy, sixty), Catch::Contains("delays its input by 60 samples"));
+  nlid::SeriesEstimateOptions one;
+  one.solver.max_iterations = 1;
+  CHECK_NOTHROW(nlid::estimate(WhD(TfD(2, 2, 30), nlid::Poly1d<Dynamic>(3), TfD(2, 1, 29)), sixty, one));
+}
+
 TEST_CASE("series sizes, aliases, roles and names", "[models][series]") {
   static_assert(Wh::num_params == 11 && Wh::num_states == 3 && Wh::num_blocks == 3);
   static_assert(WhD::num_params == Dynamic && WhD::num_states == Dynamic);

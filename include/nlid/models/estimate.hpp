@@ -724,6 +724,7 @@ template <ScalarNonlinearity In, LinearBlock L, ScalarNonlinearity Out>
   detail::require_enough_samples("Hammerstein-Wiener",
                                  model.num_parameters() - detail::count_fixed(options.solver.fixed, model.num_parameters()),
                                  data, 0);
+  detail::require_input_reaches_output("Hammerstein-Wiener", detail::block_input_delay(model.linear_block()), data);
   model.set_channel_names(data[0].input_names().empty() ? "u1" : data[0].input_names()[0],
                           data[0].output_names().empty() ? "y1" : data[0].output_names()[0]);
   const InitialCondition ic = options.initial_condition.value_or(InitialCondition::zero);

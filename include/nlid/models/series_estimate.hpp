@@ -117,6 +117,14 @@ struct SeriesInitialization {
 
 namespace detail {
 
+/// Samples before the input reaches the output: the delays nk of the linear blocks, summed.
+template <class M>
+Eigen::Index series_input_delay(const M& model) {
+  return [&]<std::size_t... I>(std::index_sequence<I...>) {
+    return (Eigen::Index{0} + ... + block_input_delay(model.template block<I>()));
+  }(std::make_index_sequence<M::num_blocks>{});
+}
+
 /// A real root (size 1) or a complex-conjugate pair (size 2, `r` with Im > 0).
 struct RootGroup {
   std::complex<double> r;
@@ -438,6 +446,7 @@ SeriesInitialization initialize_series(Series<B...>& model, const Dataset& data,
   detail::require_enough_samples(M::kind(),
                                  model.num_parameters() - detail::count_fixed(options.solver.fixed, model.num_parameters()),
                                  data, 0);
+  detail::require_input_reaches_output(M::kind(), detail::series_input_delay(model), data);
   require(options.surrogate_degree >= 1, "surrogate_degree must be >= 1", at_parameter("surrogate_degree"));
   require(options.candidates >= 1, "candidates must be >= 1", at_parameter("candidates"));
   SeriesInitialization info;
@@ -817,6 +826,7 @@ template <SeriesBlock... B>
   detail::require_enough_samples(M::kind(),
                                  model.num_parameters() - detail::count_fixed(options.solver.fixed, model.num_parameters()),
                                  data, 0);
+  detail::require_input_reaches_output(M::kind(), detail::series_input_delay(model), data);
   model.set_channel_names(data[0].input_names().empty() ? "u1" : data[0].input_names()[0],
                           data[0].output_names().empty() ? "y1" : data[0].output_names()[0]);
   const InitialCondition ic = options.initial_condition.value_or(InitialCondition::zero);

@@ -190,6 +190,32 @@ void require_enough_samples(const std::string& model_kind, Eigen::Index free_par
               at_parameter("data"));
 }
 
+/// Throws if the model's input delay (the summed nk of its linear blocks) is at least as long as
+/// every experiment of `data`: no residual then depends on the input. Found by the model-spec
+/// fuzzer: wh:nb=4,nf=2,nk=40960:... fitted to 60 samples ran its whole initialisation and
+/// estimation (20 s under the sanitizers) for a model whose output never depends on its input.
+template <class D>
+void require_input_reaches_output(const std::string& model_kind, Eigen::Index delay, const D& data) {
+  Eigen::Index longest = 0;
+  for (std::size_t i = 0; i < data.size(); ++i) longest = std::max<Eigen::Index>(longest, data[i].size());
+  if (delay < longest) return;
+  throw Error("the " + model_kind + " model delays its input by " + std::to_string(delay) +
+                  " samples (the nk of its linear blocks), as long as or longer than the longest estimation record (" +
+                  std::to_string(longest) + " samples): no output sample depends on the input - use longer records "
+                  "or a smaller nk",
+              at_parameter("nk"));
+}
+
+/// The delay nk of a linear block, 0 for a block without one (a static nonlinearity).
+template <class B>
+Eigen::Index block_input_delay(const B& block) {
+  if constexpr (requires { block.nk(); }) {
+    return block.nk();
+  } else {
+    return 0;
+  }
+}
+
 /// Finite check on a scalar including a dual's derivatives (a NaN Jacobian is as bad as a
 /// NaN value for the solver).
 template <class T>
