@@ -191,17 +191,13 @@ class FitTable {
     std::vector<std::size_t> w;
     for (const auto& c : columns_) w.push_back(std::max<std::size_t>(9, c.size()));
     std::ostringstream os;
-    auto pad = [](const std::string& s, std::size_t n, bool right) {
-      const std::string fill(n > s.size() ? n - s.size() : 0, ' ');
-      return right ? fill + s : s + fill;
-    };
-    os << pad("model", wname, false);
-    for (std::size_t k = 0; k < columns_.size(); ++k) os << " | " << pad(columns_[k], w[k], true);
+    os << detail::left_aligned("model", wname);
+    for (std::size_t k = 0; k < columns_.size(); ++k) os << " | " << detail::right_aligned(columns_[k], w[k]);
     os << "\n" << std::string(wname, '-');
     for (std::size_t k = 0; k < columns_.size(); ++k) os << "-+-" << std::string(w[k], '-');
     os << "\n";
     for (const auto& r : rows_) {
-      os << pad(r.name, wname, false);
+      os << detail::left_aligned(r.name, wname);
       for (std::size_t k = 0; k < columns_.size(); ++k) {
         std::string cell = "-";
         for (const auto& [col, v] : r.cells)
@@ -209,7 +205,7 @@ class FitTable {
             cell = v == -std::numeric_limits<double>::infinity() ? std::string("diverged")
                                                                  : detail::format_f(v, 1) + " %";
           }
-        os << " | " << pad(cell, w[k], true);
+        os << " | " << detail::right_aligned(cell, w[k]);
       }
       os << "\n";
     }

@@ -144,7 +144,7 @@ struct ParameterUncertainty {
     for (Eigen::Index i = 0; i < n; ++i) width = std::max(width, names[static_cast<std::size_t>(i)].size());
     for (Eigen::Index i = 0; i < n; ++i) {
       const auto iu = static_cast<std::size_t>(i);
-      std::string line = "  " + names[iu] + std::string(width - names[iu].size(), ' ') + " = " + num(theta[i]);
+      std::string line = "  " + detail::left_aligned(names[iu], width) + " = " + num(theta[i]);
       if (at_bound[iu]) {
         line += "  (on its bound: no standard deviation)";
       } else if (!free[iu]) {

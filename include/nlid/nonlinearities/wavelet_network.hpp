@@ -213,6 +213,7 @@ class WaveletNet {
     const auto names = detail::input_names_or_default(input_names, m_, "WaveletNet");
     const auto th = [&](int i) { return theta[static_cast<std::size_t>(i)]; };
     const Eigen::VectorXd r = norm_.center(), s = norm_.scale();
+    using detail::left_aligned;  // the table columns
     std::string o = "wavelet network (" + std::to_string(m_) + " inputs, " + std::to_string(units_) + " units" +
                     (LinearTerm ? ", linear term" : "") + "):\n";
     o += std::string("  g(x) = ") + (LinearTerm ? "z'L + " : "") +
@@ -222,16 +223,18 @@ class WaveletNet {
     if constexpr (LinearTerm) o += "     L[j]          L[j]/s (per unit of x)";
     o += "\n";
     for (int j = 0; j < m_; ++j) {
-      o += "  " + pad(names[static_cast<std::size_t>(j)], 16) + " " + pad(detail::format_g(r(j)), 13) + " " +
-           pad(detail::format_g(s(j)), 13);
-      if constexpr (LinearTerm) o += " " + pad(detail::format_g(th(j)), 13) + " " + detail::format_g(th(j) / s(j));
+      o += "  " + left_aligned(names[static_cast<std::size_t>(j)], 16) + " " +
+           left_aligned(detail::format_g(r(j)), 13) + " " + left_aligned(detail::format_g(s(j)), 13);
+      if constexpr (LinearTerm)
+        o += " " + left_aligned(detail::format_g(th(j)), 13) + " " + detail::format_g(th(j) / s(j));
       o += "\n";
     }
     o += "  d = " + detail::format_g(th(offset_d())) + "\n";
     o += "  unit  a[k] (scaling)  w[k] (wavelet)  b[k] (dilation)  c[k] (translation, in z)\n";
     for (int k = 0; k < units_; ++k) {
-      o += "  " + pad(std::to_string(k), 5) + " " + pad(detail::format_g(th(offset_a() + k)), 15) + " " +
-           pad(detail::format_g(th(offset_w() + k)), 15) + " " + pad(detail::format_g(th(offset_b() + k)), 16) + " [";
+      o += "  " + left_aligned(std::to_string(k), 5) + " " + left_aligned(detail::format_g(th(offset_a() + k)), 15) +
+           " " + left_aligned(detail::format_g(th(offset_w() + k)), 15) + " " +
+           left_aligned(detail::format_g(th(offset_b() + k)), 16) + " [";
       for (int j = 0; j < m_; ++j) o += (j ? ", " : "") + detail::format_g(th(offset_c() + k * m_ + j));
       o += "]\n";
     }
@@ -240,11 +243,6 @@ class WaveletNet {
 
   // ---- Implementation details below ----------------------------------------------------------
  private:
-  static std::string pad(std::string s, std::size_t w) {
-    if (s.size() < w) s.append(w - s.size(), ' ');
-    return s;
-  }
-
   template <class T, class Z>
   T evaluate(std::span<const T> theta, Z&& z) const {
     using std::exp;
