@@ -225,9 +225,9 @@ int main(int argc, char** argv) {
     std::string text = "t," + column + "\n";
     text.reserve(static_cast<std::size_t>(u.size()) * 40);
     for (Eigen::Index i = 0; i < u.size(); ++i) {
-      text += nlid::detail::format_g(static_cast<double>(i) * ts, 17);
+      nlid::detail::append_g(text, static_cast<double>(i) * ts, 17);
       text += ',';
-      text += nlid::detail::format_g(u[i], 17);
+      nlid::detail::append_g(text, u[i], 17);
       text += '\n';
     }
     nlid::write_file_atomically(out, text);

@@ -293,7 +293,7 @@ int main(int argc, char** argv) {
     text += '\n';
     text.reserve(static_cast<std::size_t>(e.size()) * 26 * header.size());
     const auto put = [&](double v, bool last) {
-      text += nlid::detail::format_g(v, 17);
+      nlid::detail::append_g(text, v, 17);
       text += last ? '\n' : ',';
     };
     for (Eigen::Index i = 0; i < y.rows(); ++i) {

@@ -20,6 +20,19 @@ TEST_CASE("format_g: significant digits as asked, 6 by default", "[core][format]
   CHECK(format_g(0.0) == "0");
 }
 
+TEST_CASE("append_g: appends exactly format_g's text", "[core][format]") {
+  std::string text = "t=";
+  nlid::detail::append_g(text, 0.1, 17);
+  CHECK(text == "t=0.10000000000000001");
+  for (const double v : {1.0 / 3.0, -123456789.0, 1e-300, -std::numeric_limits<double>::infinity()}) {
+    for (const int digits : {-1, 1, 6, 17, 60}) {
+      std::string s = "x";
+      nlid::detail::append_g(s, v, digits);
+      CHECK(s == "x" + format_g(v, digits));
+    }
+  }
+}
+
 TEST_CASE("format_g: extreme and non-finite values stay whole", "[core][format]") {
   // The longest %.17g text: sign, 17 digits, point, three-digit exponent.
   CHECK(format_g(-std::numeric_limits<double>::max(), 17) == "-1.7976931348623157e+308");

@@ -11,8 +11,12 @@
 
 #include <atomic>
 #include <cstdlib>
+#include <limits>
 #include <new>
+#include <string>
 
+#include "nlid/core/format.hpp"
+#include "nlid/data/detail/csv_parse.hpp"
 #include "nlid/models/estimate.hpp"
 #include "nlid/models/hammerstein_wiener.hpp"
 #include "nlid/models/nlarx.hpp"
@@ -84,6 +88,25 @@ TEST_CASE("counting trap sees std allocations", "[nomalloc][models]") {
   v = new std::vector<int>(10);
   delete v;
   CHECK(guard.new_calls() == 2);
+}
+
+TEST_CASE("number text appended to a reserved buffer allocates nothing", "[nomalloc][models]") {
+  // The CSV writers (write_csv, nlid-sim, nlid-input) write up to 17 significant digits per
+  // number; as a returned std::string such a text is longer than the inline buffer, so
+  // `text += format_g(v, 17)` cost one heap allocation per number.
+  std::string text;
+  text.reserve(4096);
+  const double values[] = {1.0 / 3.0, -std::numeric_limits<double>::max(), 6.02214076e23, -0.0,
+                           std::numeric_limits<double>::denorm_min(), 2.5};
+  NoHeap guard;
+  for (const double v : values) {
+    nlid::detail::append_g(text, v, 17);
+    text += ',';
+    nlid::detail::append_double(text, v);
+    text += '\n';
+  }
+  CHECK(guard.new_calls() == 0);
+  CHECK(text.starts_with("0.33333333333333331,0.3333333333333333\n-1.7976931348623157e+308,"));
 }
 
 TEST_CASE("Nlarx [3 3 0] + sigmoidnet: simulate and predict allocate nothing", "[nomalloc][models]") {

@@ -27,15 +27,24 @@
 
 namespace nlid::detail {
 
-/// `v` with `digits` significant digits (`%.*g` in the C locale), e.g.
-/// format_g(0.000123456, 3) == "0.000123". std::to_chars with a precision is specified as printf
-/// in the "C" locale, so the text is the same as before, whatever locale the program has set.
-inline std::string format_g(double v, int digits = 6) {
+/// Appends `v` with `digits` significant digits (`%.*g` in the C locale) to `out`: the form
+/// for writers of many numbers (nlid-sim's and nlid-input's CSV), which would otherwise build a
+/// heap string per number — a 17-digit number does not fit a std::string's inline buffer.
+inline void append_g(std::string& out, double v, int digits = 6) {
   char buf[64];  // "%.17g" of any double, sign and exponent included, fits with room to spare
   if (digits < 0) digits = 6;  // as printf does for a negative precision
   if (digits > 40) digits = 40;  // beyond 17 the digits add nothing, and buf must hold them
   const auto r = std::to_chars(buf, buf + sizeof buf, v, std::chars_format::general, digits);
-  return std::string(buf, r.ptr);
+  out.append(buf, r.ptr);
+}
+
+/// `v` with `digits` significant digits (`%.*g` in the C locale), e.g.
+/// format_g(0.000123456, 3) == "0.000123". std::to_chars with a precision is specified as printf
+/// in the "C" locale, so the text is the same as before, whatever locale the program has set.
+inline std::string format_g(double v, int digits = 6) {
+  std::string s;
+  append_g(s, v, digits);
+  return s;
 }
 
 /// `v` with `decimals` digits after the point (`%.*f` in the C locale), e.g.

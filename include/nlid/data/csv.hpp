@@ -237,7 +237,7 @@ inline void write_csv_table(const std::string& path, const std::vector<std::stri
   for (Eigen::Index r = 0; r < data.rows(); ++r) {
     for (Eigen::Index c = 0; c < data.cols(); ++c) {
       if (c) out += delimiter;
-      out += detail::format_double(data(r, c));
+      detail::append_double(out, data(r, c));
     }
     out += '\n';
   }

@@ -426,10 +426,18 @@ inline std::size_t find_column(const CsvText& t, const std::string& name, const 
               l);
 }
 
-inline std::string format_double(double x) {
+// The shortest text that reads back as the same double, appended to `out` (write_csv writes
+// millions of them: no temporary string per number, most of which would not fit inline).
+inline void append_double(std::string& out, double x) {
   char buf[64];
   const auto res = std::to_chars(buf, buf + sizeof buf, x);  // shortest round-trip form
-  return std::string(buf, res.ptr);
+  out.append(buf, res.ptr);
+}
+
+inline std::string format_double(double x) {
+  std::string s;
+  append_double(s, x);
+  return s;
 }
 
 inline std::string quote_if_needed(const std::string& s, char delim) {
