@@ -147,6 +147,23 @@ TEST_CASE("run-time nlarx (RegressorList + AnyNonlinearity) simulates bit for bi
   CHECK(any.parameter_names() == typed.parameter_names());
 }
 
+TEST_CASE("run-time nlarx whose state would overflow an int is refused at construction") {
+  // Each factor is legal on its own (lag 10^5 = max_model_order, channel 30 000 of 30 000 named
+  // inputs), the state Ly + nu*Lu = 3*10^9 values is not: state_dimension() returned a negative int.
+  std::vector<std::string> names;
+  for (int c = 1; c <= 30000; ++c) names.push_back("in" + std::to_string(c));
+  RegressorList huge;
+  huge.add_custom("in30000(t-100000)", names);
+  CHECK_THROWS_WITH(DynamicNlarx(huge, AnyNonlinearity(LinearMap<Dynamic>(1)), 0.01),
+                    Catch::Contains("state would hold 3000000000 values") &&
+                        Catch::Contains("30000 input channels x input lag 100000") && Catch::Contains("regressors"));
+  // The largest state that still fits is built.
+  RegressorList big;
+  big.add_custom("in20000(t-100000)", names);
+  const DynamicNlarx ok(big, AnyNonlinearity(LinearMap<Dynamic>(1)), 0.01);
+  CHECK(ok.state_dimension() == 2000000000);
+}
+
 TEST_CASE("AnyModel has value semantics and reaches the held model") {
   HammersteinWiener hw(UnitGain{}, TransferFunctionBlock<2, 2, 0>{}, Saturation(-0.5, 0.5), 0.01);
   Eigen::VectorXd th(hw.num_parameters());

@@ -97,6 +97,16 @@ class Nlarx {
             "the nonlinearity takes " + std::to_string(f_.input_dimension()) +
                 " inputs but the regressor set has " + std::to_string(regs_.size()) + " regressors",
             at_parameter("nonlinearity"));
+    // The state x0 holds Ly + nu·Lu values. Each factor is bounded on its own (lags by
+    // max_model_order, channels by what the expressions name), the product is not: a regressor
+    // that reads input channel 30 000 at lag 10⁵ asks for 3·10⁹ values, past int.
+    const long long state_values = static_cast<long long>(regs_.output_lag()) +
+                                   static_cast<long long>(regs_.num_input_channels()) * regs_.input_lag();
+    require(state_values <= std::numeric_limits<int>::max(),
+            "the model's state would hold " + std::to_string(state_values) + " values (output lag " +
+                std::to_string(regs_.output_lag()) + " + " + std::to_string(regs_.num_input_channels()) +
+                " input channels x input lag " + std::to_string(regs_.input_lag()) + "), more than an int can count",
+            at_parameter("regressors"));
     theta_ = Eigen::VectorXd::Zero(f_.num_parameters());
     input_names_ = default_input_names(regs_.num_input_channels());
     set_ts(ts);
