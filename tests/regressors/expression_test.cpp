@@ -139,6 +139,8 @@ TEST_CASE("expression: errors name the column of the bad token") {
   std::string msg;
   CHECK(error_column("maxx(y1(t-1),90)", &msg) == 1);
   CHECK_THAT(msg, Catch::Contains("unknown function or signal 'maxx'") && Catch::Contains("column 1"));
+  // The default output name is y1: the list of signals names it once.
+  CHECK_THAT(msg, Catch::Contains("signals: y1, u1, u2, ...") && !Catch::Contains("y1, y1"));
   CHECK(error_column("max(y1(t-1),90) + foo(t-1)", &msg) == 19);
   CHECK_THAT(msg, Catch::Contains("'foo'"));
   CHECK(error_column("1 + * 2", &msg) == 5);

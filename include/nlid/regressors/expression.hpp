@@ -439,7 +439,7 @@ class ExpressionParser {
     if (!resolve(id, ref)) {
       std::string known;
       for (const Fn& f : fns) known += std::string(known.empty() ? "" : ", ") + f.name;
-      std::string sig = output_ + ", y1, u1, u2, ...";
+      std::string sig = output_ == "y1" ? std::string("y1, u1, u2, ...") : output_ + ", y1, u1, u2, ...";
       for (const auto& n : inputs_) sig += ", " + n;
       fail(start, "unknown function or signal '" + id + "' (functions: " + known + "; signals: " + sig + ")");
     }
