@@ -36,6 +36,8 @@
 #include "nlid/io/series_serial.hpp"
 #include "nlid/models/any_model.hpp"
 
+#include "fuzz_support.hpp"
+
 namespace {
 
 [[noreturn]] void model_fuzz_defect(const std::string& what) {
@@ -98,18 +100,7 @@ nlid::Experiment model_fuzz_record(int nu, int ny, double ts, int n) {
 // Runs `f`; an nlid::Error is an accepted outcome, any other exception a defect.
 template <class F>
 bool model_fuzz_try(const char* step, F&& f) {
-  try {
-    f();
-    return true;
-  } catch (const nlid::Error&) {
-    return false;
-  } catch (const std::bad_alloc&) {
-    model_fuzz_defect(std::string(step) + ": std::bad_alloc (a size from the file was not validated)");
-  } catch (const std::exception& e) {
-    model_fuzz_defect(std::string(step) + ": " + typeid(e).name() + ": " + e.what());
-  } catch (...) {
-    model_fuzz_defect(std::string(step) + ": an exception of unknown type");
-  }
+  return nlid_fuzz::run_step(step, "file", f, [](const std::string& what) { model_fuzz_defect(what); });
 }
 
 void model_fuzz_use(const nlid::AnyModel& m, const std::string& copy_path) {

@@ -40,6 +40,8 @@
 #include "nlid/data/experiment.hpp"
 #include "nlid/models/spec.hpp"
 
+#include "fuzz_support.hpp"
+
 namespace {
 
 constexpr int spec_fuzz_max_parameters = 400;
@@ -54,18 +56,7 @@ constexpr int spec_fuzz_max_described = 200000;
 // Runs `f`; an nlid::Error is an accepted outcome (returns false), any other exception a defect.
 template <class F>
 bool spec_fuzz_try(const char* step, const std::string& text, F&& f) {
-  try {
-    f();
-    return true;
-  } catch (const nlid::Error&) {
-    return false;
-  } catch (const std::bad_alloc&) {
-    spec_fuzz_defect(std::string(step) + ": std::bad_alloc (a size from the spec was not validated)", text);
-  } catch (const std::exception& e) {
-    spec_fuzz_defect(std::string(step) + ": " + typeid(e).name() + ": " + e.what(), text);
-  } catch (...) {
-    spec_fuzz_defect(std::string(step) + ": an exception of unknown type", text);
-  }
+  return nlid_fuzz::run_step(step, "spec", f, [&](const std::string& what) { spec_fuzz_defect(what, text); });
 }
 
 // A short record of a mildly nonlinear first-order system: steps and a slow sine in.
