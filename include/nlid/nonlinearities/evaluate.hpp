@@ -25,10 +25,13 @@ template <Nonlinearity F>
   }
   detail::check_size(theta.size(), f.num_parameters(), "theta", "evaluate_rows");
   Eigen::VectorXd out(X.rows());
-  Eigen::VectorXd row(X.cols());  // contiguous copy: X is column-major
+  // X is column-major, so a row is strided; g reads a contiguous span. One transposed copy makes
+  // every row a contiguous column (a row buffer re-assigned per row re-checked its size each time,
+  // and g++ 12 saw a free in that resize path and warned -Wuse-after-free at the caller).
+  const Eigen::MatrixXd rows = X.transpose();
+  const auto m = static_cast<std::size_t>(X.cols());
   for (Eigen::Index i = 0; i < X.rows(); ++i) {
-    row = X.row(i).transpose();
-    out(i) = f(std::span<const double>(row.data(), static_cast<std::size_t>(row.size())), theta);
+    out(i) = f(std::span<const double>(rows.col(i).data(), m), theta);
   }
   return out;
 }
