@@ -552,6 +552,15 @@ TEST_CASE("read_csv: control bytes are shown escaped, underflow reads as the nea
   const nlid::Error e = error_of([&] { (void)nlid::read_csv(nul); });
   // The whole message survives (a raw NUL ended it after "cell '2"): cell, file and row.
   CHECK_THAT(e.what(), Contains("non-numeric cell '2\\x00x'") && Contains("nul.csv") && Contains("row 3"));
+  // A Latin-1 header ("Winkel°" as the byte B0) is shown with that byte escaped: the raw byte made
+  // the message malformed UTF-8, and a report that carries the message could not be written.
+  const std::string latin1 = dir.write("latin1.csv", "t,u,Winkel\xB0\n0,1,2\n0.001,1,2\n");
+  const nlid::Error l1 = error_of([&] { (void)nlid::read_csv(latin1); });  // no column 'y
+  CHECK_THAT(l1.what(), Contains("'Winkel\\xB0'"));
+  CHECK(nlid::first_invalid_utf8(l1.what()) == std::string::npos);
+  // A long name is cut between characters, never inside one, and only when something is left out.
+  CHECK(nlid::detail::printable(std::string(79, 'a') + "\xC3\xA9\xC3\xA9") == std::string(79, 'a') + "\xC3\xA9...");
+  CHECK(nlid::detail::printable(std::string(80, 'a')) == std::string(80, 'a'));
 
   const std::string tiny = dir.write("tiny.csv", "t,u,y\n0,1e-400,2\n0.001,1,2\n0.002,1,3\n");
   const nlid::Experiment ex = nlid::read_csv(tiny);

@@ -181,6 +181,10 @@ TEST_CASE("expression: errors quote a whole non-ASCII character, a malformed byt
   CHECK_THAT(msg, Catch::Contains("but found '\xE2\x82\xAC'"));
   CHECK(error_column("1 \xFF", &msg) == 3);
   CHECK_THAT(msg, Catch::Contains("unexpected '\\xFF'"));
+  // A control character is escaped too (a NUL byte ended the message there).
+  CHECK(error_column(std::string("1 \0", 3), &msg) == 3);
+  CHECK_THAT(msg, Catch::Contains("unexpected '\\x00'"));
+  CHECK(msg.find('\0') == std::string::npos);
 }
 
 TEST_CASE("expression: deep nesting is an error with a column, not a stack overflow") {

@@ -40,6 +40,15 @@ inline std::size_t utf8_sequence_length(std::string_view s, std::size_t i) noexc
   return n;
 }
 
+/// Appends byte `c` as the four characters \xHH: how messages show a control character or a
+/// byte that is not well-formed UTF-8 (data/detail/printable.hpp, the expression parser).
+inline void append_escaped_byte(std::string& out, unsigned char c) {
+  constexpr const char* hex = "0123456789ABCDEF";
+  out += "\\x";
+  out += hex[c >> 4];
+  out += hex[c & 15];
+}
+
 }  // namespace detail
 
 /// Byte offset of the first byte of `s` that is not part of well-formed UTF-8, or npos.
