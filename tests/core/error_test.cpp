@@ -27,6 +27,25 @@ TEST_CASE("Error without location has no suffix, experiment and parameter locati
   CHECK_NOTHROW(nlid::require(true, "never"));
 }
 
+TEST_CASE("Error text stays whole and UTF-8 whatever bytes it quotes") {
+  // A NUL ended what() early; a Latin-1 byte (0xB0 for the degree sign, 0xE4 for ä in a file
+  // name) made the text malformed UTF-8, which the JSON writer of reports refuses.
+  nlid::Location where;
+  where.file = "mess\xE4ung.csv";
+  const std::string raw = std::string("column 'Winkel\xB0' has a NUL \0 here,\nsee\tbelow; 'caf\xC3\xA9' is fine", 61);
+  const nlid::Error e(raw, where);
+  const std::string expected_message =
+      "column 'Winkel\\xB0' has a NUL \\x00 here,\nsee\tbelow; 'caf\xC3\xA9' is fine";
+  CHECK(e.message() == expected_message);
+  CHECK(std::string(e.what()) == "nlid: " + expected_message + " [at file 'mess\\xE4ung.csv']");
+  CHECK(nlid::first_invalid_utf8(e.what()) == std::string::npos);
+  CHECK(e.where().file == "mess\xE4ung.csv");  // the structured field is the path as given
+  // Already-safe text comes back unchanged, and escaping twice changes nothing more.
+  CHECK(nlid::Error(e.message()).message() == e.message());
+  CHECK(nlid::detail::message_safe("plain \xE2\x82\xAC text") == "plain \xE2\x82\xAC text");
+  CHECK(nlid::detail::message_safe(std::string("\x7F\xC3", 2)) == "\\x7F\\xC3");
+}
+
 TEST_CASE("Compile-time size arithmetic propagates Dynamic") {
   static_assert(nlid::size_sum(2, 3, 4) == 9);
   static_assert(nlid::size_sum(2, nlid::Dynamic) == nlid::Dynamic);

@@ -14,6 +14,8 @@
 #include <string_view>
 #include <utility>
 
+#include "nlid/core/utf8.hpp"
+
 namespace nlid {
 
 /// Where an error happened. Fields that do not apply stay at their "unset" value (-1 / empty).
@@ -55,8 +57,12 @@ struct Location {
 /// The exception thrown for every user-caused failure. `what()` = "nlid: <message> [at <where>]".
 class Error : public std::runtime_error {
  public:
+  /// `what()` and `message()` show control characters (other than line feed and tab) and bytes
+  /// that are not well-formed UTF-8 as \xHH, so a name or path quoted from a file cannot cut the
+  /// text short or make it malformed; `where()` keeps the location's fields as given.
   explicit Error(const std::string& message, Location where = {})
-      : std::runtime_error(compose(message, where)), message_(message), where_(std::move(where)) {}
+      : std::runtime_error(compose(message, where)), message_(detail::message_safe(message)),
+        where_(std::move(where)) {}
 
   /// The message without the location suffix.
   [[nodiscard]] const std::string& message() const noexcept { return message_; }
@@ -69,7 +75,7 @@ class Error : public std::runtime_error {
     s.append(message);
     const std::string w = where.str();
     if (!w.empty()) s.append(" [at ").append(w).append("]");
-    return s;
+    return detail::message_safe(std::move(s));
   }
   std::string message_;
   Location where_;

@@ -49,6 +49,35 @@ inline void append_escaped_byte(std::string& out, unsigned char c) {
   out += hex[c & 15];
 }
 
+/// `text` as a message can carry it: each control character other than line feed and tab, and
+/// each byte that is not well-formed UTF-8, as \xHH; everything else unchanged (text that needs
+/// nothing escaped is returned as it came, without a second pass). Error messages quote what
+/// users and files supply (names, cells, paths); a NUL byte cut `what()` short, and a malformed
+/// byte made the text unfit for the JSON reports and logs that carry it.
+inline std::string message_safe(std::string text) {
+  const auto needs_escape = [](std::string_view s, std::size_t i, std::size_t& n) {
+    const auto c = static_cast<unsigned char>(s[i]);
+    if ((c < 0x20 && c != '\n' && c != '\t') || c == 0x7f) return true;
+    n = utf8_sequence_length(s, i);
+    return n == 0;
+  };
+  std::size_t i = 0;
+  std::size_t n = 0;
+  while (i < text.size() && !needs_escape(text, i, n)) i += n;
+  if (i == text.size()) return text;
+  std::string out(text, 0, i);
+  while (i < text.size()) {
+    if (needs_escape(text, i, n)) {
+      append_escaped_byte(out, static_cast<unsigned char>(text[i]));
+      ++i;
+    } else {
+      out.append(text, i, n);
+      i += n;
+    }
+  }
+  return out;
+}
+
 }  // namespace detail
 
 /// Byte offset of the first byte of `s` that is not part of well-formed UTF-8, or npos.
