@@ -615,3 +615,20 @@ TEST_CASE("Json move assignment from a member of the value itself unwraps it") {
   k = k[0];  // copy assignment from a member (copies first, then replaces)
   CHECK(k == nlid::Json::array({1, 2}));
 }
+
+TEST_CASE("Json new member copied from a sibling: j[\"new\"] = j[\"a\"]") {
+  // The right side is evaluated first; the members lived in a vector, and inserting "new" could
+  // move them, so the copy read a freed member (the sanitizer build reported it; a plain build
+  // copied garbage or crashed). Each insertion below is a chance for the old storage to regrow.
+  nlid::Json j;
+  j["a"] = nlid::Json::object({{"b", "a string longer than fifteen bytes"}, {"c", nlid::Json::array({1, 2})}});
+  for (int k = 0; k < 40; ++k) j["copy" + std::to_string(k)] = j["a"];
+  REQUIRE(j.size() == 41);
+  for (int k = 0; k < 40; ++k) CHECK(j["copy" + std::to_string(k)] == j["a"]);
+  // A member held by reference stays valid while others are added and removed.
+  nlid::Json& a = j["a"];
+  for (int k = 0; k < 40; ++k) j["more" + std::to_string(k)] = k;
+  CHECK(j.erase("copy0"));
+  CHECK(&a == &j["a"]);
+  CHECK(a.dump(-1) == R"({"b":"a string longer than fifteen bytes","c":[1,2]})");
+}

@@ -54,6 +54,7 @@
 #include <cstdint>
 #include <initializer_list>
 #include <limits>
+#include <list>
 #include <memory>
 #include <string>
 #include <string_view>
@@ -135,8 +136,11 @@ class Json {
   using Array = std::vector<Json>;
   /// One object member.
   using Member = std::pair<std::string, Json>;
-  /// Object storage: members in insertion order.
-  using Object = std::vector<Member>;
+  /// Object storage: members in insertion order. A list, not a vector, so that adding a member
+  /// never moves the others: `j["new"] = j["a"]` evaluates `j["a"]` first, and a vector's
+  /// reallocation for "new" left that reference dangling. (Model-file objects have a few
+  /// members; their arrays of numbers, where contiguity counts, are `Array`s.)
+  using Object = std::list<Member>;
 
   /// `null`.
   Json() noexcept = default;
@@ -243,9 +247,7 @@ class Json {
 
   /// Object member by key, inserted as null if missing. A null value first becomes an empty
   /// object, so `j["a"]["b"] = 1` builds nested objects. Throws if this is another type.
-  /// Members live in a vector: inserting one may move the others, as `push_back` moves vector
-  /// elements, so `j["new"] = j["a"]` copies from a dangling reference (the right side is
-  /// evaluated first). Copy first: `Json a = j["a"]; j["new"] = a;`.
+  /// Inserting a member moves no other member, so `j["new"] = j["a"]` is safe (see `Object`).
   Json& operator[](std::string_view key) {
     if (is_null()) value_ = Object{};
     if (!is_object()) {
@@ -377,7 +379,7 @@ class Json {
     if (!is_array()) (void)static_cast<const Json&>(*this).as_array();  // throws: wrong type
     return std::get<Array>(value_);
   }
-  /// Mutable object (a null value becomes an empty object first). Editing the vector directly
+  /// Mutable object (a null value becomes an empty object first). Editing the list directly
   /// can create duplicate keys; prefer `operator[]`.
   Object& as_object() {
     if (is_null()) value_ = Object{};
@@ -925,13 +927,15 @@ class JsonWriter {
   }
   void object(const Json::Object& o, int depth) {
     out_.push_back('{');
-    for (std::size_t i = 0; i < o.size(); ++i) {
-      path_.push_back({o[i].first, 0, true});
-      if (i > 0) out_.push_back(',');
+    bool first = true;
+    for (const Json::Member& m : o) {
+      path_.push_back({m.first, 0, true});
+      if (!first) out_.push_back(',');
+      first = false;
       if (indent_ >= 0) newline(depth + 1);
-      string(o[i].first, "key");
+      string(m.first, "key");
       out_.append(indent_ >= 0 ? ": " : ":");
-      write(o[i].second, depth + 1);
+      write(m.second, depth + 1);
       path_.pop_back();
     }
     if (indent_ >= 0 && !o.empty()) newline(depth);
@@ -1451,9 +1455,9 @@ inline void Json::copy_node(Json& to, const Json& from,
     case Type::object: {
       const Object& src = std::get<Object>(from.value_);
       Object& dst = to.value_.emplace<Object>();
-      dst.reserve(src.size());
       for (const Member& m : src) dst.emplace_back(m.first, Json());
-      for (std::size_t i = 0; i < src.size(); ++i) child(dst[i].second, src[i].second);
+      auto d = dst.begin();
+      for (const Member& m : src) child((d++)->second, m.second);
       break;
     }
   }
