@@ -4,6 +4,8 @@
 
 #include <cmath>
 #include <limits>
+#include <locale>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -239,6 +241,35 @@ TEST_CASE("ARX describe prints A(q) and B(q) like the toolbox", "[linear][arx]")
   CHECK(d.find("B(q) = 1 (+/- ") != std::string::npos);
   CHECK(d.find("Poles: 0.75 +/- 0.3708i") != std::string::npos);
   CHECK(d.find("Sample time: 0.1 s") != std::string::npos);
+}
+
+namespace {
+// A numeric punctuation as a German program might install globally: decimal comma, '.' between
+// groups of three digits.
+struct ArxTestCommaGrouping : std::numpunct<char> {
+  char do_decimal_point() const override { return ','; }
+  char do_thousands_sep() const override { return '.'; }
+  std::string do_grouping() const override { return "\3"; }
+};
+}  // namespace
+
+TEST_CASE("ARX and state-space text does not follow the program's global C++ locale", "[linear][arx]") {
+  // The text went through std::ostringstream, which takes the global locale: after
+  // std::locale::global(de_DE) the report read "1.998 samples" and the matrices "0,75".
+  const Experiment e = nlid_test::arx_data(siso_truth(), nlid_test::white_noise(2000, 1, 62), 0.0, 0);
+  const nlid::Arx m = nlid::arx(e, {2, 2, 1});
+  const std::string arx_text = m.describe();
+  const std::string ss_text = m.to_state_space().describe();
+  REQUIRE_THAT(arx_text, Catch::Contains("1998 samples"));
+  const std::locale saved = std::locale::global(std::locale(std::locale::classic(), new ArxTestCommaGrouping));
+  const std::string arx_local = m.describe();
+  const std::string ss_local = m.to_state_space().describe();
+  std::ostringstream probe;  // the locale is in effect: a stream made now groups digits
+  probe << 1998;
+  std::locale::global(saved);
+  CHECK(probe.str() == "1.998");
+  CHECK(arx_local == arx_text);
+  CHECK(ss_local == ss_text);
 }
 
 TEST_CASE("ARX and OE describe name the degree instead of factoring a huge A or F", "[linear][arx]") {

@@ -25,6 +25,7 @@
 #include <cstdio>
 #include <limits>
 #include <ostream>
+#include <locale>
 #include <sstream>
 #include <string>
 #include <utility>
@@ -79,6 +80,7 @@ struct CompareResult {
   /// Table: one row per experiment, one column per output, fit in percent.
   [[nodiscard]] std::string table() const {
     std::ostringstream os;
+    os.imbue(std::locale::classic());  // a global locale's grouping or decimal comma must not reach the text
     char buf[128];
     os << "Fit (%) of the simulated output, initial condition '" << detail::initial_condition_name(initial_condition)
        << "'\n";
@@ -191,6 +193,7 @@ class FitTable {
     std::vector<std::size_t> w;
     for (const auto& c : columns_) w.push_back(std::max<std::size_t>(9, c.size()));
     std::ostringstream os;
+    os.imbue(std::locale::classic());  // a global locale's grouping or decimal comma must not reach the text
     os << detail::left_aligned("model", wname);
     for (std::size_t k = 0; k < columns_.size(); ++k) os << " | " << detail::right_aligned(columns_[k], w[k]);
     os << "\n" << std::string(wname, '-');

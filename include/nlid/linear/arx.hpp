@@ -38,6 +38,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <locale>
 #include <sstream>
 #include <string>
 #include <utility>
@@ -355,6 +356,7 @@ class Arx {
   /// Toolbox-style description: equation, A and B with standard deviations, poles, report.
   [[nodiscard]] std::string describe() const {
     std::ostringstream os;
+    os.imbue(std::locale::classic());  // a global locale's grouping or decimal comma must not reach the text
     const int m = num_inputs();
     os << "Discrete-time ARX model, orders [na nb nk] = " << orders().str() << ":\n  A(q)y(t) = ";
     for (int i = 0; i < m; ++i) os << (i ? " + " : "") << bname(i) << "(q)" << uname(i) << "(t)";

@@ -24,6 +24,7 @@
 #include <cstdio>
 #include <limits>
 #include <optional>
+#include <locale>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -119,6 +120,7 @@ struct OrderSelection {
   /// The table: one line per candidate, best rows marked, then the picks.
   [[nodiscard]] std::string table() const {
     std::ostringstream os;
+    os.imbue(std::locale::classic());  // a global locale's grouping or decimal comma must not reach the text
     char line[256];
     os << "ARX order selection: " << candidates.size() << " candidates, N = " << num_samples
        << " samples each (rows from sample " << first_row << " of every experiment)\n";
@@ -166,6 +168,7 @@ struct OrderSelection {
   /// largest; the AIC and MDL choices are marked.
   [[nodiscard]] std::string bar_chart(int width = 50) const {
     std::ostringstream os;
+    os.imbue(std::locale::classic());  // a global locale's grouping or decimal comma must not reach the text
     const std::size_t ia = best_index(OrderCriterion::aic), im = best_index(OrderCriterion::mdl);
     int dmax = 0;
     for (const auto& x : candidates) dmax = std::max(dmax, x.num_parameters);

@@ -41,6 +41,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <locale>
 #include <sstream>
 #include <string>
 #include <utility>
@@ -346,6 +347,7 @@ class OutputError {
   /// Toolbox-style description: equation, B and F with standard deviations, poles, report.
   [[nodiscard]] std::string describe() const {
     std::ostringstream os;
+    os.imbue(std::locale::classic());  // a global locale's grouping or decimal comma must not reach the text
     const int m = num_inputs();
     const bool one = m == 1;
     os << "Discrete-time OE model, orders [nb nf nk] = " << orders().str() << ":\n  y(t) = ";

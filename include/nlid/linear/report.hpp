@@ -21,6 +21,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <locale>
 #include <sstream>
 #include <string>
 #include <utility>
@@ -111,6 +112,7 @@ struct LinearEstimationReport {
   /// Multi-line human-readable summary.
   [[nodiscard]] std::string str() const {
     std::ostringstream os;
+    os.imbue(std::locale::classic());  // a global locale's grouping or decimal comma must not reach the text
     os << "Estimated by " << (method.empty() ? std::string("(unknown)") : method) << " on "
        << num_experiments << " experiment(s), " << num_samples << " samples, " << num_parameters
        << " parameters; " << focus << " focus.\n";

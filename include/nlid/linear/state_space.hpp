@@ -29,6 +29,7 @@
 ///   outputs) and throws; use `estimate`.
 
 #include <cmath>
+#include <locale>
 #include <sstream>
 #include <string>
 #include <utility>
@@ -251,6 +252,7 @@ class StateSpace {
   /// Readable description: equations, matrices, poles, sample time and estimation report.
   [[nodiscard]] std::string describe() const {
     std::ostringstream os;
+    os.imbue(std::locale::classic());  // a global locale's grouping or decimal comma must not reach the text
     const Eigen::IOFormat fmt(4, 0, "  ", "\n", "    [", "]");
     os << "Discrete-time state-space model: " << order() << " state(s), " << num_inputs()
        << " input(s), " << num_outputs() << " output(s)\n";
