@@ -40,13 +40,35 @@ inline std::size_t utf8_sequence_length(std::string_view s, std::size_t i) noexc
   return n;
 }
 
-/// Appends byte `c` as the four characters \xHH: how messages show a control character or a
-/// byte that is not well-formed UTF-8 (data/detail/printable.hpp, the expression parser).
-inline void append_escaped_byte(std::string& out, unsigned char c) {
+/// Bytes of the character at s[i] as a message shows it unchanged, or 0 where the message shows
+/// the byte s[i] as \xHH instead: a byte that is not part of well-formed UTF-8, or a control
+/// character (line feed and tab are kept if `keep_layout`).
+inline std::size_t shown_length(std::string_view s, std::size_t i, bool keep_layout) noexcept {
+  const auto c = static_cast<unsigned char>(s[i]);
+  if ((c < 0x20 && !(keep_layout && (c == '\n' || c == '\t'))) || c == 0x7f) return 0;
+  return utf8_sequence_length(s, i);
+}
+
+/// Appends `s` to `out`, each byte that `shown_length` refuses as \xHH. Stops between characters
+/// once `out` holds `limit` bytes and some of `s` remains; returns false then.
+inline bool append_shown(std::string& out, std::string_view s, bool keep_layout,
+                         std::size_t limit = std::string::npos) {
   constexpr const char* hex = "0123456789ABCDEF";
-  out += "\\x";
-  out += hex[c >> 4];
-  out += hex[c & 15];
+  for (std::size_t i = 0; i < s.size();) {
+    const std::size_t n = shown_length(s, i, keep_layout);
+    if (n == 0) {
+      const auto c = static_cast<unsigned char>(s[i]);
+      out += "\\x";
+      out += hex[c >> 4];
+      out += hex[c & 15];
+      ++i;
+    } else {
+      out.append(s.substr(i, n));
+      i += n;
+    }
+    if (out.size() >= limit && i < s.size()) return false;
+  }
+  return true;
 }
 
 /// `text` as a message can carry it: each control character other than line feed and tab, and
@@ -55,26 +77,15 @@ inline void append_escaped_byte(std::string& out, unsigned char c) {
 /// users and files supply (names, cells, paths); a NUL byte cut `what()` short, and a malformed
 /// byte made the text unfit for the JSON reports and logs that carry it.
 inline std::string message_safe(std::string text) {
-  const auto needs_escape = [](std::string_view s, std::size_t i, std::size_t& n) {
-    const auto c = static_cast<unsigned char>(s[i]);
-    if ((c < 0x20 && c != '\n' && c != '\t') || c == 0x7f) return true;
-    n = utf8_sequence_length(s, i);
-    return n == 0;
-  };
-  std::size_t i = 0;
-  std::size_t n = 0;
-  while (i < text.size() && !needs_escape(text, i, n)) i += n;
+  std::size_t i = 0;  // the first byte to escape, if any
+  while (i < text.size()) {
+    const std::size_t n = shown_length(text, i, true);
+    if (n == 0) break;
+    i += n;
+  }
   if (i == text.size()) return text;
   std::string out(text, 0, i);
-  while (i < text.size()) {
-    if (needs_escape(text, i, n)) {
-      append_escaped_byte(out, static_cast<unsigned char>(text[i]));
-      ++i;
-    } else {
-      out.append(text, i, n);
-      i += n;
-    }
-  }
+  append_shown(out, std::string_view(text).substr(i), true);
   return out;
 }
 

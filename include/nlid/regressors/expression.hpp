@@ -530,15 +530,10 @@ class ExpressionParser {
     e_.program_.push_back(n);
   }
   // The character at pos as a message quotes it: its whole UTF-8 sequence (the first byte of
-  // "é" alone made the message malformed UTF-8), a malformed byte or a control character (a NUL
-  // would end the message early) as \xHH, as data/detail/printable.hpp shows them in names.
+  // "é" alone made the message malformed UTF-8), else the one byte, which Error shows as \xHH
+  // (a malformed byte or a control character, as anywhere in a message).
   std::string char_at(std::size_t pos) const {
-    const auto b = static_cast<unsigned char>(s_[pos]);
-    const std::size_t n = (b < 0x20 || b == 0x7f) ? 0 : detail::utf8_sequence_length(s_, pos);
-    if (n > 0) return std::string(s_.substr(pos, n));
-    std::string out;
-    detail::append_escaped_byte(out, b);
-    return out;
+    return std::string(s_.substr(pos, std::max<std::size_t>(1, detail::utf8_sequence_length(s_, pos))));
   }
   // 1-based column in code points (UTF-8 continuation bytes do not count), as an editor shows it.
   long column(std::size_t pos) const {

@@ -17,21 +17,7 @@ namespace nlid::detail {
 /// be lost for one name). A cut never splits a character.
 inline std::string printable(std::string_view cell, std::size_t limit = 80) {
   std::string out;
-  for (std::size_t i = 0; i < cell.size();) {
-    const auto c = static_cast<unsigned char>(cell[i]);
-    const std::size_t n = (c < 0x20 || c == 0x7f) ? 0 : utf8_sequence_length(cell, i);
-    if (n == 0) {
-      append_escaped_byte(out, c);
-      ++i;
-    } else {
-      out.append(cell.substr(i, n));
-      i += n;
-    }
-    if (out.size() >= limit && i < cell.size()) {
-      out += "...";
-      break;
-    }
-  }
+  if (!append_shown(out, cell, false, limit)) out += "...";
   return out;
 }
 
