@@ -236,3 +236,21 @@ TEMPLATE_TEST_CASE("initialize is deterministic", "[nonlinearities][property]", 
   f1.initialize(X, y, t3);
   CHECK(t1 == t3);
 }
+
+TEMPLATE_TEST_CASE("a NaN input stays NaN and a far input gives no NaN", "[nonlinearities][property]",
+                   NLID_ALL_NONLINEARITIES) {
+  // A free run treats a non-finite output as divergence; a map that turned NaN into a number
+  // (DeadZone did: both comparisons false, so 0) let a broken simulation continue from invented
+  // values. Far from the data a map must extrapolate, not read inf·0 (WaveletNet did at 1e155).
+  Setup<TestType> s;
+  const auto m = static_cast<std::size_t>(s.f.input_dimension());
+  CHECK(std::isnan(s.value(std::vector<double>(m, std::nan("")), s.theta)));
+  for (const double far : {1e200, -1e200, 1e300}) {
+    CAPTURE(far);
+    CHECK_FALSE(std::isnan(s.value(std::vector<double>(m, far), s.theta)));
+  }
+  using D = nlid::Dual<double, 1>;
+  std::vector<D> xd(m, D::variable(std::nan(""), 0));
+  std::vector<D> td(s.theta.begin(), s.theta.end());
+  CHECK(std::isnan(s.f(std::span<const D>(xd), std::span<const D>(td)).a));
+}

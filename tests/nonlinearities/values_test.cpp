@@ -3,6 +3,7 @@
 
 #include <cmath>
 #include <functional>
+#include <limits>
 #include <span>
 #include <vector>
 
@@ -240,4 +241,31 @@ TEST_CASE("TreePartition routes x to its leaf's affine model", "[nonlinearities]
   const std::string d = f.describe(th);
   CHECK(contains(d, "0: 1*z(x) > 0.5"));
   CHECK(contains(d, "1: L = [-1], d = 3"));
+}
+
+TEST_CASE("WaveletNet far from its centres is its linear part, with finite derivatives",
+          "[nonlinearities][values]") {
+  nlid::WaveletNet<1, 1> f;
+  const std::vector<double> th{0.5, 0.1, 1, 0.3, 1, 0};  // L d a w b c
+  CHECK(eval(f, {1e20}, th) == 0.5e20);
+  CHECK(eval(f, {1e200}, th) == 0.5e200);
+  CHECK(eval(f, {-1e300}, th) == -0.5e300);
+  nlid::WaveletNet<1, 1, false> g;  // no linear term: the offset alone
+  const std::vector<double> tg{0.1, 1, 0.3, 1, 0};
+  CHECK(eval(g, {1e200}, tg) == 0.1);
+  CHECK(eval(g, {std::numeric_limits<double>::infinity()}, tg) == 0.1);
+  using D = nlid::Dual<double, 5>;
+  std::vector<D> x{D(1e200)};
+  std::vector<D> t;
+  for (int i = 0; i < 5; ++i) t.push_back(D::variable(tg[static_cast<std::size_t>(i)], i));
+  const D v = g(std::span<const D>(x), std::span<const D>(t));
+  CHECK(v.a == 0.1);
+  CHECK(v.v.allFinite());
+  CHECK(v.v(0) == 1.0);
+}
+
+TEST_CASE("DeadZone passes a NaN input on as NaN", "[nonlinearities][values]") {
+  const nlid::DeadZone f;
+  CHECK(std::isnan(eval(f, {std::nan("")}, {-1, 2})));
+  CHECK(std::isnan(eval(f, {std::nan("")}, {2, -1})));  // crossed limits as well
 }

@@ -78,9 +78,11 @@ class DeadZone {
     const bool crossed = theta[1] < theta[0];
     const T& lo = crossed ? theta[1] : theta[0];
     const T& hi = crossed ? theta[0] : theta[1];
-    if (x[0] < lo) return x[0] - lo;
+    // Ordered so that a NaN input falls through to x − lo and stays NaN: a free run whose
+    // regressor went non-finite must be seen as diverged, not continue from an invented 0.
     if (x[0] > hi) return x[0] - hi;
-    return detail::cast_to<T>(0.0);
+    if (x[0] >= lo) return detail::cast_to<T>(0.0);
+    return x[0] - lo;
   }
 
   /// Initial limits if given, else the exact least-squares limits for (X, y); X is N × 1.

@@ -260,7 +260,18 @@ class WaveletNet {
         const T dj = z(j) - at(oc + k * m_ + j);
         d2 += dj * dj;
       }
-      const T rho = at(ob + k) * at(ob + k) * d2;
+      // Far from a centre (d2 overflowing to inf for |z| ~ 1e155) the unit is exactly 0, but
+      // (a + w(m − ρ))·exp(−ρ/2) would read (−inf)·0 = NaN. exp(−750) is already 0 in double,
+      // so capping ρ there changes no finite value. The argument order keeps a NaN ρ NaN:
+      // nlid::min returns its second argument when the comparison fails, Batch's min its first.
+      const T rho_raw = at(ob + k) * at(ob + k) * d2;
+      const T cap = detail::cast_to<T>(1500.0);
+      T rho;
+      if constexpr (is_batch_v<T>) {
+        rho = min(rho_raw, cap);
+      } else {
+        rho = min(cap, rho_raw);
+      }
       const T e = exp(-half * rho);
       g += (at(oa + k) + at(ow + k) * (dim - rho)) * e;
     }
