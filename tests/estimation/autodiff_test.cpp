@@ -118,9 +118,11 @@ TEST_CASE("AutoDiffProblem checks argument sizes with named errors", "[estimatio
   CHECK(p.evaluate(th, r, &J));
   CHECK(r.isZero());  // (1, …, 1) is the minimum
   nlid_test::ExtendedRosenbrock bad;
-  bad.n = 0;
+  bad.n = -1;
   CHECK_THROWS_WITH(AutoDiffProblem<nlid_test::ExtendedRosenbrock>(bad),
-                    Contains("functor reports 0 parameters"));
+                    Contains("functor reports -1 parameters"));
+  bad.n = 0;
+  CHECK_THROWS_WITH(AutoDiffProblem<nlid_test::ExtendedRosenbrock>(bad), Contains("reports no residuals"));
   CHECK_THROWS_WITH(NumericDiffProblem<nlid_test::ExpFit<3>>(nlid_test::ExpFit<3>(1, 1, 1), 0.0),
                     Contains("relative finite-difference step must be in (0, 1)"));
 }
@@ -249,4 +251,31 @@ TEST_CASE("one problem object may be evaluated from several threads at once",
     CHECK(st[t].topRows(200) == serial[t]);
     CHECK(st[t].bottomRows(200) == serial[t]);
   }
+}
+
+namespace {
+// r = y − 2u: a model with nothing to estimate (nlid-fit's 'nlarx:na=0,nb=1,nk=0:unitgain').
+struct NothingToEstimate {
+  static constexpr int num_params = nlid::Dynamic;
+  int num_parameters() const { return 0; }
+  Eigen::Index num_residuals() const { return 3; }
+  template <class T>
+  bool residuals(std::span<const T>, std::span<T> r) const {
+    for (int i = 0; i < 3; ++i) r[static_cast<std::size_t>(i)] = T(1.0 + i) - T(2.0 * i);
+    return true;
+  }
+};
+}  // namespace
+
+TEST_CASE("AutoDiffProblem with no parameters gives residuals, an empty Jacobian, and LM stops at once",
+          "[estimation][autodiff]") {
+  // It refused with "functor reports 0 parameters": nlid-fit failed on a spec it documents.
+  AutoDiffProblem p(NothingToEstimate{});
+  Eigen::VectorXd th(0), r = Eigen::VectorXd::Constant(3, 99.0);
+  Eigen::MatrixXd J(3, 0);
+  REQUIRE(p.evaluate(th, r, &J));
+  CHECK(r == Eigen::Vector3d(1, 0, -1));
+  const nlid::LmSummary s = nlid::solve_least_squares(p, th, nlid::LmOptions{});
+  CHECK(s.status == nlid::LmStatus::all_parameters_fixed);
+  CHECK(s.final_cost == Approx(1.0));
 }

@@ -456,3 +456,28 @@ TEST_CASE("nlid-fit warns on stderr when the estimation did not converge, and st
   REQUIRE(r.code == 0);
   CHECK(r.err.find("warning") == std::string::npos);
 }
+
+TEST_CASE("nlid-fit: a spec with nothing to estimate is fitted and saved, an optimal start is no warning",
+          "[tools][fit]") {
+  const fs::path est = write_record("zero_param_est", 600, 47u, 0);
+  const fs::path model = work_dir() / "zero_param.json";
+  // docs/tools.md: a one-input map such as unitgain fits only na=0,nb=1. It failed with
+  // "AutoDiffProblem: functor reports 0 parameters", then on saving an empty covariance.
+  Run r = fit("--model nlarx:na=0,nb=1,nk=0:unitgain --est " + q(est) + " --save " + q(model));
+  INFO(r.err);
+  REQUIRE(r.code == 0);
+  CHECK_THAT(r.out, Catch::Contains("0 parameters"));
+  CHECK(r.err.find("warning") == std::string::npos);
+  CHECK_THAT(r.err, Catch::Contains("no parameter uncertainty: the model has no parameters"));
+  const fs::path out = work_dir() / "zero_param_y.csv";
+  REQUIRE(sim("--model " + q(model) + " --input " + q(est) + " --out " + q(out)).code == 0);
+  const std::vector<double> u = csv_column(est, 1), y = csv_column(out, 1);
+  REQUIRE(y.size() == u.size());
+  for (std::size_t k = 0; k < y.size(); ++k) CHECK(y[k] == u[k]);  // y(t) = u(t)
+  // A linear map with prediction focus starts at its least-squares solution: the solver keeps
+  // that start, which is converged, not "did not converge (stalled)".
+  r = fit("--model nlarx:na=2,nb=2,nk=0:linear:focus=prediction --est " + q(est) + " --save " + q(model));
+  INFO(r.err);
+  REQUIRE(r.code == 0);
+  CHECK(r.err.find("warning") == std::string::npos);
+}

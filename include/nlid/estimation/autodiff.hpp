@@ -64,7 +64,9 @@ class AutoDiffProblem {
   /// Throws `nlid::Error` if the functor reports inconsistent sizes.
   explicit AutoDiffProblem(F functor) : f_(std::move(functor)) {
     const int n = f_.num_parameters();
-    if (n < 1 || (num_params != Dynamic && n != num_params)) {
+    // n = 0 is a model with nothing to estimate (a unit-gain map on one regressor): its
+    // residuals still make the estimation report, and the solver stops at once.
+    if (n < 0 || (num_params != Dynamic && n != num_params)) {
       throw Error("AutoDiffProblem: functor reports " + std::to_string(n) +
                       " parameters but its static num_params is " + std::to_string(num_params),
                   at_parameter("num_parameters"));
@@ -88,7 +90,7 @@ class AutoDiffProblem {
     const int n = num_parameters();
     const Eigen::Index m = num_residuals();
     check_sizes(theta, r, J, n, m);
-    if (J == nullptr) {
+    if (J == nullptr || n == 0) {  // no derivative pass would compute r when n = 0
       return f_.residuals(std::span<const double>(theta.data(), static_cast<std::size_t>(n)),
                           std::span<double>(r.data(), static_cast<std::size_t>(m)));
     }

@@ -202,7 +202,9 @@ enum class LmStatus {
   /// small units — a cost of 10⁻¹⁸ has gradients to match — from stopping at its start; for
   /// G₀ ≥ 1 the test is the absolute one.)
   gradient_tolerance_reached,
-  /// An accepted step decreased the cost by F_old − F_new ≤ function_tolerance · F_old.
+  /// An accepted step decreased the cost by F_old − F_new ≤ function_tolerance · F_old; or, at
+  /// the start, a rejected tiny step whose predicted and actual decrease are both at most that
+  /// (the start is the optimum; `LmSummary::detail` says so).
   function_tolerance_reached,
   /// The step just tried satisfies ‖Δθ‖₂ ≤ parameter_tolerance·(‖θ‖₂ + parameter_tolerance)
   /// (Δθ after projection onto the bounds, θ before the step; both divided entry by entry by
@@ -383,9 +385,10 @@ class LmEngine {
   void setup(const LmEvaluator<P>& problem) {
     const int n = problem.num_parameters;
     const Eigen::Index m = problem.num_residuals;
-    if (n < 1 || (num_params != Dynamic && n != num_params)) {
+    // n = 0 (nothing to estimate) is allowed: the solve reports all_parameters_fixed at the start.
+    if (n < 0 || (num_params != Dynamic && n != num_params)) {
       throw Error("problem reports " + std::to_string(n) + " parameters; expected " +
-                      (num_params == Dynamic ? std::string("at least 1")
+                      (num_params == Dynamic ? std::string("0 or more")
                                              : std::to_string(num_params)),
                   at_parameter("num_parameters"));
     }
@@ -524,6 +527,18 @@ class LmEngine {
         nu = std::min(2.0 * nu, 1e10);  // ν doubles; capped so λ·ν stays finite
         if (tiny_step) {  // larger λ only shortens the step further: no progress possible
           sum.status = LmStatus::parameter_tolerance_reached;
+          // A start that is already the optimum (a least-squares start of a model linear in θ)
+          // rejects its first tiny step on rounding alone. If even the undamped Gauss–Newton
+          // step is predicted to lower the cost by no more than the function tolerance, that is
+          // convergence, not a stall. (The damped step's own prediction cannot tell: a wrong
+          // Jacobian also ends on a tiny step with a tiny prediction.) Only the label changes:
+          // the solve stops here either way.
+          if (sum.accepted_steps == 0 &&
+              gauss_newton_decrease() <= options_.function_tolerance * cost_) {
+            sum.status = LmStatus::function_tolerance_reached;
+            sum.detail = "The start is optimal: no step is predicted to lower the cost by more than " +
+                         detail::format_g(options_.function_tolerance) + " of it.";
+          }
           done = true;
         } else if (lambda > 1e32) {
           sum.status = LmStatus::lambda_limit_reached;
@@ -775,6 +790,25 @@ class LmEngine {
   // std::max would drop it and report 0, i.e. "converged" at a point nothing was computed for.
   // With `parameter_scale` it is the projected gradient in θ_k/s_k, (θ − P(θ − s²∘g))/s, whose
   // entries are all in units of the cost.
+  // ½ gᵀA⁻¹g over the current free set: the most any step is predicted to lower the cost (+∞
+  // where A is singular there). Reuses the step buffers: only called when the solve stops.
+  double gauss_newton_decrease() {
+    Ahat_ = A_;
+    rhs_ = g_;
+    for (int k = 0; k < n_; ++k) {
+      if (free_[k] != 0.0) continue;
+      Ahat_.row(k).setZero();
+      Ahat_.col(k).setZero();
+      Ahat_(k, k) = 1.0;
+      rhs_[k] = 0.0;
+    }
+    ldlt_.compute(Ahat_);
+    if (ldlt_.info() != Eigen::Success || !ldlt_.isPositive()) return std::numeric_limits<double>::infinity();
+    c_ = ldlt_.solve(rhs_);
+    const double v = 0.5 * rhs_.dot(c_);
+    return std::isfinite(v) && v >= 0.0 ? v : std::numeric_limits<double>::infinity();
+  }
+
   double projected_gradient_norm() const {
     const bool scaled = options_.parameter_scale.size() == n_;
     double gn = 0;

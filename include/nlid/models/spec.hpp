@@ -562,6 +562,10 @@ std::optional<ParameterUncertainty> spec_uncertainty(const M& m, const Dataset& 
                                                      const SpecFitOptions& o, InitialCondition simulated_from) {
   if (o.estimated) o.estimated();
   if (!o.uncertainty) return std::nullopt;
+  if (m.parameters().size() == 0) {  // nothing was estimated: no covariance, no band to save
+    if (o.progress) o.progress("no parameter uncertainty: the model has no parameters");
+    return std::nullopt;
+  }
   if (o.progress) o.progress("computing the parameters' uncertainty on the estimation data");
   ModelUncertaintyOptions uo;
   uo.uncertainty.caveat = uncertainty_caveat(solver);
