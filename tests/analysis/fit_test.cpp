@@ -78,3 +78,21 @@ TEST_CASE("fit_percent of a diverged model is -inf, never NaN", "[analysis][fit]
   CHECK(std::isinf(f));
   CHECK(f < 0);
 }
+
+TEST_CASE("fit_percent does not depend on the units of the signal", "[analysis][fit]") {
+  // A floor of 1 in the "constant output" test made every output with a spread below 1e-12
+  // (picoamperes in amperes) undefined: fit_percent threw "measured output is constant".
+  Eigen::VectorXd y(4), h(4);
+  y << 1, 2, 3, 4;
+  h << 1, 2, 3, 5;
+  const double ref = nlid::fit_percent(y, h);
+  for (const double unit : {1e-13, 1e-30, 1e30}) {
+    CAPTURE(unit);
+    CHECK(nlid::fit_percent(Eigen::VectorXd(unit * y), Eigen::VectorXd(unit * h)) == Approx(ref).epsilon(1e-12));
+  }
+  // Still constant: an offset with rounding noise in its last digits, and exact zeros.
+  Eigen::VectorXd c = Eigen::VectorXd::Constant(4, 0.1);
+  c(2) = std::nextafter(0.1, 1.0);
+  CHECK_THROWS_WITH(nlid::fit_percent(c, y), Catch::Contains("is constant"));
+  CHECK_THROWS_WITH(nlid::fit_percent(Eigen::VectorXd::Zero(4), y), Catch::Contains("is constant"));
+}

@@ -316,3 +316,32 @@ TEST_CASE("a constant regressor gets no huge coefficient in the networks and the
   check_constant_regressor_is_ignored(nlid::WaveletNet<2, 3>{});
   check_constant_regressor_is_ignored(nlid::TreePartition<2, 2>{});
 }
+
+TEST_CASE("initialisation works in any units: regressors with a spread of 1e-13", "[nonlinearities][init]") {
+  // The "constant regressor" test had an absolute floor of 1e-12: data in small SI units were
+  // refused ("the regressors do not vary") or fitted as a constant.
+  const double unit = 1e-13;
+  const int n = 300;
+  Eigen::MatrixXd X(n, 1);
+  Eigen::VectorXd y(n);
+  for (int i = 0; i < n; ++i) {
+    X(i, 0) = unit * std::sin(0.1 * i);
+    y(i) = unit * (2.0 + std::tanh(3.0 * std::sin(0.1 * i)));
+  }
+  const auto rel_rms = [&](const auto& f, const std::vector<double>& th) {
+    double e = 0.0;
+    for (int i = 0; i < n; ++i) {
+      const double x = X(i, 0);
+      const double g = f(std::span<const double>(&x, 1), std::span<const double>(th));
+      e += (g - y(i)) * (g - y(i));
+    }
+    return std::sqrt(e / n) / unit;
+  };
+  nlid::SigmoidNet<1, 3> s;
+  const auto ts = init(s, X, y);
+  CHECK(rel_rms(s, ts) < 0.05);
+  nlid::Poly1d<3> p;
+  const auto tp = init(p, X, y);
+  CHECK(rel_rms(p, tp) < 0.2);
+  CHECK(tp[1] != 0.0);  // not the constant polynomial of a "constant" input
+}

@@ -35,10 +35,10 @@ namespace detail {
 
 /// True if a signal of n samples with mean `mean` and squared spread Σ(y − mean)² = `var2` is
 /// constant for the normalised fit. Relative to the signal's own size, so a constant offset
-/// (e.g. 15 degrees) with rounding noise in the last digit is still recognised as constant.
+/// (e.g. 15 degrees) with rounding noise in the last digit is still recognised as constant,
+/// and a signal in small units (a spread of 1e-13) is not (it was, under a floor of 1).
 inline bool negligible_spread(double var2, double mean, Eigen::Index n) {
-  const double scale = std::max(1.0, std::abs(mean));
-  return !(var2 > 1e-24 * scale * scale * static_cast<double>(n));
+  return !(var2 > 1e-24 * mean * mean * static_cast<double>(n));
 }
 
 // One column's fit; `column` (0-based) only labels errors.

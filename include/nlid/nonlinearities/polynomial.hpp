@@ -73,7 +73,7 @@ class Poly1d {
     const Eigen::VectorXd x = X.col(0);
     const double mu = x.mean();
     const double sigma = std::sqrt((x.array() - mu).square().mean());
-    if (!(sigma > 1e-12 * (1.0 + std::abs(mu)))) {
+    if (!(sigma > 1e-12 * std::abs(mu))) {  // relative, as detail::is_constant_column
       // A constant input determines g at one point only: the constant polynomial, mean(y). The
       // general path would divide the rounding noise x − μ ≈ 1e-17 by itself (t = ±1) and give
       // coefficients of 1e50 through the expansion below.

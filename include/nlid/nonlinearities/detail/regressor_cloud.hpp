@@ -14,10 +14,11 @@
 namespace nlid::detail {
 
 /// Whether a column with the given mean is constant up to rounding: its standard deviation is
-/// below 1e-12 of its magnitude (plus 1e-12, for columns near zero).
+/// at most 1e-12 of its magnitude. Purely relative (an absolute floor of 1e-12 made every
+/// signal recorded in small SI units — picoamperes, nanometres — "constant").
 inline bool is_constant_column(const Eigen::Ref<const Eigen::VectorXd>& col, double mean) {
   const double s = std::sqrt((col.array() - mean).square().mean());
-  return !(s > 1e-12 * (1.0 + std::abs(mean)));
+  return !(s > 1e-12 * std::abs(mean));
 }
 
 /// Column means and standard deviations of X; a (numerically) constant column gets scale 1, so
