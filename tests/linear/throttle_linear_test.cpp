@@ -92,3 +92,23 @@ TEST_CASE("throttle linear study: two poles suffice in the ARX order search", "[
   REQUIRE(l211 > 0);
   CHECK(std::abs(l211 - l210) / l210 < 0.02);
 }
+
+TEST_CASE("throttle: OE [2 2 0] on data1lin+data2lin simulates no worse than ARX [2 2 0]", "[linear][oe][study]") {
+  // ARX [2 2 0] is a point of the OE [2 2 0] model class, and OE minimises exactly the
+  // simulation error. The Steiglitz-McBride iterates on this nonlinear plant drift to a pole at
+  // z = 1 (start: sum of squared errors 4.7e6); the refinement then stopped at 8.2e5, fits
+  // 55 / 39 %, worse than the ARX model simulated (5.2e5; 61 / 55 %). The start is now the best iterate, the first being ARX.
+  const nlid::Dataset d{throttle(1), throttle(2)};
+  const nlid::OutputError m = nlid::oe(d, {2, 2, 0});
+  const nlid::Arx a = nlid::arx(d, {2, 2, 0});
+  const nlid::OutputError as_oe({a.b_polynomial(0)}, {Eigen::VectorXd(a.a_polynomial().tail(2))}, {0}, a.ts());
+  double c_oe = 0.0, c_arx = 0.0;
+  for (const auto& e : d) {
+    c_oe += (m.simulate(e, nlid::InitialCondition::zero) - e.y()).squaredNorm();
+    c_arx += (as_oe.simulate(e, nlid::InitialCondition::zero) - e.y()).squaredNorm();
+  }
+  INFO(m.describe());
+  CHECK(m.is_stable());
+  CHECK(c_oe <= c_arx);
+  CHECK(c_oe < 0.85 * c_arx);  // measured: 4.17e5 against 5.22e5
+}
