@@ -137,6 +137,29 @@ TEST_CASE("HW initial conditions: equilibrium holds still, measured is refused",
                     Catch::Contains("use zero, equilibrium or estimate") && Catch::Contains("parameter 'initial'"));
 }
 
+TEST_CASE("HW equilibrium of an integrating block: at rest for a zero input, refused otherwise", "[models][hw]") {
+  // x(t) = x(t-1) + u(t): F(1) = 0. It used to start a 0.5 input from rest without a word and
+  // ramp 0.5, 1, 1.5, ... as if that were the steady state; Nlarx refuses the same request.
+  nlid::HammersteinWiener<nlid::UnitGain, nlid::TransferFunctionBlock<1, 1, 0>, nlid::UnitGain> m;
+  m.set_parameters(Eigen::Vector2d(1.0, -1.0));
+  const nlid::Experiment held(Eigen::MatrixXd::Constant(5, 1, 0.5), Eigen::VectorXd::Zero(5), 1.0, "held");
+  const auto err = [&] {
+    try {
+      (void)m.simulate(held, nlid::InitialCondition::equilibrium);
+    } catch (const nlid::DivergenceError& x) {
+      return std::string(x.what()) + " @" + x.where().parameter;
+    }
+    return std::string("no error");
+  }();
+  CHECK_THAT(err, Catch::Contains("experiment 'held': no steady state for the held input u = 0.5") &&
+                      Catch::Contains("integrates") && Catch::Contains("@initial"));
+  Eigen::MatrixXd u = Eigen::MatrixXd::Zero(5, 1);
+  u(3, 0) = 1.0;
+  const nlid::Experiment rest(u, Eigen::VectorXd::Zero(5), 1.0, "rest");
+  CHECK(m.simulate(rest, nlid::InitialCondition::equilibrium).col(0) == Eigen::Vector<double, 5>(0, 0, 0, 1, 1));
+  CHECK(m.simulate(held, nlid::InitialCondition::zero)(4, 0) == 2.5);  // the other starts still work
+}
+
 TEST_CASE("the linear block is set from an earlier linear model's polynomials", "[models][hw]") {
   Wiener m;
   m.set_linear_block(FakeOe{});

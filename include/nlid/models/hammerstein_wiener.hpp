@@ -174,7 +174,8 @@ class HammersteinWiener {
     return out;
   }
 
-  /// Linear-block state in steady state for the constant input u0 (zero if F(1) = 0).
+  /// Linear-block state in steady state for the constant input u0 (zero if F(1) = 0: the
+  /// estimators' generic start; `initial_state` refuses that case for a non-zero input).
   template <class T>
   [[nodiscard]] Eigen::Matrix<T, Eigen::Dynamic, 1> equilibrium_state(double u0, std::span<const T> theta) const {
     const auto [th_f, th_l, th_h] = split(theta);
@@ -263,7 +264,24 @@ class HammersteinWiener {
     const std::span<const double> th = detail::as_const_span(theta_);
     switch (ic) {
       case InitialCondition::zero: return Eigen::VectorXd::Zero(state_dimension());
-      case InitialCondition::equilibrium: return equilibrium_state<double>(e.u()(0, 0), th);
+      case InitialCondition::equilibrium: {
+        // An integrating block (F(1) = 0) rests only for w = 0; for any other held input there
+        // is no steady state, and starting at rest instead would be a silent substitute (Nlarx
+        // reports its missing steady state the same way, so compare scores the record diverged).
+        const auto [th_f, th_l, th_h] = split(th);
+        const double u0 = e.u()(0, 0);
+        const double w0 = f_(std::span<const double>(&u0, 1), th_f);
+        Eigen::VectorXd s0 = Eigen::VectorXd::Zero(state_dimension());
+        const bool rests = lin_.equilibrium_state(w0, th_l, std::span<double>(s0.data(), static_cast<std::size_t>(s0.size())));
+        if (!rests && w0 != 0.0) {
+          Location where = detail::experiment_location(index);
+          where.parameter = "initial";
+          throw DivergenceError(detail::experiment_label(e, index) + ": no steady state for the held input u = " +
+                                    detail::format_g(u0, 4) + ": the linear block integrates (F(1) = 0); use zero or estimate",
+                                0, where);
+        }
+        return equilibrium_state<double>(u0, th);
+      }
       case InitialCondition::estimate: {
         detail::require_complete_for(e, index, true, "fit of the initial state");
         std::vector<int> free(static_cast<std::size_t>(state_dimension()));
