@@ -251,6 +251,12 @@ int main(int argc, char** argv) {
       if (d.sample() < 0 || d.sample() >= static_cast<long>(t.size())) throw;
       throw diverged(d.sample(), "");
     } catch (const nlid::Error& err) {
+      // The library says "InitialCondition::measured"; a tool user wrote --x0 measured.
+      if (ic == nlid::InitialCondition::measured &&
+          (err.where().parameter == "initial" || err.where().parameter == "initial_condition"))
+        throw nlid::Error("--x0 measured takes the start from the record's past outputs, which are not the state of a " +
+                              m.kind() + " model: use --x0 zero, equilibrium or estimate",
+                          nlid::at_parameter("--x0"));
       // The model's checks of the record (too short for its history, ...) know no file.
       if (!err.where().file.empty()) throw;
       nlid::Location l = err.where();

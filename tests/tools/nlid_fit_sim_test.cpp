@@ -481,3 +481,16 @@ TEST_CASE("nlid-fit: a spec with nothing to estimate is fitted and saved, an opt
   REQUIRE(r.code == 0);
   CHECK(r.err.find("warning") == std::string::npos);
 }
+
+TEST_CASE("nlid-sim --x0 measured on a model whose state is internal is refused in the tool's words", "[tools][sim]") {
+  const fs::path est = write_record("x0_measured_est", 600, 53u, 0);
+  const fs::path model = work_dir() / "x0_measured_hw.json", out = work_dir() / "x0_measured_y.csv";
+  REQUIRE(fit("--model hw:nb=1,nf=1,nk=1:in=pwlinear:3:out=unitgain --est " + q(est) + " --save " + q(model)).code == 0);
+  const Run r = sim("--model " + q(model) + " --input " + q(est) + " --x0 measured --out " + q(out));
+  INFO(r.err);
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("--x0 measured takes the start from the record's past outputs") &&
+                        Catch::Contains("hammerstein_wiener model: use --x0 zero, equilibrium or estimate"));
+  CHECK(r.err.find("InitialCondition::") == std::string::npos);  // it said "InitialCondition::measured applies ..."
+  CHECK_FALSE(fs::exists(out));
+}
