@@ -181,6 +181,15 @@ TEST_CASE("read_csv tolerates CRLF, BOM, blanks, quotes, comments and a missing 
   CHECK(e.y()(1, 0) == 11.0);
   CHECK(e.y()(2, 0) == 12.0);
 
+  SECTION("classic-Mac line endings (CR only) read like LF") {
+    // Read as one line they gave "duplicate column name '0'".
+    const nlid::Experiment cr = nlid::read_csv(dir.write("cr.csv", "t,u,y\r0,1,10\r0.5,2,11\r1,3,12\r"));
+    REQUIRE(cr.size() == 3);
+    CHECK(cr.u()(2, 0) == 3.0);
+    CHECK(cr.y()(1, 0) == 11.0);
+    CHECK(cr.ts() == 0.5);
+  }
+
   SECTION("whitespace- and tab-delimited files") {
     nlid::CsvReadOptions ws;
     ws.delimiter = ' ';

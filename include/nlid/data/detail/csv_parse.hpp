@@ -191,9 +191,12 @@ inline CsvText tokenize_csv(const std::string& path, char delimiter, char decima
   // value (the missing-value policy decides), not a line to skip, or the samples after it would
   // shift by one without a word. Blank lines after the last sample end the file as usual.
   std::vector<long> blank_cells;
+  // Lines end in LF or CRLF; a file with CRs and no LF at all has classic-Mac line endings
+  // (some loggers still write them): read as one line it gave "duplicate column name '0'".
+  const char line_end = (s.find('\n') == std::string_view::npos && s.find('\r') != std::string_view::npos) ? '\r' : '\n';
   std::size_t pos = 0;
   while (pos < s.size()) {
-    std::size_t eol = s.find('\n', pos);
+    std::size_t eol = s.find(line_end, pos);
     if (eol == std::string_view::npos) eol = s.size();
     std::string_view line = s.substr(pos, eol - pos);
     pos = eol + 1;
