@@ -99,6 +99,9 @@ std::optional<Args> parse(int argc, char** argv) {
       throw UsageError(std::string(flag) + " '" + name + "' is not valid UTF-8 (byte " + std::to_string(bad) +
                        "); model files name channels in UTF-8: rename the column");
   }
+  // Options that do not go together are a usage error (exit 2), found before any file is read.
+  if (a.input == a.output)
+    throw UsageError("--input and --output both name column '" + a.input + "': a channel is either the input or the output");
   if (a.model.empty()) throw UsageError("--model SPEC is required");
   if (a.est.empty()) throw UsageError("at least one --est FILE is required");
   if (a.save.empty()) throw UsageError("--save FILE is required");

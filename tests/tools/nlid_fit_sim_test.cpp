@@ -228,6 +228,9 @@ TEST_CASE("nlid-fit: usage errors exit with 2", "[tools][fit]") {
   r = fit("--model linear:oe:nb=1,nf=1,nk=0 --est a.csv --save m.json --wobble 1");
   CHECK(r.code == 2);
   CHECK_THAT(r.err, Catch::Contains("unknown option '--wobble'"));
+  r = fit("--model linear:oe:nb=1,nf=1,nk=0 --est a.csv --save m.json --input y --output y");
+  CHECK(r.code == 2);  // was 1, after trying to read a.csv
+  CHECK_THAT(r.err, Catch::Contains("--input and --output both name column 'y'"));
 }
 
 TEST_CASE("nlid-sim: sample-time mismatch, missing column, bad model file", "[tools][sim]") {
