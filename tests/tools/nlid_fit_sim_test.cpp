@@ -497,3 +497,29 @@ TEST_CASE("nlid-sim --x0 measured on a model whose state is internal is refused 
   CHECK(r.err.find("InitialCondition::") == std::string::npos);  // it said "InitialCondition::measured applies ..."
   CHECK_FALSE(fs::exists(out));
 }
+
+TEST_CASE("nlid-fit warns when the estimated linear dynamics are unstable, and is silent when stable", "[tools][fit]") {
+  // y(t) = 1.02 y(t-1) + u(t-1): ARX [1 1 1] recovers the pole at 1.02 exactly. The model was
+  // saved (and could be turned into C) without a word that its free run diverges.
+  const fs::path rec = work_dir() / "unstable.csv", model = work_dir() / "unstable.json";
+  {
+    std::ofstream f(rec);
+    f << "t,u,y\n";
+    double y = 0.0, u_prev = 0.0;
+    for (int k = 0; k < 300; ++k) {
+      y = 1.02 * y + u_prev;
+      const double u = std::sin(0.3 * k) + 0.5 * std::sin(1.7 * k);
+      f << 0.01 * k << "," << u << "," << y << "\n";
+      u_prev = u;
+    }
+  }
+  Run r = fit("--model linear:arx:na=1,nb=1,nk=1 --est " + q(rec) + " --save " + q(model));
+  INFO(r.err);
+  REQUIRE(r.code == 0);
+  CHECK(fs::exists(model));
+  CHECK_THAT(r.err, Catch::Contains("nlid-fit: warning: the model is unstable (a pole of its linear dynamics has magnitude 1.02"));
+  const fs::path stable = write_record("stable_est", 600, 59u, 0);
+  r = fit("--model linear:arx:na=1,nb=1,nk=1 --est " + q(stable) + " --save " + q(model));
+  REQUIRE(r.code == 0);
+  CHECK(r.err.find("unstable") == std::string::npos);
+}
