@@ -203,8 +203,9 @@ enum class LmStatus {
   /// G₀ ≥ 1 the test is the absolute one.)
   gradient_tolerance_reached,
   /// An accepted step decreased the cost by F_old − F_new ≤ function_tolerance · F_old; or, at
-  /// the start, a rejected tiny step whose predicted and actual decrease are both at most that
-  /// (the start is the optimum; `LmSummary::detail` says so).
+  /// the start, a tiny step was rejected and even the undamped Gauss–Newton step predicts a
+  /// decrease ½gᵀA⁻¹g ≤ function_tolerance · F (the start is the optimum; `LmSummary::detail`
+  /// says so).
   function_tolerance_reached,
   /// The step just tried satisfies ‖Δθ‖₂ ≤ parameter_tolerance·(‖θ‖₂ + parameter_tolerance)
   /// (Δθ after projection onto the bounds, θ before the step; both divided entry by entry by
@@ -786,10 +787,6 @@ class LmEngine {
     qr_ready_ = false;
   }
 
-  // NaN if a free component is NaN (JᵀJ and Jᵀr overflow for Jacobian entries beyond ~1e154):
-  // std::max would drop it and report 0, i.e. "converged" at a point nothing was computed for.
-  // With `parameter_scale` it is the projected gradient in θ_k/s_k, (θ − P(θ − s²∘g))/s, whose
-  // entries are all in units of the cost.
   // ½ gᵀA⁻¹g over the current free set: the most any step is predicted to lower the cost (+∞
   // where A is singular there). Reuses the step buffers: only called when the solve stops.
   double gauss_newton_decrease() {
@@ -809,6 +806,10 @@ class LmEngine {
     return std::isfinite(v) && v >= 0.0 ? v : std::numeric_limits<double>::infinity();
   }
 
+  // NaN if a free component is NaN (JᵀJ and Jᵀr overflow for Jacobian entries beyond ~1e154):
+  // std::max would drop it and report 0, i.e. "converged" at a point nothing was computed for.
+  // With `parameter_scale` it is the projected gradient in θ_k/s_k, (θ − P(θ − s²∘g))/s, whose
+  // entries are all in units of the cost.
   double projected_gradient_norm() const {
     const bool scaled = options_.parameter_scale.size() == n_;
     double gn = 0;
