@@ -135,7 +135,7 @@ int main(int argc, char** argv) {
     const auto channel_columns = [&](const char* flag, const std::string& given, const std::vector<std::string>& names,
                                      int count, const char* what, const char* single, bool guess_several) {
       std::vector<std::string> cols;
-      if (!given.empty()) {
+      if (a.has(flag)) {  // not given.empty(): `--column ""` is an empty name, not "use the defaults"
         cols = column_list(given, flag);
         if (static_cast<int>(cols.size()) != count)
           throw UsageError(std::string(flag) + " names " + std::to_string(cols.size()) + " column(s) but the model in " +

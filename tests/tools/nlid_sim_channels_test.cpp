@@ -102,6 +102,9 @@ TEST_CASE("nlid-sim: a multi-input model reads one column per input, --column na
   r = sim("--model " + q(model) + " --input " + q(in) + " --column a, --out " + q(out));
   CHECK(r.code == 2);
   CHECK_THAT(r.err, Catch::Contains("--column has an empty name in 'a,'"));
+  r = sim("--model " + q(model) + " --input " + q(in) + " --column \"\" --out " + q(out));
+  CHECK(r.code == 2);  // it ran with the model's own names, as if --column were absent
+  CHECK_THAT(r.err, Catch::Contains("--column has an empty name in ''"));
   // An input column named like an output column of nlid-sim's file.
   const fs::path clash = write_text("sim_clash_u.csv", "t,y,u2\n0,1,5\n0.01,1,5\n");
   r = sim("--model " + q(model) + " --input " + q(clash) + " --column y,u2 --with-input --out " + q(out));
