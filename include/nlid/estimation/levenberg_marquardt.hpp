@@ -738,6 +738,12 @@ class LmEngine {
 
   // IRLS reweighting, A = J̃ᵀJ̃, g = J̃ᵀr̃, column scale D.
   void build_normal_equations() {
+    // Nothing to estimate: A and g are empty, and Eigen's product kernels must not be handed a
+    // matrix without columns (they bind a reference to its null data pointer).
+    if (n_ == 0) {
+      qr_ready_ = false;
+      return;
+    }
     if (options_.loss.kind == RobustLoss::Kind::squared) {
       rw_ = r_;
     } else {
