@@ -280,7 +280,7 @@ class HammersteinWiener {
                                     detail::format_g(u0, 4) + ": the linear block integrates (F(1) = 0); use zero or estimate",
                                 0, where);
         }
-        return equilibrium_state<double>(u0, th);
+        return s0;  // the steady state, or (w0 = 0 on an integrator) the zero state it rests in
       }
       case InitialCondition::estimate: {
         detail::require_complete_for(e, index, true, "fit of the initial state");
