@@ -363,9 +363,9 @@ inline void check_inputs_vary(const std::vector<const nlid::Experiment*>& record
 /// exit code. `stage` says what the tool was doing (for out-of-memory and internal errors);
 /// `sizes` what was being processed (e.g. the model spec and the sample count).
 template <class Body>
-int guarded_main(const std::string& tool, const std::string& usage, const std::string& prefix, const std::string& stage,
-                 const std::string& sizes, Body&& body) {
-  const std::string head = tool + ": " + prefix;
+int guarded_main(const std::string& tool, const std::string& usage, const std::string& stage, const std::string& sizes,
+                 Body&& body) {
+  const std::string head = tool + ": ";
   const auto where = [&] {
     std::string s = stage.empty() ? std::string() : " while " + stage;
     if (!sizes.empty()) s += " (" + sizes + ")";

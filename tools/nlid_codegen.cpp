@@ -129,7 +129,7 @@ std::string extrapolation_problem(const nlid::AnyModel& m, const std::string& mo
 
 int main(int argc, char** argv) {
   std::string stage = "reading the command line", sizes;
-  return nlid_tools::guarded_main("nlid-codegen", kUsage, "", stage, sizes, [&]() -> int {
+  return nlid_tools::guarded_main("nlid-codegen", kUsage, stage, sizes, [&]() -> int {
     using nlid_tools::OptionSpec;
     const nlid_tools::ParsedOptions a =
         nlid_tools::parse_options(argc, argv,

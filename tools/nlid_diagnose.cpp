@@ -66,7 +66,7 @@ using nlid_tools::UsageError;
 
 int main(int argc, char** argv) {
   std::string stage = "reading the command line", sizes;
-  return nlid_tools::guarded_main("nlid-diagnose", usage, "error: ", stage, sizes, [&]() -> int {
+  return nlid_tools::guarded_main("nlid-diagnose", usage, stage, sizes, [&]() -> int {
     if (argc < 2) throw UsageError("no arguments");
     using nlid_tools::OptionSpec;
     const nlid_tools::ParsedOptions a = nlid_tools::parse_options(

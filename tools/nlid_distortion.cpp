@@ -43,7 +43,7 @@ nlid::Json number_or_null(double v) {
 
 int main(int argc, char** argv) {
   std::string stage = "reading the command line", sizes;
-  return nlid_tools::guarded_main("nlid-distortion", usage_text(), "", stage, sizes, [&]() -> int {
+  return nlid_tools::guarded_main("nlid-distortion", usage_text(), stage, sizes, [&]() -> int {
     using nlid_tools::UsageError;
     const nlid_tools::ParsedOptions a = nlid_tools::parse_options(
         argc, argv,

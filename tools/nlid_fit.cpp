@@ -224,7 +224,7 @@ std::string unconverged_status(const nlid::AnyModel& m) {
 
 int main(int argc, char** argv) {
   std::string stage = "reading the command line", sizes;
-  return nlid_tools::guarded_main("nlid-fit", usage_text(), "", stage, sizes, [&]() -> int {
+  return nlid_tools::guarded_main("nlid-fit", usage_text(), stage, sizes, [&]() -> int {
     const std::optional<Args> parsed = parse(argc, argv);
     if (!parsed) {
       std::cout << usage_text();

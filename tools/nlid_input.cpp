@@ -67,7 +67,7 @@ std::pair<double, double> parse_pair(const std::string& flag, const std::string&
 
 int main(int argc, char** argv) {
   std::string stage = "reading the command line", sizes;
-  return nlid_tools::guarded_main("nlid-input", kUsage, "", stage, sizes, [&]() -> int {
+  return nlid_tools::guarded_main("nlid-input", kUsage, stage, sizes, [&]() -> int {
     // Which options each signal takes (besides --signal, --ts, --out, --levels, --column).
     const std::map<std::string, std::vector<std::string>> applies = {
         {"prbs", {"--bits", "--periods", "--hold"}},

@@ -74,7 +74,7 @@ std::vector<std::string> column_list(const std::string& v, const char* flag = "-
 
 int main(int argc, char** argv) {
   std::string stage = "reading the command line", sizes;
-  return nlid_tools::guarded_main("nlid-sim", usage_text(), "", stage, sizes, [&]() -> int {
+  return nlid_tools::guarded_main("nlid-sim", usage_text(), stage, sizes, [&]() -> int {
     using nlid_tools::UsageError;
     const nlid_tools::ParsedOptions a = nlid_tools::parse_options(
         argc, argv,

@@ -28,6 +28,8 @@ TEST_CASE("nlid-diagnose: help and usage errors", "[tools][diagnose]") {
   r = diagnose("--baseline throttle --est a.csv --val b.csv --frobnicate 3");
   CHECK(r.code == 2);
   CHECK_THAT(r.err, Catch::Contains("unknown option '--frobnicate'"));
+  // The one-line format of all six tools (docs/tools.md): "TOOL: message", no extra "error:".
+  CHECK(r.err.rfind("nlid-diagnose: unknown option '--frobnicate'", 0) == 0);
   r = diagnose("--baseline throttle --val b.csv");
   CHECK(r.code == 2);
   CHECK_THAT(r.err, Catch::Contains("at least one --est file is required"));
