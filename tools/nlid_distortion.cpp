@@ -58,6 +58,9 @@ int main(int argc, char** argv) {
     const long period = a.get_integer("--period", 8, 100000000, 0);
     const int skip = a.get_int("--skip", 0, 1000000, 1);
     const double threshold = a.get_number("--threshold", 6.0);
+    if (!(threshold > 0.0))
+      throw UsageError("--threshold must be a level above the noise, in dB greater than 0, got '" +
+                       a.get("--threshold") + "'");
     const nlid_tools::RecordOptions record = nlid_tools::record_options_from(a);
     if (data.empty() || period == 0) throw UsageError("--data and --period are required");
     if (!json.empty()) {

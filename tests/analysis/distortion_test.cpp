@@ -146,6 +146,11 @@ TEST_CASE("Distortion analysis refuses records it cannot analyse, naming the par
       Catch::Contains("hold 5 whole period(s) of 512; after skipping 4 at least 2 must remain"));
   CHECK_THROWS_WITH(nlid::distortion_analysis(e, kPeriod, -1),
                     Catch::Contains("skip_periods must be >= 0"));
+  // At or below the noise level every noise line would count as distortion.
+  CHECK_THROWS_WITH(nlid::distortion_analysis(e, kPeriod, 1, -5.0),
+                    Catch::Contains("threshold_db must be a finite level above the noise") &&
+                        Catch::Contains("got -5.0"));
+  CHECK_THROWS_WITH(nlid::distortion_analysis(e, kPeriod, 1, 0.0), Catch::Contains("threshold_db"));
   const nlid::Experiment flat(Eigen::VectorXd::Constant(2048, 0.3), Eigen::VectorXd::Zero(2048),
                               0.01);
   CHECK_THROWS_WITH(nlid::distortion_analysis(flat, kPeriod),

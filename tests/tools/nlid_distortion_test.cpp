@@ -111,6 +111,9 @@ TEST_CASE("nlid-distortion refuses bad command lines and records it cannot analy
   r = tool_test::distortion(d + " --period 256 --threshold x");
   CHECK(r.code == 2);
   CHECK_THAT(r.err, Catch::Contains("--threshold needs a finite number"));
+  r = tool_test::distortion(d + " --period 256 --threshold -5");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("--threshold must be a level above the noise") && Catch::Contains("'-5'"));
   r = tool_test::distortion(d + " --period 256 --json " + q(rec));
   CHECK(r.code == 2);
   r = tool_test::distortion(d + " --period 256 --frequency 3");

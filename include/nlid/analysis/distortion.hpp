@@ -190,7 +190,11 @@ struct DistortionAnalysis {
   require(period >= 8, "distortion analysis: the period must be >= 8 samples, got " + std::to_string(period),
           at_parameter("period"));
   require(skip_periods >= 0, "distortion analysis: skip_periods must be >= 0", at_parameter("skip_periods"));
-  require(std::isfinite(threshold_db), "distortion analysis: threshold_db must be finite", at_parameter("threshold_db"));
+  // A level at or below the noise (0 dB or less) would call every noise line distortion.
+  require(std::isfinite(threshold_db) && threshold_db > 0.0,
+          "distortion analysis: threshold_db must be a finite level above the noise (> 0 dB), got " +
+              detail::format_f(threshold_db, 1),
+          at_parameter("threshold_db"));
   const Eigen::Index whole = e.size() / period;
   const Eigen::Index p = whole - skip_periods;
   require(p >= 2,
