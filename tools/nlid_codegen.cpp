@@ -37,6 +37,7 @@
 #include "nlid/models/any_model.hpp"
 #include "nlid/models/spec.hpp"
 #include "cli_common.hpp"
+#include "linear_poles.hpp"
 
 namespace {
 constexpr const char* kUsage =
@@ -246,6 +247,13 @@ int main(int argc, char** argv) {
         std::cerr << "nlid-codegen: note: " << model << " records no range of its estimation data (written before nlid "
                   << "kept it, or saved without record_data_range), so --u0 " << u0_shown
                   << " is not checked against the inputs the model was fitted on\n";
+    }
+    // An unstable plant model can be what the user wants (a controller design target), so it is
+    // generated; but a target that runs it open loop will see its output grow without bound.
+    if (const double pole = nlid_tools::largest_pole(m); nlid_tools::unstable_pole(pole)) {
+      std::cerr << "nlid-codegen: warning: " << model << " is unstable (a pole of its linear dynamics has magnitude "
+                << nlid::detail::format_g(pole, 6)
+                << " > 1): the generated step's output grows without bound in open loop; generated as asked\n";
     }
     stage = "generating C for " + model;
     nlid::CodegenOptions o;

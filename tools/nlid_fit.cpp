@@ -35,6 +35,7 @@
 #include "nlid/models/greybox_dynamic.hpp"
 #include "nlid/models/spec.hpp"
 #include "cli_common.hpp"
+#include "linear_poles.hpp"
 #include "record_options.hpp"
 
 namespace {
@@ -187,22 +188,6 @@ void print_fit_row(const char* role, const nlid::AnyModel& m, const nlid::Experi
   }
 }
 
-// The largest pole magnitude of the model's linear dynamics (ARX, OE, state space, the linear
-// block of a Hammerstein-Wiener model), or -1 for models without such poles to show.
-double largest_pole(const nlid::AnyModel& m) {
-  Eigen::VectorXcd p;
-  if (const auto* a = m.target<nlid::Arx>()) {
-    p = a->poles();
-  } else if (const auto* o = m.target<nlid::OutputError>()) {
-    p = o->poles();
-  } else if (const auto* ss = m.target<nlid::StateSpace>()) {
-    p = ss->poles();
-  } else if (const auto* h = m.target<nlid::DynamicHammersteinWiener>()) {
-    p = nlid::roots(h->linear_block().polynomials(h->linear_parameters()).second);
-  }
-  return p.size() > 0 ? p.cwiseAbs().maxCoeff() : -1.0;
-}
-
 // The solver's stopping message when it did not certify a solution, up to its first "; " (the
 // counts after it make the line long), else "". The model file keeps the whole message, but a
 // file is not where one learns that --iterations cut the estimation short.
@@ -319,7 +304,7 @@ int main(int argc, char** argv) {
     }
     // A linear part with a pole outside the unit circle: the fit table shows the damage on these
     // records, but nlid-sim and the generated C of this file will grow without bound on any other.
-    if (const double pole = largest_pole(m); pole > 1.0 + 1e-9) {
+    if (const double pole = nlid_tools::largest_pole(m); nlid_tools::unstable_pole(pole)) {
       std::cerr << "nlid-fit: warning: the model is unstable (a pole of its linear dynamics has magnitude "
                 << nlid::detail::format_g(pole, 6) << " > 1): its free run grows without bound; the model is saved as it stands\n";
     }

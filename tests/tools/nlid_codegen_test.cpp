@@ -669,3 +669,29 @@ TEST_CASE("nlid-codegen: channel names holding comment markers compile under -We
   CHECK_THAT(slurp(dir / "marks.c") + slurp(dir / "marks.h"), Catch::Contains("u/ *V"));
   CHECK(run_generated(dir, "marks", {1, 2, 0}).size() == 3u);
 }
+
+TEST_CASE("nlid-codegen: an unstable linear model is generated with a warning naming its pole", "[tools][codegen]") {
+  const fs::path dir = work_dir() / "cg_poles";
+  fs::create_directories(dir);
+  // y(t) = a y(t-1) + u(t-1): unstable for a = 1.5, stable for a = 0.5.
+  const auto arx = [&](const std::string& file, double a) {
+    const fs::path p = dir / file;
+    std::ofstream(p) << R"json({"format": "nlid-model", "version": 1, "kind": "arx", "ts": 0.01,
+ "created": "2026-11-29T00:00:00Z", "generator": "test", "description": "",
+ "inputs": [{"name": "u", "unit": ""}], "outputs": [{"name": "y", "unit": ""}], "initial_condition": "zero",
+ "structure": {"a": [)json" << -a << R"json(], "b": [[1]], "nk": [1], "offset": 0},
+ "parameters": {"names": ["a1", "b1"], "values": [)json" << -a << R"json(, 1]},
+ "report": {"method": "", "focus": "", "num_experiments": 0, "num_samples": 0, "num_parameters": 2, "loss": 0,
+            "fit_percent": 0, "iterations": 0, "solver_message": ""}})json";
+    return p;
+  };
+  Run r = codegen("--model " + q(arx("grows.json", 1.5)) + " --out " + q(dir));
+  INFO(r.err);
+  CHECK(r.code == 0);
+  CHECK_THAT(r.err, Catch::Contains("nlid-codegen: warning:") && Catch::Contains("grows.json is unstable") &&
+                        Catch::Contains("magnitude 1.5 > 1"));
+  CHECK(fs::exists(dir / "grows.c"));
+  r = codegen("--model " + q(arx("settles.json", 0.5)) + " --out " + q(dir));
+  CHECK(r.code == 0);
+  CHECK_THAT(r.err, !Catch::Contains("warning"));
+}
