@@ -270,7 +270,8 @@ inline std::string translate(std::string s) {
       {" (CsvReadOptions::delimiter; --delimiter in the tools)", " (--delimiter)"},
       // In the tools --ts does not paper over a gap (docs/tools.md): resampling is the remedy.
       {"missing samples? cut the record at the gap or fill it, or raise CsvReadOptions::time_tolerance if the stamps only jitter",
-       "missing samples? cut the record at the gap or resample it onto a uniform grid (--ts cannot make it even)"},
+       "missing samples? cut the record at the gap or resample it onto a uniform grid (--ts cannot make it even); "
+       "if the stamps only jitter, give --time-tolerance (at most 0.5)"},
       // No tool reads with gaps left open: the remedy is in the data, not in an option.
       {" under NonFinitePolicy::error; use NonFinitePolicy::keep or ::interpolate for missing data",
        ": the tools need complete records; fill or cut out the missing samples first"},

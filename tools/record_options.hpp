@@ -26,6 +26,9 @@ struct RecordOptions {
   double ts = 0.0;         ///< sample time (s); 0: from the time column
   char delimiter = ',';    ///< field separator; ' ' = runs of blanks
   char decimal = '.';      ///< decimal point
+  /// Accepted relative deviation of one time step from the typical one (CsvReadOptions's 1 %
+  /// by default); loggers with jittery stamps need more, a dropped sample (100 %) stays an error.
+  double time_tolerance = nlid::CsvReadOptions{}.time_tolerance;
 };
 
 /// Usage lines of the options, for a tool's help text.
@@ -33,7 +36,9 @@ inline constexpr const char* record_usage =
     "  --time NAME       time column (default t); the sample time is read from it\n"
     "  --ts T            sample time in seconds (needed if the files have no time column)\n"
     "  --delimiter C     field separator: , (default) ; tab space |\n"
-    "  --decimal C       decimal point: . (default) or , (then the separator must be another)\n";
+    "  --decimal C       decimal point: . (default) or , (then the separator must be another)\n"
+    "  --time-tolerance R  accepted relative deviation of a time step from the typical one\n"
+    "                    (default 0.01; at most 0.5, so a dropped sample is still found)\n";
 
 /// Consumes option `k` with value `v` if it is one of the record options (returns false
 /// otherwise). Throws `nlid::Error` naming the option for a bad value.
@@ -53,6 +58,16 @@ inline bool parse_record_option(const std::string& k, const std::string& v, Reco
     else if (v == "tab" || v == "\\t" || v == "\t") o.delimiter = '\t';
     else if (v == "space" || v == " ") o.delimiter = ' ';
     else throw nlid::Error("--delimiter must be one of , ; tab space |, got '" + v + "'", nlid::at_parameter(k));
+  } else if (k == "--time-tolerance") {
+    char* end = nullptr;
+    const double x = std::strtod(v.c_str(), &end);
+    // Above 0.5 a step of 1.5 T would pass, and a record with every other sample dropped could
+    // read as uniform at twice the step: the option is for jitter, not for gaps.
+    if (v.empty() || end != v.c_str() + v.size() || !(x >= 0.0 && x <= 0.5))
+      throw nlid::Error("--time-tolerance needs a relative step deviation from 0 to 0.5 (e.g. 0.05 for 5 %), got '" + v +
+                            "'",
+                        nlid::at_parameter(k));
+    o.time_tolerance = x;
   } else if (k == "--decimal") {
     if (v != "." && v != ",") throw nlid::Error("--decimal must be . or , (got '" + v + "')", nlid::at_parameter(k));
     o.decimal = v[0];
@@ -68,7 +83,7 @@ inline void check_record_options(const RecordOptions& o) {
     throw nlid::Error("--decimal , needs another field separator, e.g. --delimiter ';'", nlid::at_parameter("--decimal"));
 }
 
-inline constexpr const char* record_option_names[] = {"--time", "--ts", "--delimiter", "--decimal"};
+inline constexpr const char* record_option_names[] = {"--time", "--ts", "--delimiter", "--decimal", "--time-tolerance"};
 
 /// The options in a tool's table (parse_options), after the tool's own.
 inline std::vector<OptionSpec> with_record_options(std::vector<OptionSpec> options) {
@@ -132,6 +147,7 @@ inline nlid::CsvReadOptions csv_read_options(const RecordOptions& o, const std::
   c.delimiter = o.delimiter;
   c.decimal_point = o.decimal;
   c.time_column = o.time;
+  c.time_tolerance = o.time_tolerance;
   std::vector<std::string> header;
   if (o.ts > 0.0 && read_header(path, o.delimiter, header) &&
       std::find(header.begin(), header.end(), o.time) == header.end()) {

@@ -169,6 +169,46 @@ TEST_CASE("tools: --ts does not hide a dropped sample, another uniform rate is n
   CHECK_FALSE(fs::exists(work_dir() / "ts_y.csv"));
 }
 
+TEST_CASE("tools: --time-tolerance reads a logger's jittering stamps, and still finds a dropped sample",
+          "[tools][fit][sim][bad_input]") {
+  // The stamps of write_record's data moved by +-3 % of the step (a logger's jitter).
+  const fs::path clean = write_record("jitter_src", 800, 205u, 0);
+  const fs::path jitter = work_dir() / "jitter.csv";
+  {
+    std::ifstream in(clean);
+    std::ofstream out(jitter);
+    std::string line;
+    std::getline(in, line);
+    out << line << "\n";
+    for (int k = 0; std::getline(in, line); ++k) {
+      const double t = 0.01 * k + 0.0003 * ((k % 3) - 1);
+      out << t << line.substr(line.find(',')) << "\n";
+    }
+  }
+  const fs::path model = work_dir() / "jitter.json";
+  const std::string spec = "--model linear:arx:na=2,nb=2,nk=1 --save " + q(model);
+  Run r = fit(spec + " --est " + q(jitter));
+  INFO(r.err);
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("non-uniform time column") && Catch::Contains("--time-tolerance"));
+  r = fit(spec + " --est " + q(jitter) + " --time-tolerance 0.1");
+  CHECK(r.code == 0);
+  r = sim("--model " + q(model) + " --input " + q(jitter) + " --time-tolerance 0.1 --out " +
+          q(work_dir() / "jitter_y.csv"));
+  CHECK(r.code == 0);
+  // The option is for jitter, not for gaps: its ceiling still finds a dropped sample.
+  const fs::path gap = without_row(clean, "jitter_gap", 300);
+  r = fit(spec + " --est " + q(gap) + " --time-tolerance 0.5");
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("non-uniform time column") && Catch::Contains("from row 301"));
+  for (const char* bad : {"0.6", "-0.1", "x", "nan"}) {
+    r = fit(spec + " --est " + q(jitter) + " --time-tolerance " + bad);
+    CHECK(r.code == 2);
+    CHECK_THAT(r.err, Catch::Contains("--time-tolerance needs a relative step deviation from 0 to 0.5") &&
+                          Catch::Contains(std::string("got '") + bad + "'"));
+  }
+}
+
 TEST_CASE("nlid-fit and nlid-diagnose refuse an input that is constant in every estimation record",
           "[tools][fit][diagnose][bad_input]") {
   const fs::path c1 = constant_input_record("const_a", 1.0), c2 = constant_input_record("const_b", 1.0);
