@@ -34,7 +34,7 @@ namespace {
 const char* const usage =
     "usage: nlid-diagnose --baseline NAME --est FILE [--est FILE ...] --val FILE [--val FILE ...]\n"
     "                     [--input u] [--output y] [--time t] [--ts T] [--delimiter C] [--decimal C]\n"
-    "                     [--decimate N]\n"
+    "                     [--time-tolerance R] [--decimate N]\n"
     "                     [--x0 estimate|zero] [--starts N] [--max-effects N] [--effects a,b,...]\n"
     "                     [--threads N] [--json out.json] [--html report.html] [--save model.json]\n"
     "                     [--quiet]\n"
@@ -48,6 +48,8 @@ const char* const usage =
     "  --ts T            sample time in seconds (needed if the files have no time column)\n"
     "  --delimiter C     field separator: , (default) ; tab space |\n"
     "  --decimal C       decimal point: . (default) or , (then the separator must be another)\n"
+    "  --time-tolerance R  accepted relative deviation of a time step from the typical one\n"
+    "                    (default 0.01; at most 0.5, so a dropped sample is still found)\n"
     "  --decimate N      anti-alias filter and keep every N-th sample (noise floor at the raw rate)\n"
     "  --x0 MODE         initial states: estimate (default) or zero\n"
     "  --starts N        multi-start runs of the baseline fit (default 6)\n"

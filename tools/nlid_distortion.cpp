@@ -4,6 +4,7 @@
 //
 //   nlid-distortion --data rec.csv --period N [--skip P] [--threshold DB] [--input u] [--output y]
 //                   [--json out.json] [--time t] [--ts T] [--delimiter C] [--decimal C]
+//                   [--time-tolerance R]
 //
 // The record holds whole periods of N samples; the first --skip (default 1) are the transient.
 // Prints `distortion_analysis`'s report (nlid/analysis/distortion.hpp, docs/analysis.md);
@@ -30,6 +31,7 @@ constexpr const char* kUsageHead =
     "usage: nlid-distortion --data rec.csv --period N [--skip P] [--threshold DB] [--input u] "
     "[--output y]\n"
     "                       [--json out.json] [--time t] [--ts T] [--delimiter C] [--decimal C]\n"
+    "                       [--time-tolerance R]\n"
     "  --period N       samples per period of the periodic input\n"
     "  --skip P         periods skipped as the transient (default 1); at least 2 must remain\n"
     "  --threshold DB   level above the noise that counts as distortion (default 6)\n"

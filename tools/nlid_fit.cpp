@@ -42,7 +42,7 @@ namespace {
 
 constexpr const char* kUsageHead =
     "usage: nlid-fit --model SPEC --est a.csv [--est b.csv ...] [--val c.csv ...] [--input u] [--output y]\n"
-    "                [--time t] [--ts T] [--delimiter C] [--decimal C]\n"
+    "                [--time t] [--ts T] [--delimiter C] [--decimal C] [--time-tolerance R]\n"
     "                [--decimate N] [--iterations N] [--rows FIRST:LAST] --save model.json\n"
     "  SPEC examples: linear:arx:na=2,nb=1,nk=0   linear:oe:nb=2,nf=2,nk=0\n"
     "                 nlarx:na=3,nb=3,nk=0:sigmoidnet:units=5   hw:nb=3,nf=3,nk=0:in=pwlinear:10:out=saturation\n"

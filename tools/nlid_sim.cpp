@@ -45,7 +45,7 @@ namespace {
 constexpr const char* kUsageHead =
     "usage: nlid-sim --model model.json --input u.csv [--x0 zero|equilibrium|measured|estimate] [--column NAME[,NAME..]]\n"
     "                [--output NAME[,NAME..]] [--band] [--with-input] [--decimate N] [--time t] [--ts T]\n"
-    "                [--delimiter C] [--decimal C] --out y.csv\n"
+    "                [--delimiter C] [--decimal C] [--time-tolerance R] --out y.csv\n"
     "  --x0 X           start: zero (default), equilibrium (for the first input), measured (past outputs\n"
     "                   from the file), estimate (fitted to the file's first outputs): the last two read\n"
     "                   the measured outputs and give the start nlid-fit's table uses for those models\n"

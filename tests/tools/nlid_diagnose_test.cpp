@@ -21,7 +21,7 @@ using tool_test::write_record;
 TEST_CASE("nlid-diagnose: help and usage errors", "[tools][diagnose]") {
   Run r = diagnose("--help");
   CHECK(r.code == 0);
-  CHECK_THAT(r.out, Catch::Contains("--baseline NAME"));
+  CHECK_THAT(r.out, Catch::Contains("--baseline NAME") && Catch::Contains("--time-tolerance R"));
   r = diagnose("");
   CHECK(r.code == 2);
   CHECK_THAT(r.err, Catch::Contains("no arguments") && Catch::Contains("usage:"));
