@@ -118,6 +118,10 @@ int main(int argc, char** argv) {
                                            : (m.target<nlid::DynamicNlarx>() != nullptr ||
                                               m.target<nlid::DynamicHammersteinWiener>() != nullptr) &&
                                                  m.info().uncertainty.has_value();
+      if (!carries && !m.info().uncertainty_left_out.empty()) {
+        throw nlid::Error("--band needs the parameters' covariance: " + model + " carries one, but " +
+                          m.info().uncertainty_left_out + "; estimate the changed model again (nlid-fit) for a band");
+      }
       if (!carries) {
         const bool kind_has = grey != nullptr || m.kind() == "nlarx" || m.kind() == "hammerstein_wiener";
         throw nlid::Error("--band needs the parameters' covariance, which " + model +

@@ -16,7 +16,9 @@
 #include <Eigen/Core>
 
 #include "nlid/io/model_file.hpp"
+#include "nlid/core/atomic_file.hpp"
 #include "nlid/models/any_model.hpp"
+#include "nlid/models/any_model_band.hpp"
 #include "nlid/models/physics/catalogue.hpp"
 #include "nlid/nonlinearities.hpp"
 #include "nlid/regressors.hpp"
@@ -231,7 +233,7 @@ TEST_CASE("model file: every nonlinearity and compile-time types round-trip exac
     th.tail(2) << 0.02, 0.09;
     hw.set_parameters(th);
     const std::string p = temp_path("hw.json");
-    save_model(p, hw, ModelFileInfo{{}, {}, InitialCondition::zero, "nlhw2", {}, {}, {}, {}, {}});
+    save_model(p, hw, ModelFileInfo{{}, {}, InitialCondition::zero, "nlhw2", {}, {}, {}, {}, {}, {}});
     const AnyModel any = load_model(p);
     CHECK(any.kind() == "hammerstein_wiener");
     CHECK(bit_equal(any.simulate(e), hw.simulate(e, InitialCondition::zero)));
@@ -443,6 +445,7 @@ TEST_CASE("model file: nonlinear ARX and Hammerstein-Wiener files keep ModelFile
     CHECK(saved.view().at("uncertainty").contains("covariance"));
     CHECK(saved.view().at("uncertainty").contains("stddev"));
     CHECK_FALSE(saved.view().at("parameters").contains("covariance"));
+    CHECK(saved.view().at("uncertainty").contains("at"));  // the values it belongs to
   }
 
   ModelFileInfo back;
@@ -475,6 +478,32 @@ TEST_CASE("model file: nonlinear ARX and Hammerstein-Wiener files keep ModelFile
   any.save(again);
   CHECK(read_text(again).find("covariance") == std::string::npos);
   CHECK_FALSE(load_model(again).info().uncertainty.has_value());
+
+  // A file whose parameter was edited by hand after the estimation: its covariance describes
+  // another estimate. The model loads; the uncertainty is left out, and the reason kept.
+  {
+    Json edited = read_json(path);
+    Json& v = edited["parameters"]["values"][2];
+    v = v.as_number() + 0.05;
+    const std::string tuned = temp_path("nlarx_covariance_tuned.json");
+    write_file_atomically(tuned, edited.dump(2));
+    ModelFileInfo left;
+    const M t = load_model<M>(tuned, &left);
+    CHECK(t.parameters()[2] == m.parameters()[2] + 0.05);
+    CHECK_FALSE(left.uncertainty.has_value());
+    CHECK_THAT(left.uncertainty_left_out, Catch::Contains(m.parameter_names()[2] + " = 0.2") &&
+                                              Catch::Contains("changed after the estimation"));
+    const AnyModel held = load_model(tuned);
+    CHECK_FALSE(held.info().uncertainty.has_value());
+    const Dataset d(Experiment(Eigen::VectorXd::LinSpaced(50, -1.0, 1.0), Eigen::VectorXd::Zero(50), 0.01));
+    CHECK_THROWS_WITH(simulation_band(held, d), Catch::Contains("covariance was not loaded") &&
+                                                    Catch::Contains("changed after the estimation"));
+    // An "at" of the wrong length is a malformed file, named by its key path.
+    edited = read_json(path);
+    edited["uncertainty"]["at"].as_array().pop_back();
+    write_file_atomically(tuned, edited.dump(2));
+    CHECK_THROWS_WITH(load_model<M>(tuned), Catch::Contains("uncertainty.at") && Catch::Contains("3 values"));
+  }
 
   // Saving an uncertainty of other values or another model is refused, naming the parameter.
   M other = typed;

@@ -396,6 +396,32 @@ TEST_CASE("nlid-sim --band: the covariance nlid-fit saves gives y_std, models wi
     CHECK(lacks.code == 1);
     CHECK_THAT(lacks.err, Catch::Contains("--band needs the parameters' covariance") && Catch::Contains("lacks"));
     CHECK_FALSE(fs::exists(none));
+    // A parameter changed by hand after the estimation: the covariance describes another
+    // estimate; --band is refused naming the parameter, the plain simulation still runs.
+    nlid::Json tuned = nlid::read_json(m.string());
+    nlid::Json& v0 = tuned["parameters"]["values"][0];
+    v0 = v0.as_number() * 1.1 + 0.01;
+    const fs::path changed = work_dir() / "band_reg_tuned.json";
+    nlid::write_file_atomically(changed.string(), tuned.dump(2));
+    const Run stale = sim("--model " + q(changed) + " --input " + q(val) + " --band --out " + q(none));
+    CHECK(stale.code == 1);
+    CHECK_THAT(stale.err, Catch::Contains("carries one, but its covariance was computed at") &&
+                              Catch::Contains("changed after the estimation") && Catch::Contains("nlid-fit"));
+    CHECK_FALSE(fs::exists(none));
+    CHECK(sim("--model " + q(changed) + " --input " + q(val) + " --out " + q(work_dir() / "band_reg_tuned_y.csv")).code == 0);
+  }
+  {
+    // The same for the grey box, whose covariance sits in "parameters".
+    nlid::Json tuned = nlid::read_json(model.string());
+    nlid::Json& v0 = tuned["parameters"]["values"][0];
+    v0 = v0.as_number() * 1.1;
+    const fs::path changed = work_dir() / "band_lag_tuned.json", none = work_dir() / "band_lag_none.csv";
+    nlid::write_file_atomically(changed.string(), tuned.dump(2));
+    const Run stale = sim("--model " + q(changed) + " --input " + q(val) + " --band --out " + q(none));
+    CHECK(stale.code == 1);
+    CHECK_THAT(stale.err, Catch::Contains("carries one, but its covariance was computed at") &&
+                              Catch::Contains("changed after the estimation"));
+    CHECK_FALSE(fs::exists(none));
   }
 
   // A linear ARX model file keeps no covariance: refused, saying so, nothing written.

@@ -86,6 +86,11 @@ struct ModelFileInfo {
   /// (`uncertainty_from_covariance`), ready for `simulation_band(model, data, *info.uncertainty)`.
   /// `fit_model_spec` (nlid-fit) sets it when it computes the uncertainty.
   std::optional<ParameterUncertainty> uncertainty;
+  /// Why loading left out the uncertainty the file carries, else empty: a covariance records the
+  /// parameter values it was computed at ("at"), and a file whose parameters were changed since
+  /// (edited by hand) no longer matches them — its covariance describes another estimate, and a
+  /// simulation band from it would be wrong. Names the first changed parameter and both values.
+  std::string uncertainty_left_out;
 };
 
 /// Records the range of every input and output of `data` (all experiments) in `info`, over the
@@ -204,7 +209,7 @@ inline Json parameters_json(const std::vector<std::string>& names, const Eigen::
 inline Eigen::VectorXd read_parameters(const JsonView& file, int n, bool with_stddev = false) {
   const JsonView p = file.at("parameters");
   if (with_stddev) {
-    p.check_keys({"names", "values", "stddev", "covariance"});
+    p.check_keys({"names", "values", "stddev", "covariance", "covariance_at"});
   } else {
     p.check_keys({"names", "values"});
   }
@@ -217,10 +222,13 @@ inline Eigen::VectorXd read_parameters(const JsonView& file, int n, bool with_st
   return th;
 }
 
-/// Writes "parameters": "stddev" and "covariance" (n × n rows); nothing if `covariance` is empty.
-inline void write_parameter_covariance(Json& j, const Eigen::VectorXd& stddev, const Eigen::MatrixXd& covariance) {
+/// Writes "parameters": "stddev" and "covariance" (n × n rows), and "covariance_at": the values
+/// they belong to (θ, so that a reader can tell a hand-edited θ); nothing if `covariance` is empty.
+inline void write_parameter_covariance(Json& j, const Eigen::VectorXd& stddev, const Eigen::MatrixXd& covariance,
+                                       const Eigen::VectorXd& values) {
   if (stddev.size() > 0) j["parameters"]["stddev"] = extended_vector(stddev);
   if (covariance.size() == 0) return;
+  j["parameters"]["covariance_at"] = extended_vector(values);
   Json::Array rows;
   for (Eigen::Index i = 0; i < covariance.rows(); ++i) rows.push_back(extended_vector(Eigen::VectorXd(covariance.row(i).transpose())));
   j["parameters"]["covariance"] = Json(std::move(rows));
@@ -273,7 +281,31 @@ inline void write_info_uncertainty(Json& j, const ModelFileInfo& info, const std
   Json::Array rows;
   for (Eigen::Index i = 0; i < n; ++i) rows.push_back(extended_vector(Eigen::VectorXd(c.row(i).transpose())));
   block["covariance"] = Json(std::move(rows));
+  block["at"] = extended_vector(values);
   j["uncertainty"] = std::move(block);
+}
+
+/// Empty if the covariance recorded at `at` (the values written beside it) still belongs to the
+/// file's parameters `values`; else the first parameter that changed, with both values. (Files
+/// written before "at" existed carry none and are taken as they are.) The sizes must agree:
+/// a wrong count is a malformed file, reported naming the key path.
+inline std::string uncertainty_mismatch(const JsonView& at, const std::vector<std::string>& names,
+                                        const Eigen::VectorXd& values) {
+  const Eigen::VectorXd a = read_extended_vector(at);
+  if (a.size() != values.size()) {
+    at.fail("the file has " + std::to_string(a.size()) + " values at " + at.path_text() + ", the model has " +
+            std::to_string(values.size()) + " parameters");
+  }
+  // The values are written with 17 digits and read back exactly; a tolerance still lets a file
+  // pass through a tool that rounds in the last place.
+  for (Eigen::Index i = 0; i < values.size(); ++i) {
+    const double x = values[i], y = a[i];
+    if (std::abs(x - y) <= 1e-12 * std::max({1.0, std::abs(x), std::abs(y)})) continue;
+    return "its covariance was computed at " + names[static_cast<std::size_t>(i)] + " = " + detail::format_g(y, 17) +
+           ", the file's parameters have " + detail::format_g(x, 17) +
+           " (changed after the estimation): it describes another estimate";
+  }
+  return {};
 }
 
 /// An n × n parameter covariance written as n rows (grey boxes' "parameters.covariance", the
@@ -298,11 +330,18 @@ inline Eigen::MatrixXd read_covariance_rows(const JsonView& cv, Eigen::Index n) 
 
 /// The top-level "uncertainty" a file keeps for a model whose parameters are `names` = `values`
 /// (nullopt without it). Errors name the key path of the offending entry or row.
+/// A file whose parameters changed after the covariance was computed (see
+/// `uncertainty_mismatch`) gives nullopt and the reason in `left_out`.
 inline std::optional<ParameterUncertainty> read_info_uncertainty(const JsonView& file, const std::vector<std::string>& names,
-                                                                 const Eigen::VectorXd& values) {
+                                                                 const Eigen::VectorXd& values, std::string& left_out) {
+  left_out.clear();
   if (!file.contains("uncertainty")) return std::nullopt;
   const JsonView block = file.at("uncertainty");
-  block.check_keys({"stddev", "covariance"});
+  block.check_keys({"stddev", "covariance", "at"});
+  if (block.contains("at")) {
+    left_out = uncertainty_mismatch(block.at("at"), names, values);
+    if (!left_out.empty()) return std::nullopt;
+  }
   const Eigen::Index n = values.size();
   Eigen::VectorXd sd;
   if (block.contains("stddev")) {
@@ -487,7 +526,7 @@ struct ModelSerial<Nlarx<R, F>> {
     }
     m.set_channel_names(in, out[0]);
     m.set_parameters(detail::read_parameters(file, m.num_parameters()));
-    info.uncertainty = detail::read_info_uncertainty(file, m.parameter_names(), m.parameters());
+    info.uncertainty = detail::read_info_uncertainty(file, m.parameter_names(), m.parameters(), info.uncertainty_left_out);
     m.set_report(report_from_json(file.at("report")));
     info.report.reset();
   }
@@ -587,7 +626,7 @@ struct ModelSerial<HammersteinWiener<In, TransferFunctionBlock<Nb, Nf, Nk>, Out>
     detail::expect_channel_count(file.at("outputs"), out.size(), 1, "outputs");
     m.set_channel_names(in[0], out[0]);
     m.set_parameters(detail::read_parameters(file, m.num_parameters()));
-    info.uncertainty = detail::read_info_uncertainty(file, m.parameter_names(), m.parameters());
+    info.uncertainty = detail::read_info_uncertainty(file, m.parameter_names(), m.parameters(), info.uncertainty_left_out);
     m.set_report(report_from_json(file.at("report")));
     info.report.reset();
   }
@@ -695,7 +734,7 @@ struct ModelSerial<GreyBox<P>> {
     s["states"] = Json(std::move(states));
     j["structure"] = std::move(s);
     j["parameters"] = detail::parameters_json(m.parameter_names(), Eigen::VectorXd(m.parameters()));
-    detail::write_parameter_covariance(j, m.parameter_stddev(), m.parameter_covariance());
+    detail::write_parameter_covariance(j, m.parameter_stddev(), m.parameter_covariance(), Eigen::VectorXd(m.parameters()));
     Json::Array x0;
     for (const auto& x : m.estimated_initial_states()) x0.push_back(extended_vector(x));
     j["estimated_initial_states"] = Json(std::move(x0));
@@ -802,8 +841,14 @@ struct ModelSerial<GreyBox<P>> {
       }
     }
     m.set_estimated_initial_states(std::move(x0));
+    // A covariance computed at other values (θ edited by hand) is left out, with its deviations.
+    info.uncertainty_left_out.clear();
+    if (file.at("parameters").contains("covariance_at")) {
+      info.uncertainty_left_out = detail::uncertainty_mismatch(file.at("parameters").at("covariance_at"),
+                                                               m.parameter_names(), Eigen::VectorXd(m.parameters()));
+    }
     // After the values: setting a value clears the deviations.
-    if (file.at("parameters").contains("stddev")) {
+    if (info.uncertainty_left_out.empty() && file.at("parameters").contains("stddev")) {
       const JsonView sd = file.at("parameters").at("stddev");
       const Eigen::VectorXd v = read_extended_vector(sd);
       if (v.size() == 0) sd.fail("empty standard deviations at " + sd.path_text() + " (leave the key out instead)");
@@ -813,7 +858,7 @@ struct ModelSerial<GreyBox<P>> {
         sd.fail(e.message() + " (at " + sd.path_text() + ")");
       }
     }
-    if (file.at("parameters").contains("covariance")) {
+    if (info.uncertainty_left_out.empty() && file.at("parameters").contains("covariance")) {
       const JsonView cv = file.at("parameters").at("covariance");
       const Eigen::MatrixXd c = detail::read_covariance_rows(cv, m.num_parameters());
       try {

@@ -28,7 +28,14 @@ template <std::same_as<AnyModel> A>
 SimulationBand simulation_band(const A& held, const Dataset& data, SimulationBandOptions options = {}) {
   const AnyModel& model = held;  // not dependent from here on
   if (!options.initial_condition) options.initial_condition = model.initial_condition();
-  if (const auto* g = model.target<DynamicGreyBox>()) return simulation_band(*g, data, options);
+  const auto* g = model.target<DynamicGreyBox>();
+  const bool carries = g != nullptr ? g->parameter_covariance().size() > 0 : model.info().uncertainty.has_value();
+  if (!carries && !model.info().uncertainty_left_out.empty()) {
+    throw Error("simulation_band: the model file's parameter covariance was not loaded: " +
+                    model.info().uncertainty_left_out + "; estimate the changed model again for a band",
+                at_parameter("covariance"));
+  }
+  if (g != nullptr) return simulation_band(*g, data, options);
   const auto* arx = model.target<DynamicNlarx>();
   const auto* hw = model.target<DynamicHammersteinWiener>();
   if (arx == nullptr && hw == nullptr) {
