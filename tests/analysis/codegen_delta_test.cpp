@@ -295,18 +295,23 @@ Eigen::MatrixXd random_steps2() {
 TEST_CASE("float code of a slow two-input ARX model with offset: one delta block tracks nlid", "[codegen][delta]") {
   using nlid::codegen::LinearForm;
   const nlid::Arx m = slow_arx();
-  // One block of n = 3 states: numerators per input and the offset's c*binomial(3, k).
+  // One block of n = 3 states, the first h = na = 2 in delta form: numerators per input (their
+  // coefficients of q^-0 .. q^-2) and the offset's c*binomial(2, k); B2's q^-3 coefficient is in
+  // the third register, which has no feedback and stays as it is.
   nlid::CodegenOptions so;
   so.precision = nlid::codegen::Precision::single_precision;
   const auto db = nlid::codegen::detail::arx_delta_block(m, so);
   REQUIRE(db);
   CHECK(db->n == 3);
+  CHECK(db->h == 2);
   REQUIRE(db->c.size() == 3);
-  CHECK(db->a[3] == Approx(2e-6).epsilon(1e-9));     // A(1)
-  CHECK(db->c[0][3] == Approx(4e-6).epsilon(1e-9));  // B1(1)
-  CHECK(db->c[1][3] == Approx(2e-6).epsilon(1e-9));  // B2(1)
-  CHECK(db->c[1][0] == 0.5e-6);                      // feedthrough b2,0
-  CHECK(db->c[2] == std::vector<double>{1e-6, 3e-6, 3e-6, 1e-6});
+  REQUIRE(db->a.size() == 3);
+  CHECK(db->a[2] == Approx(2e-6).epsilon(1e-9));       // A(1)
+  CHECK(db->c[0][2] == Approx(4e-6).epsilon(1e-9));    // B1(1): B1 lies within the delta part
+  CHECK(db->c[1][2] == Approx(1.5e-6).epsilon(1e-9));  // b2,0 + b2,1 + b2,2
+  CHECK(db->c[1][0] == 0.5e-6);                        // feedthrough b2,0
+  CHECK(db->c[2] == std::vector<double>{1e-6, 2e-6, 1e-6});
+  CHECK(db->tail == std::vector<std::vector<double>>{{0.0}, {0.5e-6}, {0.0}});
 
   const nlid::GeneratedCode delta = single_code(m, "slowarx", LinearForm::automatic);
   const nlid::GeneratedCode direct = single_code(m, "slowarx_direct", LinearForm::direct);
@@ -457,4 +462,91 @@ TEST_CASE("Hammerstein-Wiener code starts from a given block state (CodegenOptio
                                                 Catch::Contains("the linear block's registers"));
   o.initial_state = Eigen::Vector2d(std::nan(""), 0.0);
   CHECK_THROWS_WITH(nlid::generate_c(m, o), Catch::Contains("initial_state[0]") && Catch::Contains("not finite"));
+}
+
+TEST_CASE("float code of a block with a long input delay keeps the delay as plain registers", "[codegen][delta]") {
+  // The slow block of slow_hw() behind 20 samples of delay: n = nk + nb - 1 = 21 states, of
+  // which only nf = 2 carry feedback. In delta form over all 21, the delay's poles at z = 0
+  // became binomial coefficients up to C(21, 10) ~ 3.5e5 that cancel in float, and the step
+  // diverged (ARX nk = 25: outputs of 1e32). The delta part now covers the 2 feedback states.
+  using nlid::codegen::LinearForm;
+  using Delayed = nlid::TransferFunctionBlock<2, 2, 20>;
+  using DelayedHw = nlid::HammersteinWiener<nlid::UnitGain, Delayed, nlid::Saturation>;
+  DelayedHw m(nlid::UnitGain{}, Delayed{}, nlid::Saturation{}, ts);
+  Eigen::VectorXd th(6);
+  th << 3e-6, 1e-6, -1.997, 0.997002, -20.0, 20.0;
+  m.set_parameters(th);
+  const nlid::codegen::DeltaBlock d = nlid::codegen::delta_block(m.linear_block(), m.linear_parameters());
+  CHECK(d.n == 21);
+  CHECK(d.h == 2);
+  CHECK(d.c == std::vector<double>{0.0, 0.0, 0.0});  // B's coefficients all sit in the delay
+  REQUIRE(d.tail.size() == 19);
+  CHECK(d.tail[17] == 3e-6);  // beta_20 = b1
+  CHECK(d.tail[18] == 1e-6);  // beta_21 = b2
+  for (int i = 0; i < 17; ++i) CHECK(d.tail[static_cast<std::size_t>(i)] == 0.0);
+  // The state map: Taylor shift on the two feedback registers, the delay registers as they are.
+  Eigen::VectorXd s = Eigen::VectorXd::LinSpaced(21, 1.0, 21.0);
+  const Eigen::VectorXd e = d.state_from_tdf2(s);
+  CHECK(e(0) == 1.0);
+  CHECK(e(1) == 3.0);
+  CHECK(e.tail(19) == s.tail(19));
+  CHECK_THAT(d.describe(), Catch::Contains("e_3 .. e_21 are the input delay's registers"));
+
+  const nlid::GeneratedCode delta = single_code(m, "delayhw", LinearForm::automatic);
+  const nlid::GeneratedCode direct = single_code(m, "delayhw_direct", LinearForm::direct);
+  CHECK(delta.header.find("delta-operator form") != std::string::npos);
+  const Eigen::MatrixXd u = random_steps();
+  check_delta_beats_direct(delta, direct, u, m.simulate(experiment(u), nlid::InitialCondition::zero).col(0),
+                           "delay_hw");
+
+  // From the equilibrium for u0 = 2.5, and from the registers after 1500 samples of a ramp
+  // (the delay line then holds 20 different inputs).
+  Eigen::MatrixXd ue = u;
+  ue.topRows(200).setConstant(2.5);
+  const Eigen::VectorXd ref_eq = m.simulate(experiment(ue), nlid::InitialCondition::equilibrium).col(0);
+  const Eigen::VectorXd y_eq = nlid_test::run_generated_c(
+      single_code(m, "delayhw_eq", LinearForm::automatic, Eigen::VectorXd::Constant(1, 2.5)), ue, "delay_hw_eq", true);
+  REQUIRE(y_eq.size() == ref_eq.size());
+  for (int t = 0; t < 200; ++t) CHECK(std::abs(y_eq(t) - ref_eq(t)) <= 4e-7 * std::abs(ref_eq(t)));
+  CHECK(rel_error(y_eq, ref_eq) <= 1e-5);
+  std::vector<double> reg(21, 0.0);
+  const std::vector<double> lt(m.linear_parameters().begin(), m.linear_parameters().end());
+  for (int t = 0; t < 1500; ++t)
+    (void)m.linear_block().step(std::span<double>(reg), 0.004 * t, std::span<const double>(lt));
+  const Eigen::VectorXd x = Eigen::Map<const Eigen::VectorXd>(reg.data(), 21);
+  nlid::CodegenOptions o;
+  o.precision = nlid::codegen::Precision::single_precision;
+  const Eigen::VectorXd xc = nlid::generated_c_state(m, x, o);
+  Eigen::VectorXd ref_x(u.rows());
+  const std::span<const double> theta(m.parameters().data(), static_cast<std::size_t>(m.parameters().size()));
+  REQUIRE(m.simulate<double>(u, theta, std::span<const double>(x.data(), 21),
+                             std::span<double>(ref_x.data(), static_cast<std::size_t>(ref_x.size()))));
+  const Eigen::VectorXd y_x = run_from_state(single_code(m, "delayhw_x", LinearForm::automatic), u, xc, "delay_hw_x");
+  REQUIRE(y_x.size() == ref_x.size());
+  for (int t = 0; t < 40; ++t) CHECK(std::abs(y_x(t) - ref_x(t)) <= 4e-7 * std::abs(ref_x(t)));
+  CHECK(rel_error(y_x, ref_x) <= 1e-5);
+}
+
+TEST_CASE("float code of an ARX model with nk = 25 tracks nlid", "[codegen][delta]") {
+  // The reviewer's case: na = 2, nb = 2, nk = 25, slow A; 26 states in delta form diverged.
+  using nlid::codegen::LinearForm;
+  const nlid::Arx m(Eigen::Vector2d(-1.997, 0.997002), {Eigen::Vector2d(3e-6, 1e-6)}, {25}, ts, 1e-6);
+  nlid::CodegenOptions so;
+  so.precision = nlid::codegen::Precision::single_precision;
+  const auto db = nlid::codegen::detail::arx_delta_block(m, so);
+  REQUIRE(db);
+  CHECK(db->n == 26);
+  CHECK(db->h == 2);
+  const nlid::GeneratedCode delta = single_code(m, "delayarx", LinearForm::automatic);
+  const nlid::GeneratedCode direct = single_code(m, "delayarx_direct", LinearForm::direct);
+  const Eigen::MatrixXd u = random_steps();
+  check_delta_beats_direct(delta, direct, u, m.simulate(experiment(u), nlid::InitialCondition::zero).col(0),
+                           "delay_arx");
+  Eigen::MatrixXd ue = u;
+  ue.topRows(300).setConstant(2.5);
+  const Eigen::VectorXd ref_eq = m.simulate(experiment(ue), nlid::InitialCondition::equilibrium).col(0);
+  const Eigen::VectorXd y_eq = nlid_test::run_generated_c(
+      single_code(m, "delayarx_eq", LinearForm::automatic, Eigen::VectorXd::Constant(1, 2.5)), ue, "delay_arx_eq", true);
+  REQUIRE(y_eq.size() == ref_eq.size());
+  CHECK(rel_error(y_eq, ref_eq) <= 1e-5);
 }
