@@ -22,6 +22,7 @@
 // without double arithmetic; it computes the model in float rounding, not nlid's bits, and writes
 // the linear blocks of Hammerstein-Wiener, series, ARX and output-error models in delta-operator
 // form (docs/codegen.md); --linear-form direct keeps their polynomial form (for comparison).
+#include <algorithm>
 #include <cctype>
 #include <cmath>
 #include <cstdio>
@@ -217,7 +218,11 @@ int main(int argc, char** argv) {
       stage = "computing the equilibrium for --u0";
       const double step = m.ts() > 0 ? m.ts() : ts;
       if (step > 0) {
-        const nlid::Experiment held(u0.transpose().replicate(8, 1), Eigen::MatrixXd::Zero(8, m.num_outputs()), step);
+        // Long enough for every model's lags (a nonlinear ARX model with nk = 20 needs more than 21
+        // samples); the output at the first sample is the steady state.
+        const Eigen::Index probe = 8 + std::max(0, m.history_length());
+        const nlid::Experiment held(u0.transpose().replicate(probe, 1), Eigen::MatrixXd::Zero(probe, m.num_outputs()),
+                                    step);
         Eigen::MatrixXd y;
         bool simulated = false;
         std::string no_steady_state;

@@ -695,3 +695,21 @@ TEST_CASE("nlid-codegen: an unstable linear model is generated with a warning na
   CHECK(r.code == 0);
   CHECK_THAT(r.err, !Catch::Contains("warning"));
 }
+
+TEST_CASE("nlid-codegen --x0 equilibrium works for a nonlinear ARX model with a long lag window", "[tools][codegen]") {
+  // The equilibrium was probed on an 8-sample record: a model with nk = 20 (21 samples of lags)
+  // was refused ("8 samples, not more than the 21 needed"), though nlid-sim starts it there.
+  const fs::path est = write_record("lag_est", 1000, 83u, 20);
+  const fs::path dir = work_dir() / "lag";
+  fs::create_directories(dir);
+  const fs::path model = dir / "lag.json";
+  const Run f = fit("--model nlarx:na=2,nb=2,nk=20:sigmoidnet:units=2 --est " + q(est) + " --iterations 3 --save " +
+                    q(model));
+  INFO(f.err);
+  REQUIRE(f.code == 0);
+  const Run r = codegen("--model " + q(model) + " --out " + q(dir) + " --x0 equilibrium --u0 0.3");
+  INFO(r.err);
+  CHECK(r.code == 0);
+  CHECK(fs::exists(dir / "lag.c"));
+  CHECK_THAT(slurp(dir / "lag.h"), Catch::Contains("equilibrium"));
+}
