@@ -10,13 +10,16 @@
 // short, a constant input), or a failed run (out of memory, internal error); 2 a bad command line
 // (unknown, missing, repeated or malformed option, unknown baseline or effect, an output that is an
 // input).
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <exception>
+#include <filesystem>
 #include <iostream>
 #include <sstream>
 #include <string>
+#include <system_error>
 #include <vector>
 
 #include "nlid/core/format.hpp"
@@ -104,11 +107,20 @@ int main(int argc, char** argv) {
     opt.threads = a.get_int("--threads", 1, 4096, opt.threads);
     if (a.has("--x0"))
       opt.initial_condition = a.get("--x0") == "zero" ? nlid::InitialCondition::zero : nlid::InitialCondition::estimate;
-    {
-      std::stringstream ss(a.get("--effects"));
+    if (a.has("--effects")) {
+      // Given, the list must name something: "--effects ," or "" read as the whole catalogue, the
+      // opposite of a restriction. A name given twice would be tried twice, and would tighten the
+      // per-round false-detection threshold (Bonferroni over the candidates) for nothing.
+      const std::string list = a.get("--effects");
+      std::stringstream ss(list);
       std::string name;
-      while (std::getline(ss, name, ','))
-        if (!name.empty()) opt.effects.push_back(name);
+      while (std::getline(ss, name, ',')) {
+        if (name.empty()) throw UsageError("--effects has an empty name in '" + list + "' (names separated by commas)");
+        if (std::find(opt.effects.begin(), opt.effects.end(), name) != opt.effects.end())
+          throw UsageError("--effects names '" + name + "' twice");
+        opt.effects.push_back(name);
+      }
+      if (opt.effects.empty()) throw UsageError("--effects needs at least one effect name");
     }
     const nlid_tools::RecordOptions record = nlid_tools::record_options_from(a);
     if (baseline.empty()) throw UsageError("--baseline is required");
@@ -125,6 +137,16 @@ int main(int argc, char** argv) {
         (void)nlid::effect_kind(e);
       } catch (const nlid::Error& err) {
         throw UsageError(nlid::Error(err.message(), nlid::at_parameter("--effects")).what());
+      }
+    }
+    // The effect tests are decided on the validation records, which no parameter is fitted to
+    // (docs/diagnosis.md): an estimation record among them would pass effects fitted to its noise.
+    for (const std::string& v : val_files) {
+      for (const std::string& e : est_files) {
+        std::error_code ec;
+        if (v == e || std::filesystem::equivalent(v, e, ec))
+          throw UsageError("'" + v + "' is both an --est and a --val record; the diagnosis tests each effect on "
+                           "validation records that no parameter was fitted to");
       }
     }
     std::vector<nlid_tools::FlagPath> inputs;

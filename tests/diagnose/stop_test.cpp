@@ -3,7 +3,10 @@
 // catalogue explains it".
 #include <catch2/catch.hpp>
 
+#include <functional>
+#include <limits>
 #include <string>
+#include <utility>
 
 #include "nlid/diagnose.hpp"
 #include "nlid/diagnose/report.hpp"
@@ -16,6 +19,21 @@ using namespace nlid;
 namespace {
 
 // Mass-spring-damper records with Coulomb friction and a dead time (the suite's two-effect case).
+std::pair<Dataset, Dataset> two_effect_records() {
+  const double ts = 0.01;
+  const physics::MassSpringDamper msd;
+  const DataScales s = diag_test::unit_scales(ts / 4);
+  AugmentedModel<physics::MassSpringDamper> truth(
+      msd, diag_test::table(msd, {{"c", 8.0}, {"k", 100.0}, {"b", 100.0}, {"rest", 0.1}}), ts / 4);
+  truth.add_effect(diag_test::effect(EffectKind::coulomb_friction, {5.0}, s));
+  truth.add_effect(diag_test::effect(EffectKind::dead_time, {0.03}, s));
+  const Eigen::VectorXd x0 = Eigen::Vector2d(0.1, 0.0);
+  Dataset est, val;
+  est.add(diag_test::synthesize(truth, diag_test::random_steps(1500, -1, 1, 40, 150, 11u), ts, x0, 0.01, 21u, "est", 4));
+  val.add(diag_test::synthesize(truth, diag_test::random_steps(1500, -1, 1, 40, 150, 12u), ts, x0, 0.01, 22u, "val", 4));
+  return {est, val};
+}
+
 Diagnosis<physics::MassSpringDamper> diagnose_two_effects(int max_effects) {
   const double ts = 0.01;
   const physics::MassSpringDamper msd;
@@ -76,4 +94,42 @@ TEST_CASE("diagnosis summary, explanation, model description and HTML report rea
   CHECK(explain(d) == why);
   CHECK(d.model.describe() == model);
   CHECK(diagnosis_report(d).str() == html);
+}
+
+TEST_CASE("diagnosis options out of range are refused before any work, naming the option and its value",
+          "[diagnose][errors]") {
+  const auto records = two_effect_records();
+  const Dataset& est = records.first;
+  const Dataset& val = records.second;
+  const GreyBox<physics::MassSpringDamper> g;
+  const auto refused = [&](const std::function<void(DiagnoseOptions&)>& set, const std::string& name,
+                           const std::string& text) {
+    DiagnoseOptions o;
+    set(o);
+    INFO(name);
+    try {
+      (void)diagnose(g, est, val, o);
+      FAIL("accepted");
+    } catch (const Error& e) {
+      CHECK(e.where().parameter == name);
+      CHECK_THAT(e.message(), Catch::Contains(text));
+    }
+  };
+  refused([](DiagnoseOptions& o) { o.significance.alpha = 0.0; }, "significance.alpha", "must lie in (0, 1), got 0");
+  refused([](DiagnoseOptions& o) { o.significance.relevance = -0.5; }, "significance.relevance", "got -0.5");
+  refused([](DiagnoseOptions& o) { o.significance.floor_margin = -1.0; }, "significance.floor_margin", "got -1");
+  refused([](DiagnoseOptions& o) { o.refine_top = 0; }, "refine_top", "refine_top must be >= 1, got 0");
+  refused([](DiagnoseOptions& o) { o.screen_iterations = -3; }, "screen_iterations", "got -3");
+  refused([](DiagnoseOptions& o) { o.min_samples = -1; }, "min_samples", "got -1");
+  // Was a std::length_error from resizing the interval list to size_t(-1).
+  refused([](DiagnoseOptions& o) { o.locate.max_intervals = -1; }, "locate.max_intervals", "got -1");
+  refused([](DiagnoseOptions& o) { o.noise.sigma = std::numeric_limits<double>::infinity(); }, "noise.sigma",
+          "must be finite");
+  // The validation records must be ones no parameter is fitted to.
+  try {
+    (void)diagnose(g, est, est, DiagnoseOptions{});
+    FAIL("accepted");
+  } catch (const Error& e) {
+    CHECK_THAT(e.message(), Catch::Contains("validation record 'est' is the same data as estimation record 'est'"));
+  }
 }

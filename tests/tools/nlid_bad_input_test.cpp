@@ -261,9 +261,9 @@ TEST_CASE("tools: an output that is an input is refused before any work, and the
   r = codegen("--model " + q(model) + " --out " + q(model));
   CHECK(r.code == 2);
   CHECK(slurp(model) == model_text);
-  r = diagnose("--baseline first_order --est " + q(v) + " --val " + q(v) + " --json " + q(v));
+  r = diagnose("--baseline first_order --est " + q(v) + " --val " + q(work_dir() / "other_val.csv") + " --json " + q(v));
   CHECK(r.code == 2);
-  r = diagnose("--baseline first_order --est " + q(v) + " --val " + q(v) + " --json " + q(work_dir() / "r.json") +
+  r = diagnose("--baseline first_order --est " + q(v) + " --val " + q(work_dir() / "other_val.csv") + " --json " + q(work_dir() / "r.json") +
                " --html " + q(work_dir() / "r.json"));
   CHECK(r.code == 2);
   CHECK_THAT(r.err, Catch::Contains("--html") && Catch::Contains("--json"));
@@ -349,7 +349,7 @@ TEST_CASE("tools: unknown last flags, repeated flags, output locations, --baseli
   r = codegen("--model m.json --out " + q(est));
   CHECK(r.code == 1);
   CHECK_THAT(r.err, Catch::Contains("is not a directory"));
-  r = diagnose("--baseline first_order --est " + q(est) + " --val " + q(est) + " --html " +
+  r = diagnose("--baseline first_order --est " + q(est) + " --val " + q(work_dir() / "other_val.csv") + " --html " +
                q(work_dir() / "no_dir" / "r.html"));
   CHECK(r.code == 1);
   CHECK_THAT(r.err, Catch::Contains("--html") && Catch::Contains("does not exist") && !Catch::Contains("reading"));
@@ -383,7 +383,7 @@ TEST_CASE("tools: unknown last flags, repeated flags, output locations, --baseli
   r = fit("--model linear:arx:na=1,nb=1,nk=1 --est " + q(eu) + " --delimiter ';' --save " + q(model));
   CHECK(r.code == 1);
   CHECK_THAT(r.err, Catch::Contains("non-numeric cell '0,000'") && Catch::Contains("--decimal ,"));
-  r = diagnose("--baseline first_order --est " + q(eu) + " --val " + q(eu) + " --delimiter ';'");
+  r = diagnose("--baseline first_order --est " + q(eu) + " --val " + q(work_dir() / "other_val.csv") + " --delimiter ';'");
   CHECK(r.code == 1);
   CHECK_THAT(r.err, Catch::Contains("--decimal ,"));
   CHECK_FALSE(fs::exists(model));
@@ -408,7 +408,7 @@ TEST_CASE("tools: a forgotten value, an unwritable location, a gap in the data, 
   CHECK(r.code == 1);
   CHECK_THAT(r.err, Catch::Contains("--save") && Catch::Contains("cannot create files in directory '/proc'") &&
                         !Catch::Contains("estimating"));
-  r = diagnose("--baseline first_order --est " + q(est) + " --val " + q(est) + " --json " + q(work_dir() / "d.json") +
+  r = diagnose("--baseline first_order --est " + q(est) + " --val " + q(work_dir() / "other_val.csv") + " --json " + q(work_dir() / "d.json") +
                " --save /proc/r.json");
   CHECK(r.code == 1);
   CHECK_THAT(r.err, Catch::Contains("cannot create files in directory '/proc'"));

@@ -50,14 +50,26 @@ TEST_CASE("nlid-diagnose: unknown baseline lists the catalogue", "[tools][diagno
   const Run e = diagnose("--baseline first_order --est a.csv --val b.csv --effects coulomb_friction,stiction");
   CHECK(e.code == 2);
   CHECK_THAT(e.err, Catch::Contains("unknown effect 'stiction'"));
+  // A list that names nothing read as the whole catalogue; a name twice was tried twice.
+  Run u = diagnose("--baseline first_order --est a.csv --val b.csv --effects ,");
+  CHECK(u.code == 2);
+  CHECK_THAT(u.err, Catch::Contains("--effects has an empty name"));
+  u = diagnose("--baseline first_order --est a.csv --val b.csv --effects dead_time,dead_time");
+  CHECK(u.code == 2);
+  CHECK_THAT(u.err, Catch::Contains("--effects names 'dead_time' twice"));
+  // Effects are tested on records no parameter was fitted to.
+  u = diagnose("--baseline first_order --est a.csv --val b.csv --val a.csv");
+  CHECK(u.code == 2);
+  CHECK_THAT(u.err, Catch::Contains("is both an --est and a --val record"));
 }
 
 TEST_CASE("nlid-diagnose: bad files, missing columns, data too short", "[tools][diagnose]") {
   const fs::path good = write_record("good", 400, 1u, 0);
+  const fs::path other = write_record("good_val", 400, 3u, 0);  // est and val must be distinct records
   Run r = diagnose("--baseline first_order --est " + q(work_dir() / "missing.csv") + " --val " + q(good));
   CHECK(r.code == 1);
   CHECK_THAT(r.err, Catch::Contains("missing.csv"));
-  r = diagnose("--baseline first_order --est " + q(good) + " --val " + q(good) + " --output angle");
+  r = diagnose("--baseline first_order --est " + q(good) + " --val " + q(other) + " --output angle");
   CHECK(r.code == 1);
   CHECK_THAT(r.err, Catch::Contains("angle") && Catch::Contains("available columns"));
   const fs::path bad = work_dir() / "bad.csv";
@@ -79,7 +91,7 @@ TEST_CASE("nlid-diagnose: bad files, missing columns, data too short", "[tools][
   r = diagnose("--baseline first_order --est " + q(shorty) + " --val " + q(good));
   CHECK(r.code == 1);
   CHECK_THAT(r.err, Catch::Contains("too short") && Catch::Contains("30 samples"));
-  r = diagnose("--baseline first_order --est " + q(good) + " --val " + q(good) + " --decimate 10");
+  r = diagnose("--baseline first_order --est " + q(good) + " --val " + q(other) + " --decimate 10");
   CHECK(r.code == 1);
   CHECK_THAT(r.err, Catch::Contains("too short") && Catch::Contains("after decimation by 10"));
   const fs::path notime = write_record("notime", 400, 3u, 0, false);

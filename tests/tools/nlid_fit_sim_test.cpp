@@ -451,7 +451,8 @@ TEST_CASE("nlid-fit and nlid-diagnose: an estimation file whose name is not vali
   CHECK(j["report"]["data_names"][0].as_string() == "mess\xEF\xBF\xBDung.csv");
   // nlid-diagnose names its records by the file's stem, in the JSON report and the saved model.
   const fs::path json = work_dir() / "latin_diag.json", saved = work_dir() / "latin_diag_model.json";
-  r = tool_test::diagnose("--baseline first_order --est " + q(est) + " --val " + q(src) +
+  const fs::path val = write_record("latin_val", 800, 42u, 0);  // not the same data as est
+  r = tool_test::diagnose("--baseline first_order --est " + q(est) + " --val " + q(val) +
                           " --starts 1 --threads 1 --quiet --json " + q(json) + " --save " + q(saved));
   INFO(r.err);
   CHECK(r.code == 0);

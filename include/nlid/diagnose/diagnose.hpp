@@ -228,6 +228,38 @@ Diagnosis<P> diagnose(GreyBox<P> baseline, const Dataset& est_in, const Dataset&
           at_parameter("decimate"));
   require(options.starts >= 1, "starts must be >= 1", at_parameter("starts"));
   require(options.max_effects >= 0, "max_effects must be >= 0", at_parameter("max_effects"));
+  // Each option named with its value: "must be >= 1" alone does not say which of three.
+  const auto at_least_one = [](int v, const char* name) {
+    require(v >= 1, std::string(name) + " must be >= 1, got " + std::to_string(v), at_parameter(name));
+  };
+  at_least_one(options.screen_iterations, "screen_iterations");
+  at_least_one(options.refine_iterations, "refine_iterations");
+  at_least_one(options.refine_top, "refine_top");
+  require(options.start_candidates >= 0, "start_candidates must be >= 0 (0 = 4 x starts), got " +
+                                             std::to_string(options.start_candidates),
+          at_parameter("start_candidates"));
+  require(options.min_samples >= 1, "min_samples must be >= 1, got " + std::to_string(options.min_samples),
+          at_parameter("min_samples"));
+  const SignificanceOptions& sig = options.significance;
+  require(sig.alpha > 0.0 && sig.alpha < 1.0,
+          "significance.alpha (false-detection probability) must lie in (0, 1), got " + detail::format_g(sig.alpha),
+          at_parameter("significance.alpha"));
+  require(sig.relevance >= 0.0 && sig.relevance <= 1.0,
+          "significance.relevance (share of the excess a candidate must remove) must lie in [0, 1], got " +
+              detail::format_g(sig.relevance),
+          at_parameter("significance.relevance"));
+  require(sig.floor_margin >= 0.0 && std::isfinite(sig.floor_margin),
+          "significance.floor_margin must be finite and >= 0, got " + detail::format_g(sig.floor_margin),
+          at_parameter("significance.floor_margin"));
+  require(options.locate.max_intervals >= 0,
+          "locate.max_intervals must be >= 0, got " + std::to_string(options.locate.max_intervals),
+          at_parameter("locate.max_intervals"));
+  require(options.locate.window >= 0, "locate.window must be >= 0 (0 = automatic), got " +
+                                          std::to_string(options.locate.window),
+          at_parameter("locate.window"));
+  require(!(options.noise.sigma > 0.0) || std::isfinite(options.noise.sigma),
+          "noise.sigma must be finite (or 0 to estimate the noise floor), got " + detail::format_g(options.noise.sigma),
+          at_parameter("noise.sigma"));
   require(options.initial_condition == InitialCondition::estimate ||
               options.initial_condition == InitialCondition::zero,
           "the diagnosis supports initial conditions 'estimate' and 'zero'", at_parameter("x0"));
@@ -240,6 +272,22 @@ Diagnosis<P> diagnose(GreyBox<P> baseline, const Dataset& est_in, const Dataset&
               " s vs " + detail::format_g(val_in.ts(), 10) + " s)");
   require(est_in.num_inputs() == val_in.num_inputs(),
           "estimation and validation records have different input counts");
+  // Effects are tested on validation records that no parameter was fitted to; a record in both
+  // sets would let an effect fitted to its noise pass the test.
+  for (std::size_t v = 0; v < val_in.size(); ++v) {
+    for (std::size_t e = 0; e < est_in.size(); ++e) {
+      const Experiment& a = val_in[v];
+      const Experiment& b = est_in[e];
+      if (a.size() != b.size() || a.u() != b.u() || a.y() != b.y()) continue;
+      Location where = at_experiment(static_cast<long>(v));
+      where.file = a.name();
+      throw Error("validation record " + (a.name().empty() ? std::to_string(v) : "'" + a.name() + "'") +
+                      " is the same data as estimation record " +
+                      (b.name().empty() ? std::to_string(e) : "'" + b.name() + "'") +
+                      "; the diagnosis tests each effect on validation records that no parameter was fitted to",
+                  where);
+    }
+  }
   baseline.check_channels(est_in);
   baseline.check_channels(val_in);
 

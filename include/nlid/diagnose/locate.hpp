@@ -210,6 +210,10 @@ inline Mismatch locate_mismatch(const Dataset& data, const std::vector<Eigen::Ve
               std::to_string(data.size()) + " experiments");
   require(output >= 0 && output < data.num_outputs(), "locate: output index out of range",
           at_parameter("output"));
+  require(options.max_intervals >= 0, "locate: max_intervals must be >= 0, got " + std::to_string(options.max_intervals),
+          at_parameter("max_intervals"));
+  require(options.window >= 0, "locate: window must be >= 0 (0 = automatic), got " + std::to_string(options.window),
+          at_parameter("window"));
   require(options.level_bins >= 1 && options.level_bins <= 50, "locate: level_bins must be 1..50",
           at_parameter("level_bins"));
   require(options.false_alarm > 0.0 && options.false_alarm < 0.5,
