@@ -133,3 +133,26 @@ TEST_CASE("diagnosis options out of range are refused before any work, naming th
     CHECK_THAT(e.message(), Catch::Contains("validation record 'est' is the same data as estimation record 'est'"));
   }
 }
+
+TEST_CASE("diagnosis with fit_baseline = false keeps the baseline's parameters as given", "[diagnose]") {
+  // The baseline was polished by a refit of all its parameters even when asked to use them as
+  // given; now only its initial states are estimated.
+  const auto [est, val] = two_effect_records();
+  GreyBox<physics::MassSpringDamper> g;
+  Eigen::VectorXd given = g.parameters();
+  given[0] *= 1.5;  // a value the data do not favour
+  g.set_parameters(given);
+  DiagnoseOptions o;
+  o.fit_baseline = false;
+  o.max_effects = 0;
+  o.threads = 2;
+  const auto d = diagnose(g, est, val, o);
+  REQUIRE(d.baseline.parameters().size() == given.size());
+  CHECK(d.baseline.parameters() == given);
+  o.fit_baseline = true;
+  o.starts = 2;
+  o.start_candidates = 4;
+  const auto fitted = diagnose(g, est, val, o);
+  CHECK(fitted.baseline.parameters() != given);
+  CHECK(fitted.baseline_val.fit.mean() > d.baseline_val.fit.mean());
+}

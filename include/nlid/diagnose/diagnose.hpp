@@ -329,11 +329,16 @@ Diagnosis<P> diagnose(GreyBox<P> baseline, const Dataset& est_in, const Dataset&
     base.set_channel_names(est[0].input_names(), est[0].output_names());
   {
     // Polish in the augmented simulator so "before" and "after" share numerics and optimality.
+    // A baseline used as given keeps its parameters: only its initial states are estimated.
     RefitOptions ro;
     ro.max_iterations = options.refine_iterations;
     ro.function_tolerance = 1e-8;
     ro.initial_condition = options.initial_condition;
-    const RefitResult r = refit(base, est, base.parameters(), x0, ro);
+    std::vector<ParameterInfo> held = baseline.parameter_info();
+    for (ParameterInfo& q : held) q.fixed = true;
+    const RefitResult r = options.fit_baseline
+                              ? refit(base, est, base.parameters(), x0, ro)
+                              : refit(AugmentedModel<P>(baseline.physics(), held, est.ts()), est, base.parameters(), x0, ro);
     if (r.ok) {
       base.set_parameters(r.theta);
       x0 = r.x0;
