@@ -156,3 +156,43 @@ TEST_CASE("diagnosis with fit_baseline = false keeps the baseline's parameters a
   CHECK(fitted.baseline.parameters() != given);
   CHECK(fitted.baseline_val.fit.mean() > d.baseline_val.fit.mean());
 }
+
+TEST_CASE("a candidate significant only on its screening fit is reported as not refitted, not as the best that failed",
+          "[diagnose][explain]") {
+  // The explanation quoted the table's first candidate ("best candidate hard_stop removes 50 %
+  // of the excess") while the JSON marked it significant: it had not been refitted (only the
+  // candidates with the lowest estimation cost are), which nothing said.
+  const physics::MassSpringDamper msd;
+  AugmentedModel<physics::MassSpringDamper> base(
+      msd, diag_test::table(msd, {{"c", 8.0}, {"k", 100.0}, {"b", 100.0}, {"rest", 0.1}}), 0.01);
+  Diagnosis<physics::MassSpringDamper> d(base);
+  d.baseline_name = "mass_spring_damper";
+  d.baseline_val.fit = Eigen::VectorXd::Constant(1, 80.0);
+  d.final_val.fit = d.baseline_val.fit;
+  d.noise.sigma = 0.01;
+  d.floor_before.ratio = 4.0;
+  d.stop = SearchStop::none_significant;
+  const DataScales s = diag_test::unit_scales(0.01);
+  SearchRound r;
+  r.round = 1;
+  CandidateResult screened, refitted;
+  screened.effect = diag_test::effect(EffectKind::dead_time, {0.02}, s);
+  screened.ok = true;
+  screened.refined = false;
+  screened.stats.significant = true;
+  screened.stats.relevance = 0.5;
+  refitted.effect = diag_test::effect(EffectKind::coulomb_friction, {1.0}, s);
+  refitted.ok = true;
+  refitted.refined = true;
+  refitted.stats.relevance = 0.04;
+  r.candidates = {screened, refitted};
+  d.rounds.push_back(r);
+  const std::string text = explain(d);
+  INFO(text);
+  CHECK_THAT(text, Catch::Contains("best refitted candidate coulomb_friction") && Catch::Contains("removes 4"));
+  CHECK_THAT(text, Catch::Contains("dead_time passed the validation tests with its short screening fit") &&
+                       Catch::Contains("was not refitted to convergence"));
+  const Json j = diagnosis_json(d);
+  CHECK_FALSE(j.at("candidates").at(0).at("refined").as_bool());
+  CHECK(j.at("candidates").at(1).at("refined").as_bool());
+}

@@ -20,6 +20,7 @@
 /// intervals above the noise floor. "How well" is the validation fit per experiment before and
 /// after, and the final residual relative to the noise floor.
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <string>
@@ -219,13 +220,28 @@ std::string explain(const Diagnosis<P>& d) {
         break;
     }
     s += " None of the catalogue effects explains a significant part of it";
-    if (!d.rounds.empty() && !d.rounds.back().candidates.empty()) {
-      const CandidateResult& c = d.rounds.back().candidates.front();
-      if (c.ok)
-        s += " (best candidate " + c.effect.label() + " removes " + detail::pct(std::max(0.0, c.stats.relevance)) +
-             " of the excess)";
+    // Only candidates refitted to convergence can be accepted (chosen by estimation cost, so that
+    // the validation data judge but do not choose): quote the best of those, and say so when a
+    // candidate that was not refitted scored higher on its short screening fit.
+    const CandidateResult* screened = nullptr;
+    if (!d.rounds.empty()) {
+      const std::vector<CandidateResult>& cands = d.rounds.back().candidates;
+      const auto refined = std::find_if(cands.begin(), cands.end(), [](const CandidateResult& c) { return c.ok && c.refined; });
+      if (refined != cands.end())
+        s += " (best refitted candidate " + refined->effect.label() + " removes " +
+             detail::pct(std::max(0.0, refined->stats.relevance)) + " of the excess)";
+      const auto first = std::find_if(cands.begin(), refined, [](const CandidateResult& c) {
+        return c.ok && !c.refined && c.stats.significant;
+      });
+      if (first != refined) screened = &*first;
     }
     s += ", so " + kept + "; what is missing lies outside the catalogue (or is a disturbance rather than physics).";
+    if (screened != nullptr)
+      s += " " + screened->effect.label() + " passed the validation tests with its short screening fit, removing " +
+           detail::pct(std::max(0.0, screened->stats.relevance)) +
+           " of the excess, but its estimation cost was not among the lowest, so it was not refitted to "
+           "convergence and could not be added; try it alone (nlid-diagnose --effects " + screened->effect.name() +
+           ", DiagnoseOptions::effects) or raise refine_top.";
     return s;
   }
   s += " The missing physics is ";

@@ -13,7 +13,8 @@
 ///                                        "energy_share"*, "excess_share", "sample_share" }],
 ///                       "residual_rms", "excess_share", "floor_ratio", "consistent_with_noise" },
 ///       "candidates"*: [{ "name"*, "variant", "round", "fit_val"*: [..], "fit_est", "score"*,
-///                         "z", "relevance", "significant", "accepted", "params",
+///                         "z", "relevance", "significant", "refined" (refitted to convergence:
+///                         only these can be accepted), "accepted", "params",
 ///                         "error" (a candidate that could not be fitted or simulated) }],
 ///       "effects"*:    [{ "name"*, "variant", "params"*: {..}, "units", "fit_val_before"*: [..],
 ///                         "fit_val_after"*: [..], "round", "description" }],
@@ -189,6 +190,7 @@ Json diagnosis_json(const Diagnosis<P>& d) {
       o["z"] = c.ok ? json_number(c.stats.z) : Json(nullptr);
       o["relevance"] = c.ok ? json_number(c.stats.relevance) : Json(nullptr);
       o["significant"] = c.ok && c.stats.significant;
+      o["refined"] = c.refined;
       o["accepted"] = static_cast<int>(i) == r.accepted;
       o["params"] = detail::json_effect_params(c.effect);
       if (!c.ok) o["error"] = c.error;
@@ -318,7 +320,12 @@ HtmlReport diagnosis_report(const Diagnosis<P>& d) {
       rows.push_back({static_cast<int>(i + 1), c.effect.label(), c.ok ? fits : "failed: " + c.error, gain,
                       c.ok ? TableCell(c.stats.score) : TableCell("-"), c.ok ? TableCell(c.stats.z) : TableCell("-"),
                       c.ok ? TableCell(c.stats.relevance) : TableCell("-"),
-                      static_cast<int>(i) == rr.accepted ? "added" : (c.stats.significant ? "significant" : "")});
+                      static_cast<int>(i) == rr.accepted ? "added"
+                      : !c.ok                                ? ""
+                      : c.stats.significant && !c.refined
+                          ? "significant on its screening fit; not refitted (estimation cost not among the lowest)"
+                      : c.stats.significant ? "significant"
+                                            : ""});
     }
     ReportTable t;
     t.header = {"rank", "effect", "validation fit %", "gain (points)", "score", "z", "share of excess", "verdict"};
