@@ -157,6 +157,45 @@ TEST_CASE("diagnosis with fit_baseline = false keeps the baseline's parameters a
   CHECK(fitted.baseline_val.fit.mean() > d.baseline_val.fit.mean());
 }
 
+TEST_CASE("an effect the joint re-estimation drove to its identity is removed, not named as missing physics",
+          "[diagnose][explain]") {
+  // A dead time accepted in round 1 and re-estimated to 0 later was reported as "the missing
+  // physics is dead_time ... tau = 0 s" (review). remove_inert_effects takes such an effect out.
+  const auto records = two_effect_records();
+  const double ts = 0.01;
+  const physics::MassSpringDamper msd;
+  const DataScales s = diag_test::unit_scales(ts);
+  const auto table = diag_test::table(msd, {{"c", 8.0}, {"k", 100.0}, {"b", 100.0}, {"rest", 0.1}});
+  for (const double tau : {0.0, 0.03}) {
+    INFO("dead time " << tau);
+    AugmentedModel<physics::MassSpringDamper> m(msd, table, ts);
+    m.add_effect(diag_test::effect(EffectKind::coulomb_friction, {5.0}, s));
+    m.add_effect(diag_test::effect(EffectKind::dead_time, {tau}, s));
+    std::vector<FoundEffect> found(2), inert;
+    found[0].effect = m.effects()[0];
+    found[1].effect = m.effects()[1];
+    found[1].round = 2;
+    const std::vector<std::string> removed =
+        detail::remove_inert_effects(m, found, inert, records.second, InitialCondition::estimate);
+    if (tau == 0.0) {
+      REQUIRE(removed.size() == 1u);
+      CHECK_THAT(removed[0], Catch::Contains("dead_time"));
+      REQUIRE(inert.size() == 1u);
+      CHECK(inert[0].round == 2);
+      REQUIRE(found.size() == 1u);
+      CHECK(found[0].effect.kind == EffectKind::coulomb_friction);
+      REQUIRE(m.effects().size() == 1u);
+      CHECK(m.effects()[0].kind == EffectKind::coulomb_friction);
+      CHECK(m.num_parameters() == static_cast<int>(table.size()) + 1);
+    } else {
+      CHECK(removed.empty());
+      CHECK(inert.empty());
+      CHECK(found.size() == 2u);
+      CHECK(m.effects().size() == 2u);
+    }
+  }
+}
+
 TEST_CASE("a candidate significant only on its screening fit is reported as not refitted, not as the best that failed",
           "[diagnose][explain]") {
   // The explanation quoted the table's first candidate ("best candidate hard_stop removes 50 %

@@ -136,6 +136,10 @@ struct Diagnosis {
   FloorConsistency floor_after;         ///< noise-floor gate of the repaired model
   std::vector<SearchRound> rounds;      ///< every search round with its candidate table
   std::vector<FoundEffect> effects;     ///< effects added, in order
+  /// Effects the search added but the final joint re-estimation made inactive (e.g. a dead time
+  /// driven to 0): the model did not change without them, so they were removed and are not
+  /// named as missing physics.
+  std::vector<FoundEffect> inert;
   std::vector<std::string> not_applicable;  ///< catalogue effects that cannot apply, with reason
   std::string stop_reason;              ///< why the search ended
   SearchStop stop = SearchStop::none_significant;  ///< the same as a value
@@ -213,6 +217,33 @@ inline void check_diagnosis_data(const Dataset& d, const char* role, Eigen::Inde
     const double span = x.y().col(0).maxCoeff() - x.y().col(0).minCoeff();
     require(span > 0.0, who + ": the output is constant, there is nothing to model", where);
   }
+}
+
+/// Moves every effect of `model` (listed in the same order in `found`) that no longer changes
+/// the validation simulation into `inert`, removing it from the model; returns their labels. An
+/// effect accepted in an early round can be driven to its identity by the later joint
+/// re-estimations (a dead time of 0): naming it as the missing physics would then be wrong.
+template <Physics P>
+std::vector<std::string> remove_inert_effects(AugmentedModel<P>& model, std::vector<FoundEffect>& found,
+                                              std::vector<FoundEffect>& inert, const Dataset& val, InitialCondition ic) {
+  std::vector<std::string> removed;
+  if (found.size() != model.effects().size()) return removed;
+  const double sse = evaluate_model(model, val, {}, ic).total_sse();
+  if (!std::isfinite(sse)) return removed;
+  for (std::size_t i = found.size(); i-- > 0;) {
+    AugmentedModel<P> without(model.physics(), model.baseline_parameters(), model.ts());
+    without.set_units(model.output_unit(), model.input_unit());
+    if (!model.input_names().empty()) without.set_channel_names(model.input_names(), model.output_names());
+    for (std::size_t j = 0; j < model.effects().size(); ++j)
+      if (j != i) without.add_effect(model.effects()[j]);
+    const Evaluation e = evaluate_model(without, val, {}, ic);
+    if (!(e.ok && std::abs(e.total_sse() - sse) <= 1e-9 * sse)) continue;
+    removed.push_back(found[i].effect.label());
+    inert.insert(inert.begin(), found[i]);
+    found.erase(found.begin() + static_cast<std::ptrdiff_t>(i));
+    model = std::move(without);
+  }
+  return removed;
 }
 
 }  // namespace detail
@@ -409,6 +440,8 @@ Diagnosis<P> diagnose(GreyBox<P> baseline, const Dataset& est_in, const Dataset&
   // The effects' parameter values as re-estimated together in the final model.
   for (std::size_t i = 0; i < d.effects.size() && i < d.model.effects().size(); ++i)
     d.effects[i].effect = d.model.effects()[i];
+  for (const std::string& label : detail::remove_inert_effects(d.model, d.effects, d.inert, val, ic))
+    say("removed " + label + ": the joint re-estimation made it inactive");
 
   // 5. Show.
   d.final_est = evaluate_model(d.model, est, d.model_x0, ic);

@@ -198,6 +198,11 @@ std::string explain(const Diagnosis<P>& d) {
          "minimum, but the baseline re-fitted from there did as well without it, so the re-fitted baseline was kept"
          " (no effect credited for that gain).";
   }
+  for (const FoundEffect& f : d.inert) {
+    s += " " + f.effect.label() + ", added in round " + std::to_string(f.round) +
+         ", was made inactive by the later joint re-estimation (" + effect_magnitude(f.effect, d.scales, yu, uu) +
+         ": the model is the same without it), so it was removed and is not named as missing physics.";
+  }
   if (d.effects.empty()) {
     if (refits > 0 && d.floor_after.consistent) {
       s += " After that re-fit the residual is consistent with the noise floor (validation fit " +

@@ -18,6 +18,8 @@
 ///                         "error" (a candidate that could not be fitted or simulated) }],
 ///       "effects"*:    [{ "name"*, "variant", "params"*: {..}, "units", "fit_val_before"*: [..],
 ///                         "fit_val_after"*: [..], "round", "description" }],
+///       "inert_effects": [{ "name", "variant", "params", "round" }] (added, then made inactive
+///                         by the joint re-estimation, and removed),
 ///       "final"*:      { "fit_est", "fit_val"*: [..], "parameters": {..}, "floor_ratio",
 ///                        "consistent_with_noise" },
 ///       "not_applicable": [..], "records": { "estimation": [..], "validation": [..] },
@@ -196,6 +198,17 @@ Json diagnosis_json(const Diagnosis<P>& d) {
       if (!c.ok) o["error"] = c.error;
       j["candidates"].push_back(std::move(o));
     }
+  }
+
+  // Added by the search, then made inactive by the joint re-estimation and removed.
+  j["inert_effects"] = Json::array();
+  for (const FoundEffect& f : d.inert) {
+    Json o = Json::object();
+    o["name"] = f.effect.name();
+    if (!f.effect.variant.empty()) o["variant"] = f.effect.variant;
+    o["params"] = detail::json_effect_params(f.effect);
+    o["round"] = f.round;
+    j["inert_effects"].push_back(std::move(o));
   }
 
   j["effects"] = Json::array();
