@@ -302,6 +302,7 @@ inline std::string translate(std::string s) {
       {"DiagnoseOptions::starts", "--starts"},
       {"LmOptions::max_iterations", "--iterations"},
       {"use InitialCondition::zero or ::estimate", "use --x0 zero"},
+      {"use InitialCondition::estimate or zero", "start from an estimated or a zero state (nlid-fit: ic=estimate or ic=zero in the greybox SPEC; nlid-sim: --x0 estimate or zero)"},
       {"equilibrium_input", "--u0"},
   };
   for (const auto& [from, to] : table) {

@@ -525,3 +525,17 @@ TEST_CASE("nlid-sim: --decimate and a record too short for the model name the op
   CHECK_THAT(r.err, Catch::Contains("short_one.csv"));
   CHECK_FALSE(fs::exists(out));
 }
+
+TEST_CASE("nlid-fit: an equilibrium start of a model that integrates says why, not 'evaluate() returned false'",
+          "[tools][fit][bad_input]") {
+  // A rigid body's position integrates the input: under a non-zero input there is no steady
+  // state, at rest a whole family. Every start failed with the solver's "evaluate() returned false".
+  const fs::path est = write_record("rb_eq", 600, 207u, 0);
+  const fs::path model = work_dir() / "rb_eq.json";
+  const Run r = fit("--model greybox:rigid_body:ic=equilibrium --est " + q(est) + " --save " + q(model));
+  INFO(r.err);
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("grey-box estimation from an equilibrium start") &&
+                        Catch::Contains("ic=estimate or ic=zero") && !Catch::Contains("evaluate() returned false"));
+  CHECK_FALSE(fs::exists(model));
+}
