@@ -284,6 +284,16 @@ TEST_CASE("linearize rejects bad input with located messages", "[analysis][linea
   nlid::GreyBox<nlid::physics::Throttle> g;
   CHECK_THROWS_WITH(nlid::linearize(g, Eigen::VectorXd::Zero(2), Eigen::VectorXd::Zero(2), 0.01),
                     Catch::Contains("takes 1 input(s), got 2"));
+  // A NaN in the input was reported as "not differentiable", at parameter 'x0'.
+  try {
+    (void)nlid::linearize(g, Eigen::Vector2d(20.0, 0.0), Eigen::VectorXd::Constant(1, std::nan("")), 0.01);
+    FAIL("accepted");
+  } catch (const nlid::Error& e) {
+    CHECK(e.where().parameter == "u0");
+    CHECK_THAT(e.message(), Catch::Contains("input u0[0] is not finite"));
+  }
+  CHECK_THROWS_WITH(nlid::linearize(g, Eigen::Vector2d(std::nan(""), 0.0), Eigen::VectorXd::Zero(1), 0.01),
+                    Catch::Contains("state entry x0[0] is not finite"));
   // A saturated output cannot reach 5: the inverse problem reports the closest value.
   // (two F coefficients: GCC 12 gives a false -Warray-bounds for a one-state block's step)
   using Hw = nlid::HammersteinWiener<nlid::UnitGain, nlid::TransferFunctionBlock<1, 2, 0>, nlid::Saturation>;

@@ -229,6 +229,16 @@ inline StateSpace split_state_space(const Eigen::MatrixXd& J, int ny, int nx, in
   return StateSpace(J.block(ny, 0, nx, nx), J.block(ny, nx, nx, nu), J.block(0, 0, ny, nx), J.block(0, nx, ny, nu), ts);
 }
 
+// A NaN in the operating point would come back as "not differentiable at the operating point"
+// blaming the state: each part is checked, and named, first.
+inline void require_finite_point(const Eigen::VectorXd& x0, const Eigen::VectorXd& u0) {
+  for (Eigen::Index i = 0; i < x0.size(); ++i)
+    require(std::isfinite(x0[i]), "linearize: state entry x0[" + std::to_string(i) + "] is not finite",
+            at_parameter("x0"));
+  for (Eigen::Index i = 0; i < u0.size(); ++i)
+    require(std::isfinite(u0[i]), "linearize: input u0[" + std::to_string(i) + "] is not finite", at_parameter("u0"));
+}
+
 inline void require_ts(double ts, const char* kind) {
   require(ts > 0.0 && std::isfinite(ts),
           std::string("linearize: the ") + kind +
@@ -283,6 +293,7 @@ Linearization linearize(const Nlarx<R, F>& model, const Eigen::VectorXd& x0, con
           at_parameter("x0"));
   require(u0.size() == nu, "linearize: the model reads " + std::to_string(nu) + " input(s), got " + std::to_string(u0.size()),
           at_parameter("u0"));
+  detail::require_finite_point(x0, u0);
   detail::require_ts(model.ts(), "nonlinear ARX");
   using D = detail::LinDual;
   const std::vector<D> th = detail::cast_parameters<D>(detail::as_const_span(model.parameters()));
@@ -310,6 +321,7 @@ Linearization linearize(const HammersteinWiener<In, L, Out>& model, const Eigen:
           at_parameter("x0"));
   require(u0.size() == 1, "linearize: a Hammerstein-Wiener model has one input, got " + std::to_string(u0.size()),
           at_parameter("u0"));
+  detail::require_finite_point(x0, u0);
   detail::require_ts(model.ts(), "Hammerstein-Wiener");
   using D = detail::LinDual;
   const std::vector<D> tf = detail::cast_parameters<D>(model.input_parameters());
@@ -346,6 +358,7 @@ Linearization linearize(const GreyBox<P>& model, const Eigen::VectorXd& x0, cons
   require(u0.size() == nu, "linearize: the grey-box model takes " + std::to_string(nu) + " input(s), got " +
                                std::to_string(u0.size()),
           at_parameter("u0"));
+  detail::require_finite_point(x0, u0);
   require(ts > 0.0 && std::isfinite(ts), "linearize: sample time must be positive and finite", at_parameter("ts"));
   using D = detail::LinDual;
   const Eigen::VectorXd pv = model.parameters();
