@@ -307,6 +307,15 @@ TEST_CASE("model file: grey-box throttle by catalogue name, parameter table and 
     CHECK_THAT(msg, Catch::Contains("lower_stop") && Catch::Contains("upper_stop") &&
                         Catch::Contains("greybox_crossed_stops.json"));
   }
+  // A value outside the bounds the file gives it: the message shows the value and the bounds.
+  {
+    Json j = Json::parse(read_text(path));
+    j["structure"]["parameter_table"][1]["upper"] = j["parameters"]["values"][1].as_number() - 1.0;
+    const std::string out = write_text("greybox_out_of_bounds.json", j.dump());
+    CHECK_THAT(error_of([&] { (void)load_model(out); }),
+               Catch::Contains("value of '" + names[1] + "', ") && Catch::Contains("lies outside its bounds [") &&
+                   Catch::Contains("parameter_table"));
+  }
   // A file naming physics this program does not know.
   const std::string bad = write_text("greybox_unknown.json",
                                      edited(read_text(path), "\"physics\": \"throttle\"", "\"physics\": \"pendulum\""));

@@ -792,7 +792,8 @@ struct ModelSerial<GreyBox<P>> {
       const double lo = read_extended_number(q.at("lower")), hi = read_extended_number(q.at("upper"));
       const double v = values(i);
       if (!(lo <= v && v <= hi)) {
-        q.fail("value of '" + name + "' lies outside its bounds in the file (at " + q.path_text() + ")");
+        q.fail("value of '" + name + "', " + detail::format_g(v, 17) + ", lies outside its bounds [" +
+               detail::format_g(lo, 17) + ", " + detail::format_g(hi, 17) + "] in the file (at " + q.path_text() + ")");
       }
       const double rl = read_extended_number(q.at("range_lower")), ru = read_extended_number(q.at("range_upper"));
       const bool log_scale = q.at("log_scale").as_bool(), fixed = q.at("fixed").as_bool();
