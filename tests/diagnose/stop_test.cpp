@@ -125,6 +125,16 @@ TEST_CASE("diagnosis options out of range are refused before any work, naming th
   refused([](DiagnoseOptions& o) { o.locate.max_intervals = -1; }, "locate.max_intervals", "got -1");
   refused([](DiagnoseOptions& o) { o.noise.sigma = std::numeric_limits<double>::infinity(); }, "noise.sigma",
           "must be finite");
+  // Records at another rate: both named.
+  {
+    Experiment x = val[0];
+    x.set_ts(0.02);
+    x.set_name("fast");
+    Dataset other;
+    other.add(x);
+    CHECK_THROWS_WITH(diagnose(g, est, other, DiagnoseOptions{}),
+                      Catch::Contains("0.01 s for estimation record 'est', 0.02 s for validation record 'fast'"));
+  }
   // The validation records must be ones no parameter is fitted to.
   try {
     (void)diagnose(g, est, est, DiagnoseOptions{});
@@ -234,4 +244,18 @@ TEST_CASE("a candidate significant only on its screening fit is reported as not 
   const Json j = diagnosis_json(d);
   CHECK_FALSE(j.at("candidates").at(0).at("refined").as_bool());
   CHECK(j.at("candidates").at(1).at("refined").as_bool());
+}
+
+TEST_CASE("effect magnitudes read as noun phrases after 'with'", "[diagnose][explain]") {
+  // "with commands within +/-0.05 [u] of zero produce no drive" and "with the reading is clipped
+  // below 15.1" were sentences where the explanation needs a noun phrase.
+  const DataScales s = diag_test::unit_scales(0.01);
+  const std::string dz = effect_magnitude(diag_test::effect(EffectKind::input_deadzone, {0.05}, s), s, "deg", "V");
+  CHECK(dz.rfind("a dead band of +/-0.05 V around zero", 0) == 0);
+  const std::string is =
+      effect_magnitude(diag_test::effect(EffectKind::input_saturation, {0.975}, s, "upper"), s, "deg", "V");
+  CHECK(is == "a limit at 0.975 V (commands above it are clipped)");
+  const std::string os =
+      effect_magnitude(diag_test::effect(EffectKind::output_saturation, {15.1}, s, "lower"), s, "deg", "V");
+  CHECK(os == "a limit at 15.1 deg (readings below it are clipped)");
 }

@@ -298,9 +298,14 @@ Diagnosis<P> diagnose(GreyBox<P> baseline, const Dataset& est_in, const Dataset&
   for (const std::string& n : options.effects) kinds.push_back(effect_kind(n));
   detail::check_diagnosis_data(est_in, "estimation", options.min_samples, options.decimate);
   detail::check_diagnosis_data(val_in, "validation", options.min_samples, options.decimate);
+  const auto record_name = [](const Dataset& d) {
+    return d[0].name().empty() ? std::string("the first") : "'" + d[0].name() + "'";
+  };
   require(val_in.ts() > 0 && same_sample_time(val_in.ts(), est_in.ts()),
           "estimation and validation records have different sample times (" + detail::format_g(est_in.ts(), 10) +
-              " s vs " + detail::format_g(val_in.ts(), 10) + " s)");
+              " s for estimation record " + record_name(est_in) + ", " + detail::format_g(val_in.ts(), 10) +
+              " s for validation record " + record_name(val_in) + ")",
+          at_parameter("val"));
   require(est_in.num_inputs() == val_in.num_inputs(),
           "estimation and validation records have different input counts");
   // Effects are tested on validation records that no parameter was fitted to; a record in both

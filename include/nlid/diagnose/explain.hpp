@@ -122,14 +122,15 @@ inline std::string effect_magnitude(const Effect& e, const DataScales& s, const 
     case EffectKind::backlash:
       return "a play of " + g3(param(0)) + " " + Y + " (" + pct(param(0) / L) + " of the travel)";
     case EffectKind::input_deadzone:
-      return "commands within +/-" + g3(param(0)) + " " + U + " of zero produce no drive (" +
+      // Noun phrases: the explanation reads "... with <magnitude>".
+      return "a dead band of +/-" + g3(param(0)) + " " + U + " around zero, in which commands produce no drive (" +
              pct(param(0) / s.u_range()) + " of the input range)";
     case EffectKind::input_saturation:
-      return std::string(e.variant == "upper" ? "commands above " : "commands below ") + g3(param(0)) + " " + U +
-             " are clipped";
+      return "a limit at " + g3(param(0)) + " " + U + std::string(e.variant == "upper" ? " (commands above it" : " (commands below it") +
+             " are clipped)";
     case EffectKind::output_saturation:
-      return std::string("the reading is clipped ") + (e.variant == "upper" ? "above " : "below ") + g3(param(0)) +
-             " " + Y;
+      return "a limit at " + g3(param(0)) + " " + Y + std::string(e.variant == "upper" ? " (readings above it" : " (readings below it") +
+             " are clipped)";
     case EffectKind::dead_time:
       return "tau = " + g3(param(0)) + " s (" + g3(param(0) / s.ts) + " samples)";
     case EffectKind::actuator_lag:
