@@ -189,15 +189,36 @@ int main(int argc, char** argv) {
     }
     const nlid::Dataset val = read(val_files);
     if (!nlid::same_sample_time(val.ts(), est.ts())) {
-      throw nlid::Error("estimation records are sampled at " + nlid_tools::format_seconds(est.ts()) +
-                        " but validation records at " + nlid_tools::format_seconds(val.ts()));
+      nlid::Location l = nlid::at_parameter("--val");
+      l.file = val_files[0];
+      throw nlid::Error("estimation records are sampled at " + nlid_tools::format_seconds(est.ts()) + " (" +
+                            est_files[0] + ") but validation records at " + nlid_tools::format_seconds(val.ts()) +
+                            " (" + val_files[0] + ")",
+                        l);
     }
     stage = "diagnosing against the baseline " + baseline;
     sizes = std::to_string(est.total_samples()) + " estimation and " + std::to_string(val.total_samples()) +
             " validation samples";
     // Catalogue baselines run as compile-time types (fixed-size, one-pass sensitivities).
+    // The library locates a record by its name (the file's stem) and index; the user gave paths.
+    const auto run = [&](auto model) {
+      try {
+        return nlid::diagnose(std::move(model), est, val, opt);
+      } catch (const nlid::Error& err) {
+        nlid::Location l = err.where();
+        const std::string text = err.message();
+        const auto k = static_cast<std::size_t>(l.experiment);
+        if (l.experiment >= 0 && text.find("validation record") != std::string::npos && k < val_files.size())
+          l.file = val_files[k];
+        else if (l.experiment >= 0 && text.find("estimation record") != std::string::npos && k < est_files.size())
+          l.file = est_files[k];
+        else
+          throw;
+        throw nlid::Error(text, l);
+      }
+    };
     return nlid::with_baseline(baseline, [&](auto model) {
-      const auto d = nlid::diagnose(std::move(model), est, val, opt);
+      const auto d = run(std::move(model));
       std::cout << nlid::diagnosis_summary(d);
       if (!json_path.empty()) {
         stage = "writing " + json_path;

@@ -91,6 +91,8 @@ TEST_CASE("nlid-diagnose: bad files, missing columns, data too short", "[tools][
   r = diagnose("--baseline first_order --est " + q(shorty) + " --val " + q(good));
   CHECK(r.code == 1);
   CHECK_THAT(r.err, Catch::Contains("too short") && Catch::Contains("30 samples"));
+  // Located at the file the user named, not at the record's name (the stem).
+  CHECK_THAT(r.err, Catch::Contains("[at file '" + shorty.string() + "'"));
   r = diagnose("--baseline first_order --est " + q(good) + " --val " + q(other) + " --decimate 10");
   CHECK(r.code == 1);
   CHECK_THAT(r.err, Catch::Contains("too short") && Catch::Contains("after decimation by 10"));
