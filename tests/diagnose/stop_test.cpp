@@ -259,3 +259,21 @@ TEST_CASE("effect magnitudes read as noun phrases after 'with'", "[diagnose][exp
       effect_magnitude(diag_test::effect(EffectKind::output_saturation, {15.1}, s, "lower"), s, "deg", "V");
   CHECK(os == "a limit at 15.1 deg (readings below it are clipped)");
 }
+
+TEST_CASE("a diagnosis restricted to effects that do not apply says so, not that the catalogue has none",
+          "[diagnose][explain]") {
+  // Coulomb friction needs a mechanical baseline: first_order has none. With effects restricted
+  // to it the explanation said "No catalogue effect applies to this baseline".
+  const auto records = two_effect_records();
+  DiagnoseOptions o;
+  o.starts = 2;
+  o.start_candidates = 4;
+  o.threads = 2;
+  o.effects = {"coulomb_friction"};
+  const auto d = diagnose(GreyBox<physics::FirstOrder>(), records.first, records.second, o);
+  INFO(d.explanation);
+  REQUIRE_FALSE(d.floor_before.consistent);  // a first-order model misses the mass-spring dynamics
+  CHECK(d.stop == SearchStop::catalogue_exhausted);
+  CHECK_THAT(d.explanation, Catch::Contains("None of the effects asked for (coulomb_friction) applies to this baseline") &&
+                                !Catch::Contains("No catalogue effect applies"));
+}

@@ -144,6 +144,7 @@ struct Diagnosis {
   std::string stop_reason;              ///< why the search ended
   SearchStop stop = SearchStop::none_significant;  ///< the same as a value
   int max_effects = 0;                  ///< the search's limit (DiagnoseOptions::max_effects)
+  std::vector<std::string> effects_asked;  ///< DiagnoseOptions::effects (empty: the whole catalogue)
   DataScales scales;                    ///< data scales of the repaired model
   std::string baseline_report;          ///< multi-start summary of the baseline fit
   std::string explanation;              ///< what was missing, where, how large, fit gain
@@ -430,6 +431,7 @@ Diagnosis<P> diagnose(GreyBox<P> baseline, const Dataset& est_in, const Dataset&
   d.stop_reason = sr.stop_reason;
   d.stop = sr.stop;
   d.max_effects = options.max_effects;
+  d.effects_asked = options.effects;
   for (const SearchRound& r : d.rounds) {
     if (r.accepted < 0) continue;
     const CandidateResult& c = r.candidates[static_cast<std::size_t>(r.accepted)];

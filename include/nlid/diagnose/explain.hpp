@@ -216,6 +216,13 @@ std::string explain(const Diagnosis<P>& d) {
         s += " No catalogue effect was tried (max_effects = " + std::to_string(d.max_effects) + "), so " + kept + ".";
         return s;
       case SearchStop::catalogue_exhausted:
+        if (!d.effects_asked.empty()) {
+          std::string list;
+          for (const std::string& n : d.effects_asked) list += (list.empty() ? "" : ", ") + n;
+          s += " None of the effects asked for (" + list + ") applies to this baseline (see not_applicable), so " +
+               kept + "; the rest of the catalogue was not tried.";
+          return s;
+        }
         s += " No catalogue effect applies to this baseline (see not_applicable), so " + kept + ".";
         return s;
       case SearchStop::repeated_refits:
@@ -269,7 +276,9 @@ std::string explain(const Diagnosis<P>& d) {
              " effect(s) (max_effects), so more may be missing";
         break;
       case SearchStop::catalogue_exhausted:
-        s += " Every applicable catalogue effect is now in the model";
+        s += d.effects_asked.empty() ? " Every applicable catalogue effect is now in the model"
+                                     : " Every applicable effect asked for is now in the model (the rest of the "
+                                       "catalogue was not tried)";
         break;
       case SearchStop::repeated_refits:
         s += " The search stopped after repeated re-fits without a new effect";
