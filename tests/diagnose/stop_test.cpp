@@ -35,23 +35,13 @@ std::pair<Dataset, Dataset> two_effect_records() {
 }
 
 Diagnosis<physics::MassSpringDamper> diagnose_two_effects(int max_effects) {
-  const double ts = 0.01;
-  const physics::MassSpringDamper msd;
-  const DataScales s = diag_test::unit_scales(ts / 4);
-  AugmentedModel<physics::MassSpringDamper> truth(
-      msd, diag_test::table(msd, {{"c", 8.0}, {"k", 100.0}, {"b", 100.0}, {"rest", 0.1}}), ts / 4);
-  truth.add_effect(diag_test::effect(EffectKind::coulomb_friction, {5.0}, s));
-  truth.add_effect(diag_test::effect(EffectKind::dead_time, {0.03}, s));
-  const Eigen::VectorXd x0 = Eigen::Vector2d(0.1, 0.0);
-  Dataset est, val;
-  est.add(diag_test::synthesize(truth, diag_test::random_steps(1500, -1, 1, 40, 150, 11u), ts, x0, 0.01, 21u, "est", 4));
-  val.add(diag_test::synthesize(truth, diag_test::random_steps(1500, -1, 1, 40, 150, 12u), ts, x0, 0.01, 22u, "val", 4));
+  const auto records = two_effect_records();
   DiagnoseOptions o;
   o.starts = 3;
   o.start_candidates = 8;
   o.threads = 2;
   o.max_effects = max_effects;
-  return diagnose(GreyBox<physics::MassSpringDamper>(), est, val, o);
+  return diagnose(GreyBox<physics::MassSpringDamper>(), records.first, records.second, o);
 }
 
 }  // namespace

@@ -177,13 +177,11 @@ TEST_CASE("tools: --time-tolerance reads a logger's jittering stamps, and still 
   {
     std::ifstream in(clean);
     std::ofstream out(jitter);
-    std::string line;
-    std::getline(in, line);
-    out << line << "\n";
-    for (int k = 0; std::getline(in, line); ++k) {
-      const double t = 0.01 * k + 0.0003 * ((k % 3) - 1);
-      out << t << line.substr(line.find(',')) << "\n";
-    }
+    std::string header, row;
+    std::getline(in, header);
+    out << header << "\n";
+    // Data row k: its time stamp replaced, the rest of the row kept.
+    for (int k = 0; std::getline(in, row); ++k) out << 0.01 * k + 0.0003 * ((k % 3) - 1) << row.substr(row.find(',')) << "\n";
   }
   const fs::path model = work_dir() / "jitter.json";
   const std::string spec = "--model linear:arx:na=2,nb=2,nk=1 --save " + q(model);
