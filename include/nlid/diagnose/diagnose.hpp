@@ -137,8 +137,8 @@ struct Diagnosis {
   std::vector<SearchRound> rounds;      ///< every search round with its candidate table
   std::vector<FoundEffect> effects;     ///< effects added, in order
   /// Effects the search added but the final joint re-estimation made inactive (e.g. a dead time
-  /// driven to 0): the model did not change without them, so they were removed and are not
-  /// named as missing physics.
+  /// driven to 0): the validation simulation did not change without them, so they were removed
+  /// and are not named as missing physics.
   std::vector<FoundEffect> inert;
   std::vector<std::string> not_applicable;  ///< catalogue effects that cannot apply, with reason
   std::string stop_reason;              ///< why the search ended

@@ -202,7 +202,7 @@ std::string explain(const Diagnosis<P>& d) {
   for (const FoundEffect& f : d.inert) {
     s += " " + f.effect.label() + ", added in round " + std::to_string(f.round) +
          ", was made inactive by the later joint re-estimation (" + effect_magnitude(f.effect, d.scales, yu, uu) +
-         ": the model is the same without it), so it was removed and is not named as missing physics.";
+         ": the validation simulation is the same without it), so it was removed and is not named as missing physics.";
   }
   if (d.effects.empty()) {
     if (refits > 0 && d.floor_after.consistent) {
