@@ -34,7 +34,8 @@
 
 namespace {
 
-const char* const usage =
+// The record-reading options' lines are record_options.hpp's, as in the other tools' help.
+const std::string usage = std::string(
     "usage: nlid-diagnose --baseline NAME --est FILE [--est FILE ...] --val FILE [--val FILE ...]\n"
     "                     [--input u] [--output y] [--time t] [--ts T] [--delimiter C] [--decimal C]\n"
     "                     [--time-tolerance R] [--decimate N]\n"
@@ -46,13 +47,8 @@ const char* const usage =
     "                    throttle, two_tank\n"
     "  --est FILE        estimation record (CSV with a header row); repeat for several\n"
     "  --val FILE        validation record; repeat for several\n"
-    "  --input/--output  column names of the input and output (default u, y)\n"
-    "  --time NAME       time column (default t); the sample time is read from it\n"
-    "  --ts T            sample time in seconds (needed if the files have no time column)\n"
-    "  --delimiter C     field separator: , (default) ; tab space |\n"
-    "  --decimal C       decimal point: . (default) or , (then the separator must be another)\n"
-    "  --time-tolerance R  accepted relative deviation of a time step from the typical one\n"
-    "                    (default 0.01; at most 0.5, so a dropped sample is still found)\n"
+    "  --input/--output  column names of the input and output (default u, y)\n") +
+    nlid_tools::record_usage +
     "  --decimate N      anti-alias filter and keep every N-th sample (noise floor at the raw rate)\n"
     "  --x0 MODE         initial states: estimate (default) or zero\n"
     "  --starts N        multi-start runs of the baseline fit (default 6)\n"
