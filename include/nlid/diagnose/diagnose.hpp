@@ -260,13 +260,8 @@ Diagnosis<P> diagnose(GreyBox<P> baseline, const Dataset& est_in, const Dataset&
           at_parameter("decimate"));
   require(options.starts >= 1, "starts must be >= 1", at_parameter("starts"));
   require(options.max_effects >= 0, "max_effects must be >= 0", at_parameter("max_effects"));
-  // Each option named with its value: "must be >= 1" alone does not say which of three.
-  const auto at_least_one = [](int v, const char* name) {
-    require(v >= 1, std::string(name) + " must be >= 1, got " + std::to_string(v), at_parameter(name));
-  };
-  at_least_one(options.screen_iterations, "screen_iterations");
-  at_least_one(options.refine_iterations, "refine_iterations");
-  at_least_one(options.refine_top, "refine_top");
+  // Settings checked by the search and the locator are checked here too, before the baseline fit.
+  check_search_effort(options.screen_iterations, options.refine_iterations, options.refine_top);
   require(options.start_candidates >= 0, "start_candidates must be >= 0 (0 = 4 x starts), got " +
                                              std::to_string(options.start_candidates),
           at_parameter("start_candidates"));
@@ -283,12 +278,7 @@ Diagnosis<P> diagnose(GreyBox<P> baseline, const Dataset& est_in, const Dataset&
   require(sig.floor_margin >= 0.0 && std::isfinite(sig.floor_margin),
           "significance.floor_margin must be finite and >= 0, got " + detail::format_g(sig.floor_margin),
           at_parameter("significance.floor_margin"));
-  require(options.locate.max_intervals >= 0,
-          "locate.max_intervals must be >= 0, got " + std::to_string(options.locate.max_intervals),
-          at_parameter("locate.max_intervals"));
-  require(options.locate.window >= 0, "locate.window must be >= 0 (0 = automatic), got " +
-                                          std::to_string(options.locate.window),
-          at_parameter("locate.window"));
+  check_locate_options(options.locate, "locate.");
   require(!(options.noise.sigma > 0.0) || std::isfinite(options.noise.sigma),
           "noise.sigma must be finite (or 0 to estimate the noise floor), got " + detail::format_g(options.noise.sigma),
           at_parameter("noise.sigma"));
@@ -371,11 +361,13 @@ Diagnosis<P> diagnose(GreyBox<P> baseline, const Dataset& est_in, const Dataset&
     ro.max_iterations = options.refine_iterations;
     ro.function_tolerance = 1e-8;
     ro.initial_condition = options.initial_condition;
-    std::vector<ParameterInfo> held = baseline.parameter_info();
-    for (ParameterInfo& q : held) q.fixed = true;
-    const RefitResult r = options.fit_baseline
-                              ? refit(base, est, base.parameters(), x0, ro)
-                              : refit(AugmentedModel<P>(baseline.physics(), held, est.ts()), est, base.parameters(), x0, ro);
+    const auto held = [&] {
+      std::vector<ParameterInfo> table = baseline.parameter_info();
+      for (ParameterInfo& q : table) q.fixed = true;
+      return AugmentedModel<P>(baseline.physics(), std::move(table), est.ts());
+    };
+    const RefitResult r = options.fit_baseline ? refit(base, est, base.parameters(), x0, ro)
+                                               : refit(held(), est, base.parameters(), x0, ro);
     if (r.ok) {
       base.set_parameters(r.theta);
       x0 = r.x0;

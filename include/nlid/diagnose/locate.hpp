@@ -103,6 +103,19 @@ struct Mismatch {
 /// Locates where the residual y − ŷ of output `output` exceeds the noise floor. `simulated[e]` is
 /// the model's simulated output of experiment e (length N_e). Throws `nlid::Error` naming the
 /// experiment if a length differs or a value is not finite, and if `noise.sigma` is not positive.
+/// Throws `nlid::Error` naming the first setting of `o` out of range; `prefix` goes before the
+/// parameter's name ("locate." where the options are a member of `DiagnoseOptions`).
+inline void check_locate_options(const LocateOptions& o, const std::string& prefix = {}) {
+  require(o.max_intervals >= 0, "locate: max_intervals must be >= 0, got " + std::to_string(o.max_intervals),
+          at_parameter(prefix + "max_intervals"));
+  require(o.window >= 0, "locate: window must be >= 0 (0 = automatic), got " + std::to_string(o.window),
+          at_parameter(prefix + "window"));
+  require(o.level_bins >= 1 && o.level_bins <= 50, "locate: level_bins must be 1..50",
+          at_parameter(prefix + "level_bins"));
+  require(o.false_alarm > 0.0 && o.false_alarm < 0.5, "locate: false_alarm must lie in (0, 0.5)",
+          at_parameter(prefix + "false_alarm"));
+}
+
 inline Mismatch locate_mismatch(const Dataset& data, const std::vector<Eigen::VectorXd>& simulated,
                                 const NoiseFloor& noise, const LocateOptions& options = {},
                                 int output = 0);
@@ -210,14 +223,7 @@ inline Mismatch locate_mismatch(const Dataset& data, const std::vector<Eigen::Ve
               std::to_string(data.size()) + " experiments");
   require(output >= 0 && output < data.num_outputs(), "locate: output index out of range",
           at_parameter("output"));
-  require(options.max_intervals >= 0, "locate: max_intervals must be >= 0, got " + std::to_string(options.max_intervals),
-          at_parameter("max_intervals"));
-  require(options.window >= 0, "locate: window must be >= 0 (0 = automatic), got " + std::to_string(options.window),
-          at_parameter("window"));
-  require(options.level_bins >= 1 && options.level_bins <= 50, "locate: level_bins must be 1..50",
-          at_parameter("level_bins"));
-  require(options.false_alarm > 0.0 && options.false_alarm < 0.5,
-          "locate: false_alarm must lie in (0, 0.5)", at_parameter("false_alarm"));
+  check_locate_options(options);
   Mismatch m;
   m.noise_sigma = noise.sigma;
   const double s2 = noise.sigma * noise.sigma;

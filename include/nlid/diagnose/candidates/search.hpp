@@ -156,6 +156,17 @@ template <Physics P>
 DataScales data_scales(const AugmentedModel<P>& model, const Dataset& data,
                        const std::vector<Eigen::VectorXd>& x0);
 
+/// Throws `nlid::Error` naming the first of the search's effort settings below 1, with its
+/// value (`SearchOptions` and `DiagnoseOptions` carry the same three).
+inline void check_search_effort(int screen_iterations, int refine_iterations, int refine_top) {
+  const auto at_least_one = [](int v, const char* name) {
+    require(v >= 1, std::string(name) + " must be >= 1, got " + std::to_string(v), at_parameter(name));
+  };
+  at_least_one(screen_iterations, "screen_iterations");
+  at_least_one(refine_iterations, "refine_iterations");
+  at_least_one(refine_top, "refine_top");
+}
+
 /// Greedy effect search from `start` (fitted on `est`, with initial states `x0_est`), scored on
 /// `val` against the noise floor `noise` (see the file comment).
 template <Physics P>
@@ -301,8 +312,7 @@ SearchResult<P> search_effects(const AugmentedModel<P>& start, std::vector<Eigen
                                const SearchOptions& options) {
   require(noise.sigma > 0.0, "effect search: the noise floor must be positive", at_parameter("noise"));
   require(options.max_effects >= 0, "max_effects must be >= 0", at_parameter("max_effects"));
-  require(options.screen_iterations >= 1 && options.refine_iterations >= 1 && options.refine_top >= 1,
-          "screen_iterations, refine_iterations and refine_top must be >= 1");
+  check_search_effort(options.screen_iterations, options.refine_iterations, options.refine_top);
   auto say = [&](const std::string& s) {
     if (options.progress) options.progress(s);
   };
