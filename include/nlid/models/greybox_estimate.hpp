@@ -33,7 +33,6 @@
 #include <vector>
 
 #include <Eigen/Core>
-#include <Eigen/LU>
 
 #include "nlid/core/error.hpp"
 #include "nlid/core/format.hpp"
@@ -361,33 +360,29 @@ GreyBoxEstimate estimate(GreyBox<P>& model, const Dataset& data,
     // rigid body's position, has no steady state under a non-zero input): the model's own
     // equilibrium search at the starting values says so in its words.
     if (options.initial_condition == InitialCondition::equilibrium) {
+      const Eigen::VectorXd p = model.parameters();
       for (std::size_t e = 0; e < data.size(); ++e) {
-        if (data[e].size() == 0) continue;
+        // The problem's own test of the start, the one its evaluations failed on.
+        if (data[e].size() == 0 || problem.equilibrium_start_usable(e, p.data())) continue;
         Location where = at_parameter("initial_condition");
         where.experiment = static_cast<long>(e);
-        const Eigen::VectorXd u0 = data[e].u().row(0).transpose();
-        Eigen::VectorXd xbar;
         try {
-          xbar = model.equilibrium(u0, data[e].name());
+          (void)model.equilibrium(data[e].u().row(0).transpose(), data[e].name());
         } catch (const Error& why) {
           throw Error("grey-box estimation from an equilibrium start: " + why.message() +
                           " (at the starting parameter values; a model that integrates its input has no steady "
                           "state under a non-zero input)",
                       where);
         }
-        // A steady state that exists but is not unique (∂f/∂x singular: any position of a
-        // rigid body at rest is one) has no derivative with respect to the parameters.
-        const Eigen::VectorXd p = model.parameters();
-        const Eigen::MatrixXd jx = physics_state_jacobian(model.physics(), xbar.data(), u0.data(), p.data());
-        if (!Eigen::FullPivLU<Eigen::MatrixXd>(jx).isInvertible()) {
-          throw Error("grey-box estimation from an equilibrium start: the steady state of '" + model.name() +
-                          "' for the first input of " +
-                          (data[e].name().empty() ? "experiment " + std::to_string(e) : "'" + data[e].name() + "'") +
-                          " is not unique (df/dx is singular there: the model integrates, e.g. a rigid body's "
-                          "position, so a whole family of states is at rest) and the start cannot follow the "
-                          "parameters; use InitialCondition::estimate or zero",
-                      where);
-        }
+        // A steady state exists but is not unique (∂f/∂x singular: any position of a rigid body
+        // at rest is one), so it has no derivative with respect to the parameters.
+        throw Error("grey-box estimation from an equilibrium start: the steady state of '" + model.name() +
+                        "' for the first input of " +
+                        (data[e].name().empty() ? "experiment " + std::to_string(e) : "'" + data[e].name() + "'") +
+                        " is not unique (df/dx is singular there: the model integrates, e.g. a rigid body's "
+                        "position, so a whole family of states is at rest) and the start cannot follow the "
+                        "parameters; use InitialCondition::estimate or zero",
+                    where);
       }
     }
     throw;

@@ -243,6 +243,14 @@ class GreyBoxProblem {
     }
   }
 
+  /// Whether experiment e's equilibrium start exists at physical parameters p and can follow
+  /// them (∂f/∂x invertible there): what a Jacobian pass from that start needs.
+  [[nodiscard]] bool equilibrium_start_usable(std::size_t e, const double* p) const {
+    Eigen::VectorXd x0(nx_);
+    Eigen::MatrixXd jinv;
+    return equilibrium_start(e, p, x0.data(), &jinv);
+  }
+
   /// Sub-step count for experiment e at physical parameters p and initial state x0: the count
   /// `GreyBox::simulate` takes for the same run (`physics_substeps`).
   [[nodiscard]] int substeps(std::size_t e, const double* p, const double* x0) const {
