@@ -86,7 +86,9 @@ TEST_CASE("fit_percent does not depend on the units of the signal", "[analysis][
   y << 1, 2, 3, 4;
   h << 1, 2, 3, 5;
   const double ref = nlid::fit_percent(y, h);
-  for (const double unit : {1e-13, 1e-30, 1e30}) {
+  // 1e±200 and 1e300: the squares over- or underflowed ("measured output is constant" below,
+  // NaN or -inf above) until the sums ran on y / max|y|.
+  for (const double unit : {1e-13, 1e-30, 1e30, 1e-200, 1e200, 1e300, 1e-300}) {
     CAPTURE(unit);
     CHECK(nlid::fit_percent(Eigen::VectorXd(unit * y), Eigen::VectorXd(unit * h)) == Approx(ref).epsilon(1e-12));
   }

@@ -53,22 +53,27 @@ double fit_percent_column(const Eigen::MatrixBase<Dy>& y, const Eigen::MatrixBas
               std::to_string(yhat.size()),
           where);
   require(n > 0, "fit_percent: empty signal", where);
-  double mean = 0.0;
+  // Every sum runs on y / max|y|: the fit is a ratio and so independent of the unit, and the
+  // squares of a signal near 1e200 (or 1e-200) neither overflow nor underflow on the way.
+  double scale = 0.0;
   for (Eigen::Index k = 0; k < n; ++k) {
     const double v = static_cast<double>(y(k));
     if (!std::isfinite(v)) {
       where.row = static_cast<long>(k) + 1;
       throw Error("fit_percent: measured output is not finite at sample " + std::to_string(k), where);
     }
-    mean += v;
+    scale = std::max(scale, std::abs(v));
   }
+  if (scale == 0.0) scale = 1.0;  // all zero: the spread test below calls it constant
+  double mean = 0.0;
+  for (Eigen::Index k = 0; k < n; ++k) mean += static_cast<double>(y(k)) / scale;
   mean /= static_cast<double>(n);
   double err2 = 0.0;
   double var2 = 0.0;
   bool model_finite = true;
   for (Eigen::Index k = 0; k < n; ++k) {
-    const double v = static_cast<double>(y(k));
-    const double h = static_cast<double>(yhat(k));
+    const double v = static_cast<double>(y(k)) / scale;
+    const double h = static_cast<double>(yhat(k)) / scale;
     if (!std::isfinite(h)) model_finite = false;
     err2 += (v - h) * (v - h);
     var2 += (v - mean) * (v - mean);
