@@ -174,6 +174,32 @@ TEST_CASE("Experiment::validate catches changes made through the mutable accesso
   CHECK_THROWS_WITH(f.validate(), Contains("output matrix has 2 columns but 1 output names"));
 }
 
+TEST_CASE("require_estimable_scale refuses mis-scaled channels, naming channel and sample", "[data][errors]") {
+  nlid::Experiment e = ramp(6, 1.0, 2, 1, "run1");
+  CHECK_NOTHROW(e.require_estimable_scale("arx", 0));
+  // Channels in any physical unit pass, and so do all-zero ones (the estimators judge those).
+  e.u().col(1) *= 1e-90;
+  e.y() *= 1e90;
+  e.u().col(0).setZero();
+  CHECK_NOTHROW(e.require_estimable_scale());
+  e.y()(3, 0) = std::numeric_limits<double>::quiet_NaN();  // missing samples are other checks' business
+  CHECK_NOTHROW(e.require_estimable_scale());
+
+  nlid::Experiment big = ramp(6, 1.0, 1, 1, "run1");
+  big.y()(4, 0) = -3e201;
+  const nlid::Error a = error_of([&] { big.require_estimable_scale("arx", 2); });
+  CHECK_THAT(std::string(a.what()), Contains("arx: experiment 'run1', output 'y': a sample of magnitude 3e+201 at sample index 4 is beyond 1e100"));
+  CHECK_THAT(std::string(a.what()), Contains("rescale"));
+  CHECK(a.where().experiment == 2);
+  CHECK(a.where().row == -1);  // a sample index is no file row after decimation
+
+  nlid::Experiment tiny = ramp(6, 1.0);
+  tiny.u() *= 1e-250;
+  const nlid::Error b = error_of([&] { tiny.require_estimable_scale("", 1); });
+  CHECK_THAT(std::string(b.what()), Contains("experiment 1, input 'u': the largest magnitude is 5e-250 (sample index 5), below 1e-100"));
+  CHECK(b.where().experiment == 1);
+}
+
 TEST_CASE("Dataset checks sample time and channel counts, naming the experiment", "[data]") {
   nlid::Dataset d{ramp(10, 0.01, 1, 1, "a"), ramp(20, 0.01, 1, 1, "b")};
   CHECK(d.size() == 2);

@@ -9,6 +9,7 @@
 #include "nlid/models/greybox_estimate.hpp"
 #include "nlid/models/simulation_band.hpp"
 #include "nlid/models/physics/catalogue.hpp"
+#include "../support/error_of.hpp"
 #include "test_data.hpp"
 
 using nlid::Dataset;
@@ -318,6 +319,23 @@ TEST_CASE("Estimation refuses crossed throttle stops at its start, saying what a
     CHECK(e.where().parameter == "lower_stop");
     CHECK_THAT(e.what(), Catch::Contains("grey-box estimation: the start: throttle: lower_stop = 95 must be below upper_stop = 1"));
   }
+}
+
+TEST_CASE("Estimation and uncertainty name a mis-scaled record instead of failing every start", "[greybox][estimate][errors]") {
+  // Degrees written as 1e200 made every start's simulation overflow: "the problem cannot be
+  // evaluated at the initial guess nor at any of 24 candidates; check the model, data ...".
+  Dataset d = throttle_data(1.0);
+  Dataset bad;
+  bad.add(d[0]);
+  nlid::Experiment big = d[1];
+  big.y() *= 1e200;
+  bad.add(big);
+  GreyBox<physics::Throttle> m;
+  const nlid::Error e = nlid_test::error_of([&] { (void)estimate(m, bad, quick(1, 1)); });
+  CHECK_THAT(e.what(), Catch::Contains("grey-box estimation: experiment 'pulses', output 'y'") &&
+                           Catch::Contains("beyond 1e100") && Catch::Contains("rescale"));
+  CHECK(e.where().experiment == 1);
+  CHECK_THROWS_WITH(nlid::parameter_uncertainty(m, bad), Catch::Contains("parameter_uncertainty: experiment 'pulses'"));
 }
 
 TEST_CASE("Data that point outside a parameter's bounds leave no inverted range", "[greybox][estimate]") {

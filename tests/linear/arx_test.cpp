@@ -9,9 +9,11 @@
 #include <string>
 #include <vector>
 
+#include "../support/error_of.hpp"
 #include "linear_test_util.hpp"
 #include "nlid/analysis/fit.hpp"
 #include "nlid/linear/arx.hpp"
+#include "nlid/linear/order_selection.hpp"
 #include "nlid/linear/output_error.hpp"
 
 using nlid::Arx;
@@ -317,6 +319,18 @@ TEST_CASE("ARX rejects bad orders and data with located messages", "[linear][arx
     CHECK_THROWS_WITH(nlid::arx(two_out, {2, 2, 1}), Catch::Contains("data have 2"));
     const Experiment two_in(Eigen::MatrixXd::Random(100, 2), e.y(), 0.1, "two");
     CHECK_THROWS_WITH(siso_truth().simulate(two_in), Catch::Contains("model has 1 input(s) but experiment 'two' has 2"));
+  }
+  SECTION("mis-scaled channels: the channel, not a rank deficiency") {
+    // The squares of 1e200 overflowed and arx reported "rank 1 < 4 parameters".
+    const Experiment big(e.u(), 1e200 * e.y(), 0.1, "big");
+    const nlid::Error a = nlid_test::error_of([&] { (void)nlid::arx(nlid::Dataset{e, big}, {2, 2, 1}); });
+    CHECK_THAT(std::string(a.what()), Catch::Contains("arx: experiment 'big', output 'y'") && Catch::Contains("beyond 1e100"));
+    CHECK(a.where().experiment == 1);
+    const Experiment tiny(1e-200 * e.u(), e.y(), 0.1, "tiny");
+    CHECK_THROWS_WITH(nlid::arx(tiny, {2, 2, 1}), Catch::Contains("input 'u'") && Catch::Contains("below 1e-100"));
+    CHECK_THROWS_WITH(nlid::arx_order_selection(nlid::Dataset{big}), Catch::Contains("beyond 1e100"));
+    CHECK_THROWS_WITH(nlid::arx_order_selection(nlid::Dataset{e}, nlid::Dataset{big}),
+                      Catch::Contains("arx_order_selection (validation data): experiment 'big'") && Catch::Contains("beyond 1e100"));
   }
   SECTION("not persistently exciting") {
     const Experiment c(Eigen::MatrixXd::Constant(100, 1, 1.0), e.y(), 0.1);

@@ -207,6 +207,9 @@ TEST_CASE("OE rejects bad orders and data with located messages", "[linear][oe]"
   nlid::OeOptions opt;
   opt.initial_state = InitialCondition::equilibrium;
   CHECK_THROWS_WITH(nlid::oe(e, {2, 2, 0}, opt), Catch::Contains("initial_state"));
+  // Mis-scaled data: named, where the overflowing squares read "rank 2 < 4 parameters".
+  const Experiment big(e.u(), 1e200 * e.y(), 0.01, "big");
+  CHECK_THROWS_WITH(nlid::oe(big, {2, 2, 0}), Catch::Contains("oe: experiment 'big', output 'y'") && Catch::Contains("beyond 1e100"));
   const OutputError two({vec({1.0}), vec({1.0})}, {vec({-0.5}), vec({-0.5})}, {0, 0}, 0.01);
   const Experiment e2(Eigen::MatrixXd::Random(20, 2), Eigen::MatrixXd::Random(20, 1), 0.01);
   CHECK_THROWS_WITH(two.simulate(e2, InitialCondition::measured), Catch::Contains("one input only"));

@@ -151,6 +151,9 @@ TEST_CASE("MOESP rejects bad orders and short data", "[linear][subspace]") {
   opt.horizon = 0;
   opt.initial_state = InitialCondition::measured;
   CHECK_THROWS_WITH(nlid::moesp(e, 3, opt), Catch::Contains("initial_state"));
+  // A mis-scaled channel is named (its squares overflow in the block Hankel products).
+  const Experiment big(1e150 * u, e.y(), 1.0, "big");
+  CHECK_THROWS_WITH(nlid::moesp(nlid::Dataset{e, big}, 3), Catch::Contains("experiment 'big', input 'u1'") && Catch::Contains("beyond 1e100"));
 }
 
 TEST_CASE("MOESP refuses an unstable A whose response overflows, instead of NaN", "[linear][subspace][errors]") {

@@ -404,6 +404,13 @@ TEST_CASE("estimation refuses bad data, naming the experiment", "[models][estima
   bad_fixed.solver.fixed = {true, false};
   CHECK_THROWS_WITH(nlid::estimate(Model{}, nlid::Dataset{ok}, bad_fixed),
                     Catch::Contains("fixed has 2 entries; the model has 7 parameters"));
+  // Mis-scaled data are named before the overflowing squares surface as an invalid
+  // normalisation (sigmoid net) or a non-finite value in a nonlinearity's data (saturation).
+  const nlid::Experiment big(random_steps(50, -1, 1, 7), 1e200 * random_steps(50, -1, 1, 9), 1.0, "big");
+  CHECK_THROWS_WITH(nlid::estimate(Model{}, nlid::Dataset{ok, big}),
+                    Catch::Contains("nonlinear ARX estimation: experiment 'big', output 'y'") && Catch::Contains("beyond 1e100"));
+  CHECK_THROWS_WITH(nlid::estimate(Wiener{}, nlid::Dataset{big}),
+                    Catch::Contains("Hammerstein-Wiener estimation: experiment 'big'") && Catch::Contains("beyond 1e100"));
 }
 
 TEST_CASE("a Hammerstein-Wiener delay as long as every record is refused before initialisation", "[models][estimate]") {

@@ -96,6 +96,23 @@ TEST_CASE("nlid-diagnose: bad files, missing columns, data too short", "[tools][
   r = diagnose("--baseline first_order --est " + q(good) + " --val " + q(other) + " --decimate 10");
   CHECK(r.code == 1);
   CHECK_THAT(r.err, Catch::Contains("too short") && Catch::Contains("after decimation by 10"));
+  // A record in absurd units is named with its file, not left to fail every start of the fit.
+  const fs::path huge = work_dir() / "huge.csv";
+  {
+    std::ifstream in(other);
+    std::ofstream f(huge);
+    f.precision(10);
+    std::string line;
+    std::getline(in, line);
+    f << line << "\n";
+    double t = 0, u = 0, y = 0;
+    char c1 = 0, c2 = 0;
+    while (in >> t >> c1 >> u >> c2 >> y) f << t << "," << u << "," << y * 1e200 << "\n";
+  }
+  r = diagnose("--baseline first_order --est " + q(good) + " --val " + q(huge));
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("validation record: experiment 'huge', output 'y'") && Catch::Contains("beyond 1e100") &&
+                        Catch::Contains("[at file '" + huge.string() + "'"));
   const fs::path notime = write_record("notime", 400, 3u, 0, false);
   r = diagnose("--baseline first_order --est " + q(notime) + " --val " + q(good));
   CHECK(r.code == 1);

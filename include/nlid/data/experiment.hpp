@@ -246,6 +246,53 @@ class Experiment {
     }
   }
 
+  /// Largest channel magnitude an estimation accepts (see `require_estimable_scale`).
+  static constexpr double max_estimable_magnitude = 1e100;
+  /// Smallest non-zero channel magnitude an estimation accepts.
+  static constexpr double min_estimable_magnitude = 1e-100;
+
+  /// Refuses a channel whose largest finite |sample| lies outside [1e-100, 1e100] (an all-zero
+  /// channel passes: constant channels are judged by the estimators). Estimation forms sums of
+  /// squares and products of the samples (least squares, variances, normalisations); beyond
+  /// 1e100 they overflow to infinity, below 1e-100 they underflow to zero, and the failure would
+  /// surface as a misleading "rank deficient" or "constant output". No measured quantity in
+  /// any unit is that large or small, so a channel there is mis-scaled data. `who` prefixes the
+  /// message, `index` (≥ 0) is the experiment's place in its data set.
+  void require_estimable_scale(const std::string& who = "", long index = -1) const {
+    for (const bool output : {false, true}) {
+      const Eigen::MatrixXd& m = output ? y_ : u_;
+      const std::vector<std::string>& names = output ? output_names_ : input_names_;
+      for (Eigen::Index c = 0; c < m.cols(); ++c) {
+        double peak = 0.0;
+        Eigen::Index at = 0;
+        for (Eigen::Index k = 0; k < m.rows(); ++k) {
+          const double a = std::abs(m(k, c));
+          if (std::isfinite(a) && a > peak) {
+            peak = a;
+            at = k;
+          }
+        }
+        const bool large = peak > max_estimable_magnitude;
+        if (!large && !(peak > 0.0 && peak < min_estimable_magnitude)) continue;
+        const std::string channel = std::string(output ? "output" : "input") + " '" +
+                                    detail::printable(names[static_cast<std::size_t>(c)]) + "'";
+        std::string label = name_.empty() ? std::string("experiment") : "experiment '" + detail::printable(name_) + "'";
+        if (name_.empty() && index >= 0) label += " " + std::to_string(index);
+        // The experiment only: its sample index is not a file row once the record was decimated
+        // or cut, so the message names channel and index in its own words.
+        Location l;
+        l.experiment = index;
+        throw Error((who.empty() ? std::string() : who + ": ") + label + ", " + channel + ": " +
+                        (large ? "a sample of magnitude " + detail::format_g(peak) + " at sample index " + std::to_string(at) +
+                                     " is beyond 1e100, where the sums of squares estimation forms overflow"
+                               : "the largest magnitude is " + detail::format_g(peak) + " (sample index " + std::to_string(at) +
+                                     "), below 1e-100, where the sums of squares estimation forms underflow to zero") +
+                        "; rescale the channel (other units)",
+                    l);
+      }
+    }
+  }
+
   /// Fills interior gaps of NaN/Inf samples (at most `max_gap` consecutive samples per channel)
   /// by linear interpolation between the finite neighbours, and notes each filled gap. Throws if
   /// a gap touches either end of the record or is longer than `max_gap`.

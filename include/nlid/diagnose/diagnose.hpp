@@ -217,6 +217,7 @@ inline void check_diagnosis_data(const Dataset& d, const char* role, Eigen::Inde
             where);
     const double span = x.y().col(0).maxCoeff() - x.y().col(0).minCoeff();
     require(span > 0.0, who + ": the output is constant, there is nothing to model", where);
+    x.require_estimable_scale(std::string("diagnosis, ") + role + " record", static_cast<long>(e));
   }
 }
 

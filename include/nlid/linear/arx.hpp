@@ -528,6 +528,7 @@ inline ArxRegression arx_regression(const Dataset& data, const ArxOrders& o, boo
   for (std::size_t e = 0; e < data.size(); ++e) {
     const Experiment& ex = data[e];
     detail::check_linear_experiment(ex, o.num_inputs(), 1, 0.0, static_cast<long>(e), who, true);
+    ex.require_estimable_scale(who, static_cast<long>(e));
     if (ex.size() <= start)
       throw Error(who + ": " + linear_experiment_label(ex, static_cast<long>(e)) + " has " +
                       std::to_string(ex.size()) + " samples but orders " + o.str() + " need more than " +

@@ -241,6 +241,7 @@ inline OrderSelection arx_order_selection_impl(const Dataset& est, const Dataset
     Eigen::Index longest = 0;
     for (std::size_t e = 0; e < val->size(); ++e) {
       check_linear_experiment((*val)[e], m, est.num_outputs(), est.ts(), static_cast<long>(e), who, true, "validation");
+      (*val)[e].require_estimable_scale(who + " (validation data)", static_cast<long>(e));  // its losses are sums of squares
       longest = std::max(longest, (*val)[e].size());
     }
     require(longest > start,

@@ -655,6 +655,7 @@ inline OutputError oe_estimate(const Dataset& data, const OeOrders& o, const OeO
   for (std::size_t e = 0; e < data.size(); ++e) {
     const Experiment& ex = data[e];
     check_linear_experiment(ex, o.num_inputs(), 1, 0.0, static_cast<long>(e), who, true);
+    ex.require_estimable_scale(who, static_cast<long>(e));
     if (ex.size() <= max_lag)
       throw Error(who + ": " + linear_experiment_label(ex, static_cast<long>(e)) + " has " +
                       std::to_string(ex.size()) + " samples but orders " + o.str() +

@@ -81,9 +81,11 @@ struct MoespSvd {
 inline void check_subspace_data(const Dataset& data, const std::string& who) {
   require(data.size() > 0, who + ": the data set is empty", at_parameter("data"));
   require(data.num_outputs() >= 1, who + ": the data have no output", at_parameter("data"));
-  for (std::size_t e = 0; e < data.size(); ++e)
+  for (std::size_t e = 0; e < data.size(); ++e) {
     check_linear_experiment(data[e], data.num_inputs(), data.num_outputs(), 0.0, static_cast<long>(e),
                      who, true);
+    data[e].require_estimable_scale(who, static_cast<long>(e));
+  }
 }
 
 inline int choose_horizon(const Dataset& data, int n, int requested, const std::string& who) {

@@ -454,6 +454,7 @@ void adopt_data(M& model, const Dataset& data, int history, const char* kind) {
   for (std::size_t i = 0; i < data.size(); ++i) {
     check_experiment(data[i], static_cast<long>(i), model.num_inputs(), history, model.ts(), kind);
     require_complete(data[i], static_cast<long>(i));
+    data[i].require_estimable_scale(std::string(kind) + " estimation", static_cast<long>(i));
   }
 }
 
