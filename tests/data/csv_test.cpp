@@ -536,6 +536,46 @@ TEST_CASE("read_csv recovers the sample time from time stamps rounded to fixed d
   }
 }
 
+// A logger whose clock is read at every sample: the stamps jitter around k·T_s, no short grid
+// reproduces them, and the endpoint estimate (t_last − t0)/(N − 1) is off by up to 2J/(N − 1).
+// Two such records of one 100 Hz logger read 0.00999988... and 0.00999992... (3e-6 apart): they
+// could not form one Dataset, and a model estimated on one refused the other's rate.
+TEST_CASE("read_csv takes the sample time jittering stamps were logged at", "[data][csv]") {
+  TempDir dir;
+  auto write = [&](const std::string& name, unsigned seed, int count, double ts, double jitter) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<double> e(-jitter, jitter);
+    std::ostringstream os;
+    os << "t,u,y\n";
+    char buf[64];
+    for (int k = 0; k < count; ++k) {
+      std::snprintf(buf, sizeof buf, "%.6f", k * ts + e(rng));
+      os << buf << "," << 0.01 * (k % 7) << ",1\n";
+    }
+    return dir.write(name, os.str());
+  };
+  nlid::CsvReadOptions o;
+  o.time_tolerance = 0.05;
+  const nlid::Experiment a = nlid::read_csv(write("a.csv", 5u, 400, 0.01, 2e-4), o);
+  const nlid::Experiment b = nlid::read_csv(write("b.csv", 6u, 400, 0.01, 2e-4), o);
+  CHECK(a.ts() == 0.01);
+  CHECK(b.ts() == 0.01);
+  nlid::Dataset d;
+  d.add(a);
+  CHECK_NOTHROW(d.add(b));
+  // Stamps that pin the rate down are not rounded to a shorter decimal than they allow: 1000.3 Hz
+  // with 0.1 µs jitter over 3000 samples rules out 1 kHz.
+  const nlid::Experiment c = nlid::read_csv(write("c.csv", 7u, 3000, 1.0 / 1000.3, 1e-7), o);
+  CHECK(c.ts() != 0.001);
+  CHECK(c.ts() == Approx(1.0 / 1000.3).epsilon(2e-7));
+  // Records of different rates still differ, and the hint for nearly equal ones names the remedy.
+  const nlid::Experiment f = nlid::read_csv(write("f.csv", 8u, 400, 0.0101, 1e-6), o);
+  CHECK(f.ts() == Approx(0.0101).epsilon(1e-6));
+  CHECK_THROWS_WITH(d.add(f), Contains("relative difference 0.01)") && !Contains("set that sample time"));
+  const nlid::Experiment g = nlid::read_csv(write("g.csv", 9u, 400, 0.0100001, 1e-8), o);
+  CHECK_THROWS_WITH(d.add(g), Contains("if both were logged at one rate, set that sample time (CsvReadOptions::ts)"));
+}
+
 TEST_CASE("write_csv refuses unreadable headers and bad paths", "[data][csv]") {
   TempDir dir;
   nlid::Experiment e(Eigen::MatrixXd::Zero(3, 1), Eigen::MatrixXd::Zero(3, 1), 1.0);

@@ -216,7 +216,9 @@ TEST_CASE("Dataset checks sample time and channel counts, naming the experiment"
   CHECK_NOTHROW(d.add(ramp(5, 0.01 * (1 - 9e-7))));
   // ... a larger difference is not, and the message names index and record.
   auto err = error_of([&] { d.add(ramp(5, 0.01 * (1 + 2e-6), 1, 1, "drift")); });
-  CHECK_THAT(err.what(), Contains("experiment 'drift' has sample time"));
+  CHECK_THAT(err.what(), Contains("experiment 'drift' has sample time 0.01000002 but the data set has 0.01 (relative difference 2e-06)"));
+  // Nearly equal rates read from one logger's jittering stamps: the hint names the remedy.
+  CHECK_THAT(err.what(), Contains("if both were logged at one rate, set that sample time"));
   err = error_of([&] { d.add(ramp(5, 0.02, 1, 1, "slow")); });
   CHECK(err.where().experiment == 4);
   CHECK_THAT(err.what(), Contains("experiment 'slow' has sample time 0.02"));

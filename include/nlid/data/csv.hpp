@@ -20,8 +20,9 @@
 /// smoothed over, with or without an override. Unless `CsvReadOptions::ts` overrides it, T_s is
 /// then the shortest decimal whose grid t_0 + k·T_s reproduces the column exactly (so
 /// `write_csv` → `read_csv` returns the same `ts` bit for bit), else the shortest decimal or rate
-/// that reproduces stamps printed with fixed decimals to their resolution, else
-/// (t_{N−1} − t_0)/(N−1) (`detail::snap_sample_time`). The uniform grid is what every
+/// that reproduces stamps printed with fixed decimals to their resolution, else the shortest
+/// decimal or rate within what jittering stamps can tell, else (t_{N−1} − t_0)/(N−1)
+/// (`detail::snap_sample_time`). The uniform grid is what every
 /// discrete-time model assumes (Ljung 1999, sec. 2.1).
 ///
 /// Errors. Every problem throws `nlid::Error` whose message says what is wrong and whose

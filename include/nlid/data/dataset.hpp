@@ -76,9 +76,12 @@ class Dataset {
       const Experiment& first = experiments_.front();
       const double rel = std::abs(e.ts() - first.ts()) / first.ts();
       if (rel > dataset_ts_tolerance) {
+        // Nearly equal sample times are one logger's rate read from different jittering stamps.
         throw Error(label(e) + "has sample time " + number(e.ts()) + " but the data set has " +
-                        number(first.ts()) + " (relative difference " + number(rel) +
-                        "); resample or decimate it first",
+                        number(first.ts()) + " (relative difference " + detail::format_g(rel, 3) +
+                        "); resample or decimate it first" +
+                        (rel < 1e-3 ? std::string("; if both were logged at one rate, set that sample time (CsvReadOptions::ts)")
+                                    : std::string()),
                     at_experiment(index));
       }
       if (e.num_inputs() != first.num_inputs() || e.num_outputs() != first.num_outputs()) {
@@ -145,7 +148,8 @@ class Dataset {
   // ---- Implementation details below ----------------------------------------------------------
 
  private:
-  static std::string number(double x) { return detail::format_g(x, 17); }
+  // 10 digits tell apart sample times the 1e-6 tolerance refuses; 17 printed 0.0099999159579789894.
+  static std::string number(double x) { return detail::format_g(x, 10); }
   static std::string label(const Experiment& e) {
     return e.name().empty() ? std::string("experiment ") : "experiment '" + e.name() + "' ";
   }

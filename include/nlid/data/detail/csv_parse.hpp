@@ -487,7 +487,13 @@ inline double round_significant(double x, int digits) {
 ///    with 1, 2, … significant digits, as a sample time (0.001) or as a rate (ts = 1/51200), whose
 ///    grid reproduces every stamp to within one quantum (t0 is itself rounded, hence not half) is
 ///    taken: it is what the stamps were printed from, as far as they can tell.
-/// 3. Otherwise (jitter, no quantum) the endpoint estimate.
+/// 3. Jitter: stamps t_k = t_0 + k·T_s + e_k leave the endpoint estimate off by
+///    (e_{N−1} − e_0)/(N−1). Every candidate within 2·J/(N−1) of it, J the largest deviation of a
+///    stamp from the endpoint grid, fits the stamps as well as the estimate does; the shortest
+///    such decimal or rate is taken. Two records of one jittering logger (0.00999988 and
+///    0.00999992 by their end points) then share the sample time they were logged at (0.01)
+///    and can be merged and simulated together; before, they differed beyond `Dataset`'s 10⁻⁶.
+/// 4. Otherwise the endpoint estimate.
 inline double snap_sample_time(const Eigen::VectorXd& t, double quantum);
 
 /// Stage 1 of `snap_sample_time`, or NaN if no double reproduces every stamp.
@@ -551,12 +557,30 @@ inline double exact_sample_time(const Eigen::VectorXd& t) {
   return none;
 }
 
+/// Stage 3 of `snap_sample_time`: the shortest decimal or rate within the endpoint estimate's
+/// own uncertainty 2·J/(N−1), else `est`.
+inline double snap_jittered_sample_time(const Eigen::VectorXd& t, double est) {
+  const Eigen::Index n = t.size();
+  if (n < 3) return est;  // two stamps define the grid: no jitter can be seen
+  double dev = 0.0;
+  for (Eigen::Index k = 1; k < n - 1; ++k) dev = std::max(dev, std::abs(t(k) - (t(0) + static_cast<double>(k) * est)));
+  const double reach = 2.0 * dev / static_cast<double>(n - 1);
+  if (!(reach > 0.0) || !std::isfinite(reach)) return est;
+  for (int d = 1; d <= 12; ++d) {
+    const double as_time = round_significant(est, d);
+    if (std::abs(as_time - est) <= reach) return as_time;
+    const double as_rate = 1.0 / round_significant(1.0 / est, d);
+    if (std::abs(as_rate - est) <= reach) return as_rate;
+  }
+  return est;
+}
+
 inline double snap_sample_time(const Eigen::VectorXd& t, double quantum) {
   const Eigen::Index n = t.size();
   const double est = (t(n - 1) - t(0)) / static_cast<double>(n - 1);
   const double exact = exact_sample_time(t);
   if (!std::isnan(exact)) return exact;
-  if (!(quantum > 0.0)) return est;
+  if (!(quantum > 0.0)) return snap_jittered_sample_time(t, est);
   const double t0 = t(0);
   auto reproduces = [&](double ts) {
     if (!(ts > 0.0) || !std::isfinite(ts)) return false;
@@ -574,7 +598,7 @@ inline double snap_sample_time(const Eigen::VectorXd& t, double quantum) {
     const double as_rate = 1.0 / round_significant(1.0 / est, d);
     if (reproduces(as_rate)) return as_rate;
   }
-  return est;
+  return snap_jittered_sample_time(t, est);
 }
 
 inline std::string percent(double x) { return format_g(100.0 * x, 3) + " %"; }
