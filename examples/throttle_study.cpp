@@ -14,6 +14,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <functional>
 #include <iostream>
 #include <limits>
@@ -84,6 +85,9 @@ int main(int argc, char** argv) {
     }
   }
   try {
+    // Made before the estimation, as the other studies do: a missing directory failed only after
+    // every model had been estimated, when study.json was written.
+    std::filesystem::create_directories(out_dir);
     // ---- data: 1 kHz -> 100 Hz, data1+data2 estimation, data3..5 validation ------------------
     std::vector<nlid::Experiment> d;
     for (int k = 1; k <= 5; ++k) {
@@ -238,6 +242,9 @@ int main(int argc, char** argv) {
     std::printf("wrote %s/study.json and %s/report.html (report charts: %d)\n", out_dir.c_str(), out_dir.c_str(),
                 charts);
   } catch (const nlid::Error& e) {
+    std::cerr << "throttle study failed: " << e.what() << "\n";
+    return 1;
+  } catch (const std::filesystem::filesystem_error& e) {  // --out cannot be created
     std::cerr << "throttle study failed: " << e.what() << "\n";
     return 1;
   }
