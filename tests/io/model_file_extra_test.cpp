@@ -574,6 +574,22 @@ TEST_CASE("model file: hand-edited files - a data range per channel, a grey box'
     CHECK_THAT(message_of([&] { (void)load_model(json_file("arx_range_two_outputs.json", j)); }),
                Catch::Contains("data_range.outputs") && Catch::Contains("has 2 entries, the model has 1 outputs"));
   }
+  // A regressor block reading an input the file does not list: named at the block's channel.
+  // Before, the model sized itself to the channel and the "inputs" list was blamed ("the file
+  // lists 1 inputs at inputs, the model has 4").
+  {
+    Nlarx<LaggedRegressors<2, 2, 1>, LinearMap<4>> n;
+    n.set_ts(0.01);
+    const std::string path = temp_path("nlarx_channel.json");
+    save_model(path, n);
+    Json j = read_model_file(path);
+    j["structure"]["regressors"]["blocks"][1]["channel"] = Json(3.0);
+    const std::string bad = json_file("nlarx_channel_3.json", j);
+    const std::string msg = message_of([&] { (void)load_model(bad); });
+    CHECK_THAT(msg, Catch::Contains("regressor block at structure.regressors.blocks[1] reads input channel 3, but the file "
+                                    "lists 1 input(s) (channels 0 to 0)") &&
+                        Catch::Contains("nlarx_channel_3.json"));
+  }
   // A grey box's "states" list must be its physics' (it was allowed and never read).
   {
     GreyBox<physics::Throttle> g;

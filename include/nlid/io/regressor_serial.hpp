@@ -142,7 +142,14 @@ inline RegressorList regressor_list_from_blocks(const JsonView& blocks, std::siz
       b.check_keys({"type", "nb", "nk", "channel"});
       const int nb = read_int(b.at("nb"), 0, max_model_order);
       check_regressor_total(b, blocks, r.size(), nb);
-      r.add_input_lags(nb, read_int(b.at("nk"), 0, max_model_order), read_int(b.at("channel"), 0, max_model_order));
+      const int channel = read_int(b.at("channel"), 0, max_model_order);
+      // Checked here, where the block can be named: the model would size itself to the channel
+      // and the file's "inputs" list would then be reported as the one at fault.
+      if (!input_names.empty() && channel >= static_cast<int>(input_names.size()))
+        b.at("channel").fail("regressor block at " + b.path_text() + " reads input channel " + std::to_string(channel) +
+                             ", but the file lists " + std::to_string(input_names.size()) + " input(s) (channels 0 to " +
+                             std::to_string(input_names.size() - 1) + ")");
+      r.add_input_lags(nb, read_int(b.at("nk"), 0, max_model_order), channel);
     } else if (type == "custom") {
       check_regressor_total(b, blocks, r.size(), 1);
       r.add_custom(custom_block_expression(b, input_names, output_name));
