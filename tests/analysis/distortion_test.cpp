@@ -239,6 +239,16 @@ TEST_CASE("Distortion analysis: a constant or offset noise-free output is not re
     CHECK_THAT(r, !Catch::Contains("present") && !Catch::Contains("nonlinear structure") &&
                       !Catch::Contains("a linear model can explain"));
   }
+  // A response far above rounding with a threshold beyond it: the threshold is the reason, not
+  // "at the DFT's rounding floor (constant, or not a response to this input)".
+  {
+    const nlid::DistortionAnalysis d = nlid::distortion_analysis(base, kPeriod, 1, 300.0);
+    CHECK(d.noise_free());
+    CHECK_FALSE(d.conclusive());
+    CHECK(d.snr_db() > 100.0);
+    CHECK_THAT(d.report(), Catch::Contains("dB above the DFT's rounding floor, not more than the threshold of 300.0 dB") &&
+                               Catch::Contains("lower the threshold") && !Catch::Contains("constant, or not a response"));
+  }
   // An offset adds rounding in proportion to its own power: a linear response on top of a large
   // offset stays linear, and a cube on top of it is still found.
   for (const double offset : {100.0, 1e4}) {

@@ -124,6 +124,10 @@ TEST_CASE("nlid-distortion refuses bad command lines and records it cannot analy
   CHECK(r.code == 1);
   CHECK_THAT(r.err,
              Catch::Contains("at least 2 must remain") && Catch::Contains(rec.filename().string()));
+  // 5 whole periods, 4 skipped: the skip took them, so --skip is named (it was '--period').
+  r = tool_test::distortion(d + " --period 256 --skip 4");
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("at least 2 must remain") && Catch::Contains("parameter '--skip'"));
   r = tool_test::distortion(d + " --period 256 --output z");
   CHECK(r.code == 1);
   CHECK_THAT(r.err, Catch::Contains("z"));

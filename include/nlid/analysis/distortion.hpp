@@ -144,9 +144,15 @@ struct DistortionAnalysis {
     line("odd", odd_lines, odd_db(), odd_detected());
     if (!(excited_level > 0.0)) {
       s += "  no conclusion: the output has no power at the excited lines (constant, or not a response to this input)\n";
-    } else if (!conclusive() && noise_free()) {
+    } else if (!conclusive() && noise_free() && snr_db() <= 20.0) {
       s += "  no conclusion: the output at the excited lines is at the DFT's rounding floor (constant, or not a "
            "response to this input)\n";
+    } else if (!conclusive() && noise_free()) {
+      // Well above rounding, below the threshold: the threshold asks for more than double
+      // precision resolves (the rounding floor is 240 dB under the output's power).
+      s += "  no conclusion: the output at the excited lines is " + detail::format_f(snr_db(), 1) +
+           " dB above the DFT's rounding floor, not more than the threshold of " + detail::format_f(threshold_db, 1) +
+           " dB; a noise-free record reaches about 240 dB at most: lower the threshold\n";
     } else if (!conclusive()) {
       s += "  no conclusion: the output at the excited lines is only " + detail::format_f(snr_db(), 1) +
            " dB above the noise (needs more than " + detail::format_f(threshold_db, 1) +
@@ -201,7 +207,8 @@ struct DistortionAnalysis {
           "distortion analysis: " + std::to_string(e.size()) + " samples hold " + std::to_string(whole) +
               " whole period(s) of " + std::to_string(period) + "; after skipping " + std::to_string(skip_periods) +
               " at least 2 must remain (the noise level is their spread)",
-          at_parameter("period"));
+          // The record's fault if it holds fewer than 2 periods, the skip's if it took them.
+          at_parameter(whole >= 2 && skip_periods > 0 ? "skip_periods" : "period"));
   require(e.u().col(0).allFinite() && e.y().col(0).allFinite(), "distortion analysis: the record has non-finite samples",
           at_parameter("experiment"));
   // Powers are sums of squares: of samples near 1e300 they overflow (inf/inf = NaN dB, an input
