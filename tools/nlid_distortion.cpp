@@ -22,6 +22,7 @@
 #include "nlid/analysis/distortion.hpp"
 #include "nlid/core/atomic_file.hpp"
 #include "nlid/core/error.hpp"
+#include "nlid/core/utf8.hpp"
 #include "nlid/data/csv.hpp"
 #include "nlid/io/json.hpp"
 #include "record_options.hpp"
@@ -90,7 +91,7 @@ int main(int argc, char** argv) {
     if (!json.empty()) {
       stage = "writing " + json;
       nlid::Json j = nlid::Json::object();
-      j["data"] = data;
+      j["data"] = nlid::valid_utf8(data);  // a Latin-1 file name would fail the write after the analysis
       j["period"] = static_cast<double>(d.period);
       j["periods"] = d.periods;
       j["ts"] = d.ts;

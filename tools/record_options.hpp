@@ -14,6 +14,7 @@
 
 #include "nlid/core/error.hpp"
 #include "nlid/core/format.hpp"
+#include "nlid/core/utf8.hpp"
 #include "nlid/data/csv.hpp"
 #include "cli_common.hpp"
 
@@ -176,6 +177,9 @@ inline nlid::Experiment read_record(const RecordOptions& o, const std::string& p
   try {
     nlid::CsvReadInfo info;
     nlid::Experiment e = nlid::read_csv(path, c, info);
+    // The record is named after its file, whose bytes may not be UTF-8 (a Latin-1 "mess\xE4ung"):
+    // the JSON and model files the tools write hold UTF-8 only, and would fail after the work.
+    e.set_name(nlid::valid_utf8(e.name()));
     // The same test as read_csv's note: a step off --ts by more than the time tolerance.
     const double step = info.time_column_step;
     if (o.ts > 0.0 && std::isfinite(step) && std::abs(step - o.ts) > c.time_tolerance * o.ts) {

@@ -74,6 +74,14 @@ TEST_CASE("nlid-distortion reports what theory predicts and writes the levels",
   CHECK(j["frf"]["frequency_hz"].size() == j["excited_lines"].size());
   CHECK(j["frf"]["frequency_hz"][std::size_t{0}].as_number() ==
         Approx(j["excited_lines"][std::size_t{0}].as_number() / 2.56));
+  // A Latin-1 file name: the analysis was printed, then the JSON write failed ("string at data
+  // is not valid UTF-8") and nothing was written. Repaired as in nlid-fit's model files.
+  const fs::path latin = work_dir() / "mess\xE4ung.csv";
+  fs::copy_file(sq, latin, fs::copy_options::overwrite_existing);
+  r = tool_test::distortion("--data " + q(latin) + " --period 256 --json " + q(js));
+  INFO(r.err);
+  REQUIRE(r.code == 0);
+  CHECK_THAT(nlid::read_json(js.string())["data"].as_string(), Catch::Contains("mess\xEF\xBF\xBDung.csv"));
 }
 
 TEST_CASE("nlid-distortion: an odd multisine cannot measure odd distortion and gives no verdict",
