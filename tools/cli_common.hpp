@@ -278,6 +278,7 @@ inline std::string translate(std::string s) {
       {" (use NonFinitePolicy::keep or ::interpolate for missing data)",
        " (the tools need complete records; fill or cut out the missing samples first)"},
       {"set CsvReadOptions::ts", "give --ts"},
+      {"pass one in DiagnoseOptions::noise", "give one with --noise SIGMA (the output's noise standard deviation)"},
       {"set it (set_ts) or CodegenOptions::ts", "give --ts"},
       {"set CodegenOptions::ts", "give --ts"},
       {"set CodegenOptions::substeps", "give --substeps"},

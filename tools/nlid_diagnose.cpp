@@ -40,6 +40,7 @@ const std::string usage = std::string(
     "                     [--input u] [--output y] [--time t] [--ts T] [--delimiter C] [--decimal C]\n"
     "                     [--time-tolerance R] [--decimate N]\n"
     "                     [--x0 estimate|zero] [--starts N] [--max-effects N] [--effects a,b,...]\n"
+    "                     [--refine-top N] [--noise SIGMA]\n"
     "                     [--threads N] [--json out.json] [--html report.html] [--save model.json]\n"
     "                     [--quiet]\n"
     "\n"
@@ -54,6 +55,9 @@ const std::string usage = std::string(
     "  --starts N        multi-start runs of the baseline fit (default 6)\n"
     "  --max-effects N   largest number of effects added (default 3)\n"
     "  --effects LIST    comma-separated effect names to try (default: the whole catalogue)\n"
+    "  --refine-top N    screened effects refitted to convergence per round (default 3)\n"
+    "  --noise SIGMA     the output's measurement-noise standard deviation after --decimate, in its\n"
+    "                    units (default: estimated from the records; needed for noise-free data)\n"
     "  --threads N       worker threads (default: all cores, at most 8)\n"
     "  --json FILE       write the diagnosis as JSON\n"
     "  --html FILE       write a self-contained HTML report\n"
@@ -82,6 +86,8 @@ int main(int argc, char** argv) {
                                          {"--starts"},
                                          {"--max-effects"},
                                          {"--effects"},
+                                         {"--refine-top"},
+                                         {"--noise"},
                                          {"--threads"},
                                          {"--json"},
                                          {"--html"},
@@ -101,6 +107,17 @@ int main(int argc, char** argv) {
     opt.starts = a.get_int("--starts", 1, 10000, opt.starts);
     opt.max_effects = a.get_int("--max-effects", 0, 100, opt.max_effects);
     opt.threads = a.get_int("--threads", 1, 4096, opt.threads);
+    opt.refine_top = a.get_int("--refine-top", 1, 1000, opt.refine_top);
+    if (a.has("--noise")) {
+      // Records without measurable noise (simulated, or quantised far below the signal) have no
+      // floor to estimate; the library asked for DiagnoseOptions::noise, which no flag set.
+      opt.noise.sigma = nlid_tools::parse_number("--noise", a.get("--noise"));
+      if (!(opt.noise.sigma > 0.0))
+        throw UsageError("--noise needs a positive standard deviation in the output's units, got '" + a.get("--noise") + "'");
+      opt.noise.raw_sigma = opt.decimate > 1 ? 0.0 : opt.noise.sigma;  // 0: not known at the raw rate
+      opt.noise.decimation = opt.decimate;
+      opt.noise.method = "given with --noise";
+    }
     if (a.has("--x0"))
       opt.initial_condition = a.get("--x0") == "zero" ? nlid::InitialCondition::zero : nlid::InitialCondition::estimate;
     if (a.has("--effects")) {

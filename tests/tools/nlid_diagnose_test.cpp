@@ -96,6 +96,25 @@ TEST_CASE("nlid-diagnose: bad files, missing columns, data too short", "[tools][
   r = diagnose("--baseline first_order --est " + q(good) + " --val " + q(other) + " --decimate 10");
   CHECK(r.code == 1);
   CHECK_THAT(r.err, Catch::Contains("too short") && Catch::Contains("after decimation by 10"));
+  // An output without measurable noise (here the step input read as the output): the hint named
+  // DiagnoseOptions::noise, a C++ field no flag set; --noise now gives the floor.
+  r = diagnose("--baseline first_order --est " + q(good) + " --val " + q(other) + " --input y --output u --quiet");
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("give one with --noise SIGMA") && !Catch::Contains("DiagnoseOptions"));
+  const fs::path noise_json = work_dir() / "noise.json";
+  r = diagnose("--baseline first_order --est " + q(good) + " --val " + q(other) +
+               " --input y --output u --quiet --max-effects 0 --noise 0.05 --refine-top 2 --json " + q(noise_json));
+  INFO(r.err);
+  CHECK(r.code == 0);
+  if (r.code == 0) {
+    const nlid::Json j = nlid::Json::parse(slurp(noise_json), noise_json.string());
+    CHECK(j["noise_floor"]["sigma"].as_number() == 0.05);
+    CHECK(j["noise_floor"]["method"].as_string() == "given with --noise");
+  }
+  for (const char* bad : {"--noise 0", "--noise -1", "--noise x", "--refine-top 0"}) {
+    r = diagnose("--baseline first_order --est " + q(good) + " --val " + q(other) + " " + bad);
+    CHECK(r.code == 2);
+  }
   // A record in absurd units is named with its file, not left to fail every start of the fit.
   const fs::path huge = work_dir() / "huge.csv";
   {

@@ -254,7 +254,7 @@ std::string explain(const Diagnosis<P>& d) {
            detail::pct(std::max(0.0, screened->stats.relevance)) +
            " of the excess, but its estimation cost was not among the lowest, so it was not refitted to "
            "convergence and could not be added; try it alone (nlid-diagnose --effects " + screened->effect.name() +
-           ", DiagnoseOptions::effects) or raise refine_top.";
+           ", DiagnoseOptions::effects) or raise refine_top (--refine-top).";
     return s;
   }
   s += " The missing physics is ";
