@@ -67,10 +67,24 @@ inline double parse_number(const std::string& flag, const std::string& v) {
   double x = std::numeric_limits<double>::quiet_NaN();
   try {
     x = std::stod(v, &pos);
+  } catch (const std::out_of_range&) {
+    // A number, but not one a double holds: 1e-320 (below the normal range) read as "not a
+    // finite number", which it is.
+    throw UsageError(flag + " needs a number within the range of a double (0, or 2.2e-308 to 1.8e308 in magnitude), got '" +
+                     v + "'");
   } catch (...) {
     pos = 0;
   }
   if (v.empty() || pos != v.size() || !std::isfinite(x)) throw UsageError(flag + " needs a finite number, got '" + v + "'");
+  return x;
+}
+
+/// A sample time in seconds: a positive number in the range of a double. One parser for the
+/// --ts of every tool (they read it three ways: 1e-320 was a valid sample time to one, not a
+/// finite number to another).
+inline double parse_sample_time(const std::string& flag, const std::string& v) {
+  const double x = parse_number(flag, v);
+  if (!(x > 0.0)) throw UsageError(flag + " needs a positive sample time in seconds, got '" + v + "'");
   return x;
 }
 

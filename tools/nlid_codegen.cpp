@@ -152,8 +152,7 @@ int main(int argc, char** argv) {
     const std::string model = a.get("--model"), out = a.get("--out"), name = a.get("--name"),
                       x0 = a.get("--x0", "zero"), precision = a.get("--precision", "double"),
                       linear_form = a.get("--linear-form", "auto");
-    const double ts = a.get_number("--ts", 0.0);
-    if (a.has("--ts") && !(ts > 0)) throw UsageError("--ts must be positive, got '" + a.get("--ts") + "'");
+    const double ts = a.has("--ts") ? nlid_tools::parse_sample_time("--ts", a.get("--ts")) : 0.0;
     const std::vector<double> u0_values = a.has("--u0") ? nlid_tools::parse_number_list("--u0", a.get("--u0"))
                                                          : std::vector<double>{0.0};
     // --x0: a mode, or a state (a list of numbers).

@@ -107,9 +107,7 @@ int main(int argc, char** argv) {
       if (std::find(it->second.begin(), it->second.end(), k) == it->second.end())
         throw UsageError("option " + k + " does not apply to --signal " + signal);
     }
-    const double ts = nlid_tools::parse_number("--ts", a.get("--ts"));
-    if (!(ts > 0.0))
-      throw UsageError("--ts needs a positive sample time in seconds, got '" + a.get("--ts") + "'");
+    const double ts = nlid_tools::parse_sample_time("--ts", a.get("--ts"));
     nlid::InputLevels levels;
     if (a.has("--levels")) {
       const auto [lo, hi] = parse_pair("--levels", a.get("--levels"));

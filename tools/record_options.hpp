@@ -49,11 +49,7 @@ inline bool parse_record_option(const std::string& k, const std::string& v, Reco
     o.time = v;
     o.time_given = true;
   } else if (k == "--ts") {
-    char* end = nullptr;
-    const double x = std::strtod(v.c_str(), &end);
-    if (v.empty() || end != v.c_str() + v.size() || !(x > 0.0) || x == HUGE_VAL)
-      throw nlid::Error("--ts needs a positive sample time in seconds, got '" + v + "'", nlid::at_parameter(k));
-    o.ts = x;
+    o.ts = parse_sample_time(k, v);
   } else if (k == "--delimiter") {
     if (v == "," || v == ";" || v == "|") o.delimiter = v[0];
     else if (v == "tab" || v == "\\t" || v == "\t") o.delimiter = '\t';

@@ -310,6 +310,14 @@ TEST_CASE("nlid-fit + nlid-sim read semicolon-separated decimal-comma files and 
   r = sim("--model " + q(m_ref) + " --input " + q(est) + " --ts 0 --out " + q(y_eu));
   CHECK(r.code == 2);
   CHECK_THAT(r.err, Catch::Contains("--ts needs a positive sample time"));
+  // One parser for --ts in every tool: 1e-320 was a sample time here (nlid-fit estimated with
+  // ts = 9.99e-321) and "not a finite number" to nlid-input.
+  r = fit(spec + " --est " + q(bare) + " --ts 1e-320 --save " + q(m_bare));
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("--ts needs a number within the range of a double") && Catch::Contains("'1e-320'"));
+  r = tool_test::codegen("--model " + q(m_ref) + " --out " + q(work_dir()) + " --ts 1e-320");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("--ts needs a number within the range of a double"));
 }
 
 TEST_CASE("nlid-fit greybox: --iterations bounds the refinement and the file keeps the estimation's report",

@@ -115,6 +115,8 @@ TEST_CASE("nlid-input refuses bad command lines, naming the option", "[tools][in
       {"--signal random-steps --samples 100 --hold 2,5 --levels -1e308,1e308 --ts 0.01", "--levels needs a finite span"},
       {"--signal random-gaussian --samples 100 --band 0,1.5 --ts 0.01", "--band needs 0 <= LO < HI <= 1"},
       {"--signal random-binary --samples 100 --ts -1", "--ts needs a positive sample time"},
+      // Below the normal range: "needs a finite number" before, while the record tools took it.
+      {"--signal random-binary --samples 100 --ts 1e-320", "--ts needs a number within the range of a double"},
       {"--signal random-binary --samples 100 --ts 0.01 --seed -3", "--seed needs an integer >= 0"},
       {"--signal random-binary --samples 100 --ts 0.01 --column t", "--column needs a plain name other than 't'"},
       {"--signal multisine --period 50 --band 0,0.01 --ts 0.01", "no DFT line of a 50-sample period lies in the band"},
