@@ -114,7 +114,16 @@ std::optional<Args> parse(int argc, char** argv) {
 }
 
 nlid::Experiment load(const std::string& path, const Args& a) {
-  nlid::Experiment e = nlid_tools::read_record(a.record, path, {a.input}, {a.output}, "nlid-fit");
+  nlid::Experiment e;
+  try {
+    e = nlid_tools::read_record(a.record, path, {a.input}, {a.output}, "nlid-fit");
+  } catch (const nlid::Error& err) {
+    // nlid-sim's --column takes a list; here "u,v" is one (missing) column name.
+    const bool listed = a.input.find(',') != std::string::npos || a.output.find(',') != std::string::npos;
+    if (!listed || err.message().find("not found") == std::string::npos) throw;
+    throw nlid::Error(err.message() + " (nlid-fit fits one input and one output: --input and --output each name one column)",
+                      err.where());
+  }
   if (a.last >= 0) {  // --rows given; parse() has checked 0 <= FIRST < LAST
     const long last = a.last;
     if (last > e.size())
@@ -222,14 +231,21 @@ int main(int argc, char** argv) {
     }
     nlid_tools::check_output_file("--save", a.save);
     nlid::Dataset est, val;
-    for (const auto& p : a.est) {
+    // A record that does not join the others (another sample time, other channels) is named by
+    // its file: the data set's message knows only the experiment index.
+    const auto add = [&](nlid::Dataset& set, const std::string& p) {
       stage = "reading " + p;
-      est.add(load(p, a));
-    }
-    for (const auto& p : a.val) {
-      stage = "reading " + p;
-      val.add(load(p, a));
-    }
+      nlid::Experiment e = load(p, a);
+      try {
+        set.add(std::move(e));
+      } catch (const nlid::Error& err) {
+        nlid::Location l = err.where();
+        l.file = p;
+        throw nlid::Error(err.message(), l);
+      }
+    };
+    for (const auto& p : a.est) add(est, p);
+    for (const auto& p : a.val) add(val, p);
     {
       std::vector<const nlid::Experiment*> records;
       for (const auto& e : est) records.push_back(&e);
@@ -241,7 +257,11 @@ int main(int argc, char** argv) {
                             " s, estimation data " + nlid::detail::format_g(est.ts(), 10) +
                             " s (relative difference " + nlid::detail::format_g(std::abs(val.ts() - est.ts()) / est.ts(), 3) +
                             "); resample one of them to the other's rate first",
-                        nlid::at_parameter("--val"));
+                        [&] {
+                          nlid::Location l = nlid::at_parameter("--val");
+                          l.file = a.val.front();  // the validation set's sample time is its first record's
+                          return l;
+                        }());
     }
     double yss = 0.0;
     {

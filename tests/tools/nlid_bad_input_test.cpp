@@ -228,6 +228,10 @@ TEST_CASE("tools: --time-tolerance reads a logger's jittering stamps, and still 
   r = sim("--model " + q(model) + " --input " + q(clean) + " --out " + q(work_dir() / "jitter_clean_y.csv"));
   INFO(r.err);
   CHECK(r.code == 0);
+  // nlid-fit fits one input: a list is one (missing) column name, and the message says so.
+  r = fit(spec + " --est " + q(clean) + " --input u,y2");
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("input column 'u,y2' not found") && Catch::Contains("--input and --output each name one column"));
   for (const char* bad : {"0.6", "-0.1", "x", "nan"}) {
     r = fit(spec + " --est " + q(jitter) + " --time-tolerance " + bad);
     CHECK(r.code == 2);

@@ -147,8 +147,13 @@ TEST_CASE("nlid-fit: unknown specs say what is accepted, bad files and columns a
   r = fit("--model linear:oe:nb=1,nf=1,nk=0 --est " + q(good) + " --val " + q(slow) + " --save " + q(model));
   CHECK(r.code == 1);
   CHECK_THAT(r.err, Catch::Contains("validation data have sample time 0.02 s, estimation data 0.01 s") &&
-                        Catch::Contains("--val"));
+                        Catch::Contains("--val") && Catch::Contains("file '" + slow.string() + "'"));
   CHECK_FALSE(fs::exists(model));
+  // Two --est records at different rates: the second is named by its file, not only "experiment 1".
+  r = fit("--model linear:oe:nb=1,nf=1,nk=0 --est " + q(good) + " --est " + q(slow) + " --save " + q(model));
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("has sample time 0.02 but the data set has 0.01") &&
+                        Catch::Contains("file '" + slow.string() + "'") && Catch::Contains("experiment 1"));
 }
 
 // Estimation and validation files cut from one recording whose time stamps are printed with fixed
