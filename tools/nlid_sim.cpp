@@ -189,17 +189,27 @@ int main(int argc, char** argv) {
         throw nlid::Error(err.message(), l);
       }
     }
+    if (!(m.ts() > 0)) {
+      // A discrete-time model without a sample time (a hand-made file, "ts": 0) runs at whatever
+      // rate the file has: no check can catch a record at the wrong rate, so say so.
+      std::cerr << "nlid-sim: note: " << model << " has no sample time (ts 0): it runs at the file's "
+                << nlid::detail::format_g(e.ts(), 10) << " s without a sample-time check\n";
+    }
     if (m.ts() > 0 && !nlid::same_sample_time(e.ts(), m.ts())) {
       // 10 digits, not std::to_string's six decimals, which print 20 µs as "0.000020" for both sides
       const std::string buf = " has sample time " + nlid::detail::format_g(e.ts(), 10) + " s but the model " +
                               nlid::detail::format_g(m.ts(), 10) + " s (relative difference " +
                               nlid::detail::format_g(std::abs(e.ts() - m.ts()) / m.ts(), 3) + ")";
       std::string hint = "resample the data or re-estimate the model";
-      const double ratio = m.ts() / e.ts();
+      // Against the file's own sample time: the remedy is a --decimate factor, or none at all.
+      const double ratio = m.ts() / (e.ts() / decimate);
       const double whole = std::round(ratio);
-      if (whole >= 2 && std::abs(ratio - whole) < 1e-6 * ratio)
-        hint = "the model's sample time is " + std::to_string(static_cast<long>(whole) * decimate) +
-               " times the file's: use --decimate " + std::to_string(static_cast<long>(whole) * decimate);
+      if (whole >= 1 && std::abs(ratio - whole) < 1e-6 * ratio) {
+        const auto factor = static_cast<long>(whole);
+        hint = factor == 1 ? "the file already has the model's sample time: drop --decimate"
+                           : "the model's sample time is " + std::to_string(factor) + " times the file's: use --decimate " +
+                                 std::to_string(factor);
+      }
       throw nlid::Error("sample-time mismatch: " + input + (decimate > 1 ? " decimated by " + std::to_string(decimate) : "") +
                         buf + "; the model is " + model + " - " + hint);
     }

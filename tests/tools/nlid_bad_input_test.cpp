@@ -232,6 +232,20 @@ TEST_CASE("tools: --time-tolerance reads a logger's jittering stamps, and still 
   r = fit(spec + " --est " + q(clean) + " --input u,y2");
   CHECK(r.code == 1);
   CHECK_THAT(r.err, Catch::Contains("input column 'u,y2' not found") && Catch::Contains("--input and --output each name one column"));
+  // A nonlinear ARX file without a sample time ("ts": 0, "not set") runs at the file's rate, with
+  // a note that no sample-time check was possible (it ran silently on data at any rate).
+  const fs::path narx = work_dir() / "no_ts.json";
+  r = fit("--model nlarx:na=1,nb=1,nk=1:linear --est " + q(clean) + " --save " + q(narx));
+  REQUIRE(r.code == 0);
+  std::string text = slurp(narx);
+  const auto at = text.find("\"ts\": 0.01");
+  REQUIRE(at != std::string::npos);
+  text.replace(at, 10, "\"ts\": 0");
+  std::ofstream(narx) << text;
+  r = sim("--model " + q(narx) + " --input " + q(clean) + " --out " + q(work_dir() / "no_ts_y.csv"));
+  INFO(r.err);
+  CHECK(r.code == 0);
+  CHECK_THAT(r.err, Catch::Contains("has no sample time (ts 0): it runs at the file's 0.01 s without a sample-time check"));
   for (const char* bad : {"0.6", "-0.1", "x", "nan"}) {
     r = fit(spec + " --est " + q(jitter) + " --time-tolerance " + bad);
     CHECK(r.code == 2);

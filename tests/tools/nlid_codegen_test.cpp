@@ -538,6 +538,15 @@ TEST_CASE("nlid-fit -> nlid-sim: every family keeps the data's channel names, an
   Run s = sim("--model " + q(model) + " --input " + q(raw) + " --out " + q(dir / "dec.csv"));
   CHECK(s.code == 1);
   CHECK_THAT(s.err, Catch::Contains("sample-time mismatch") && Catch::Contains("use --decimate 10"));
+  // A file already at the model's rate, decimated anyway: the hint was "resample the data".
+  const fs::path at_rate = write_record("at_100", 600, 76u, 1, true, "y", 0.01);
+  s = sim("--model " + q(model) + " --input " + q(at_rate) + " --decimate 10 --out " + q(dir / "dec.csv"));
+  CHECK(s.code == 1);
+  CHECK_THAT(s.err, Catch::Contains("decimated by 10") && Catch::Contains("the file already has the model's sample time: drop --decimate"));
+  s = sim("--model " + q(model) + " --input " + q(at_rate) + " --decimate 5 --out " + q(dir / "dec.csv"));
+  CHECK_THAT(s.err, Catch::Contains("drop --decimate"));
+  s = sim("--model " + q(model) + " --input " + q(raw) + " --decimate 5 --out " + q(dir / "dec.csv"));
+  CHECK_THAT(s.err, Catch::Contains("use --decimate 10"));
   s = sim("--model " + q(model) + " --input " + q(raw) + " --decimate 10 --out " + q(dir / "dec.csv"));
   INFO(s.err);
   REQUIRE(s.code == 0);
