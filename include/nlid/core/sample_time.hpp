@@ -4,10 +4,11 @@
 /// merged into a data set, a record against a model, a generator's sample time against the
 /// model's).
 ///
-/// Why 10⁻⁶ and not tighter: a logger's time stamps jitter, and then `read_csv` takes the sample
-/// time from the end points, (t_{N−1} − t₀)/(N−1). Two records of one 100 Hz logger with ±2 µs of
-/// jitter come out 10⁻⁸ apart — a 10⁻⁹ rule refused to merge them, and refused to simulate a
-/// model on the records it was estimated from. A relative 10⁻⁶ still catches every real mismatch
+/// Why 10⁻⁶ and not tighter: a sample time read from jittering time stamps is only known to the
+/// stamps' precision, and when no short decimal or rate fits them `read_csv` keeps the end-point
+/// estimate (t_{N−1} − t₀)/(N−1). Two records of one 100 Hz logger with ±2 µs of jitter then came
+/// out 10⁻⁸ apart — a 10⁻⁹ rule refused to merge them, and refused to simulate a model on the
+/// records it was estimated from. A relative 10⁻⁶ still catches every real mismatch
 /// (a record at another rate, a decimation forgotten), and over 10⁶ samples it amounts to one
 /// sample of drift.
 
