@@ -270,6 +270,11 @@ TEST_CASE("refit: recovers a known effect parameter from noisy data", "[diagnose
   REQUIRE(r.ok);
   CHECK(r.theta(4) == Approx(40.0).epsilon(0.05));
   CHECK(r.theta(1) == Approx(100.0).epsilon(0.02));
+  // Data in absurd units are the caller's error, named - not a start that failed to simulate.
+  nlid::Experiment big = d[0];
+  big.y() *= 1e200;
+  CHECK_THROWS_WITH(refit(m, Dataset{big}, m.parameters(), {}), Catch::Contains("refit: experiment 'est', output") &&
+                                                                     Catch::Contains("beyond 1e100"));
 }
 
 TEST_CASE("augmented model: without a spectral radius the sub-steps cover the stiffest state of the run",

@@ -69,6 +69,11 @@ TEST_CASE("Nlarx, prediction focus: the covariance of a linear-in-parameters mod
   const nlid::ParameterUncertainty c = nlid::parameter_uncertainty(est, data);
   CHECK(c.residuals == nlid::ResidualModel::correlated);
   for (int i = 0; i < 4; ++i) CHECK(c.stddev[i] / u.stddev[i] == Approx(1.0).margin(0.25));
+  // Mis-scaled data are named, as in the estimators.
+  nlid::Experiment big = data[0];
+  big.u() *= 1e-250;
+  CHECK_THROWS_WITH(nlid::parameter_uncertainty(est, nlid::Dataset{big}),
+                    Catch::Contains("parameter_uncertainty: experiment") && Catch::Contains("below 1e-100"));
 }
 
 TEST_CASE("Nlarx, simulation focus with estimated initial states: the states are unknowns too",

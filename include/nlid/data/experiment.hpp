@@ -259,6 +259,7 @@ class Experiment {
   /// any unit is that large or small, so a channel there is mis-scaled data. `who` prefixes the
   /// message, `index` (≥ 0) is the experiment's place in its data set.
   void require_estimable_scale(const std::string& who = "", long index = -1) const {
+    validate(true);  // names and columns agree before a channel is named
     for (const bool output : {false, true}) {
       const Eigen::MatrixXd& m = output ? y_ : u_;
       const std::vector<std::string>& names = output ? output_names_ : input_names_;

@@ -259,6 +259,8 @@ template <Physics P>
 RefitResult refit(const AugmentedModel<P>& model, const Dataset& data, const Eigen::VectorXd& theta0,
                   std::vector<Eigen::VectorXd> x0_start, const RefitOptions& options) {
   RefitResult out;
+  // Bad data are the caller's error, not a start that failed: thrown, not returned.
+  for (std::size_t i = 0; i < data.size(); ++i) data[i].require_estimable_scale("refit", static_cast<long>(i));
   const bool guess = options.initial_condition == InitialCondition::estimate;
   const bool est = guess && !options.hold_initial_states;
   if (x0_start.empty()) {

@@ -121,6 +121,7 @@ std::vector<EstimationSegment> uncertainty_segments(const M& model, const Datase
   for (std::size_t i = 0; i < data.size(); ++i) {
     check_experiment(data[i], static_cast<long>(i), model.num_inputs(), history, model.ts(), kind);
     require_complete(data[i], static_cast<long>(i));
+    data[i].require_estimable_scale("parameter_uncertainty", static_cast<long>(i));
     segs[i].u = &data[i].u();
     segs[i].y = data[i].y().col(0);
   }
