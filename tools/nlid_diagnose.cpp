@@ -56,8 +56,9 @@ const std::string usage = std::string(
     "  --max-effects N   largest number of effects added (default 3)\n"
     "  --effects LIST    comma-separated effect names to try (default: the whole catalogue)\n"
     "  --refine-top N    screened effects refitted to convergence per round (default 3)\n"
-    "  --noise SIGMA     the output's measurement-noise standard deviation after --decimate, in its\n"
-    "                    units (default: estimated from the records; needed for noise-free data)\n"
+    "  --noise SIGMA     the output's measurement-noise standard deviation in the records as read\n"
+    "                    (before --decimate), in its units (default: estimated from the records;\n"
+    "                    needed for noise-free data)\n"
     "  --threads N       worker threads (default: all cores, at most 8)\n"
     "  --json FILE       write the diagnosis as JSON\n"
     "  --html FILE       write a self-contained HTML report\n"
@@ -111,12 +112,13 @@ int main(int argc, char** argv) {
     if (a.has("--noise")) {
       // Records without measurable noise (simulated, or quantised far below the signal) have no
       // floor to estimate; the library asked for DiagnoseOptions::noise, which no flag set.
-      opt.noise.sigma = nlid_tools::parse_number("--noise", a.get("--noise"));
-      if (!(opt.noise.sigma > 0.0))
+      const double sigma = nlid_tools::parse_number("--noise", a.get("--noise"));
+      if (!(sigma > 0.0))
         throw UsageError("--noise needs a positive standard deviation in the output's units, got '" + a.get("--noise") + "'");
-      opt.noise.raw_sigma = opt.decimate > 1 ? 0.0 : opt.noise.sigma;  // 0: not known at the raw rate
-      opt.noise.decimation = opt.decimate;
-      opt.noise.method = "given with --noise";
+      // At the records' own rate, carried through --decimate's filter as an estimated floor is
+      // (σ after the filter and the inflation of its correlated samples).
+      opt.noise = nlid::noise_floor_from_sigma(sigma, opt.decimate, opt.decimate_options);
+      opt.noise.method = "given with --noise" + opt.noise.method.substr(5);
     }
     if (a.has("--x0"))
       opt.initial_condition = a.get("--x0") == "zero" ? nlid::InitialCondition::zero : nlid::InitialCondition::estimate;

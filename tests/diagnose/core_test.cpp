@@ -80,6 +80,17 @@ TEST_CASE("noise floor: raw-rate estimate carried through decimation matches the
   const double ref = std::sqrt(dec.y().col(0).array().square().mean());
   CHECK(f.sigma == Approx(ref).epsilon(0.06));
   CHECK(f.inflation >= 1.0);
+  // A given raw-rate sigma is carried through the same filter (nlid-diagnose --noise): the same
+  // floor and inflation as the estimate from that sigma, not sigma itself with inflation 1.
+  const NoiseFloor g = noise_floor_from_sigma(f.raw_sigma, 10);
+  CHECK(g.sigma == f.sigma);
+  CHECK(g.inflation == f.inflation);
+  CHECK(g.inflation > 1.0);
+  CHECK(g.decimation == 10);
+  const NoiseFloor h = noise_floor_from_sigma(0.3);
+  CHECK(h.sigma == 0.3);
+  CHECK(h.inflation == 1.0);
+  CHECK_THAT(message_of([&] { (void)noise_floor_from_sigma(0.0, 10); }), Catch::Contains("must be positive and finite"));
 }
 
 TEST_CASE("noise floor: bad input is reported", "[diagnose][noise][errors]") {

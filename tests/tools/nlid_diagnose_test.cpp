@@ -111,9 +111,15 @@ TEST_CASE("nlid-diagnose: bad files, missing columns, data too short", "[tools][
     CHECK(j["noise_floor"]["sigma"].as_number() == 0.05);
     CHECK(j["noise_floor"]["method"].as_string() == "given with --noise");
   }
-  for (const char* bad : {"--noise 0", "--noise -1", "--noise x", "--refine-top 0"}) {
-    r = diagnose("--baseline first_order --est " + q(good) + " --val " + q(other) + " " + bad);
+  const std::pair<const char*, const char*> bad_flags[] = {
+      {"--noise 0", "--noise needs a positive standard deviation in the output's units, got '0'"},
+      {"--noise -1", "--noise needs a positive standard deviation"},
+      {"--noise x", "--noise needs a finite number, got 'x'"},
+      {"--refine-top 0", "--refine-top needs an integer from 1 to 1000, got '0'"}};
+  for (const auto& [flag, text] : bad_flags) {
+    r = diagnose("--baseline first_order --est " + q(good) + " --val " + q(other) + " " + flag);
     CHECK(r.code == 2);
+    CHECK_THAT(r.err, Catch::Contains(text));
   }
   // A record in absurd units is named with its file, not left to fail every start of the fit.
   const fs::path huge = work_dir() / "huge.csv";

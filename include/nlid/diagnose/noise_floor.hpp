@@ -111,11 +111,22 @@ inline NoiseFloor estimate_noise_floor(const Dataset& data, int output = 0, int 
 inline NoiseFloor estimate_noise_floor(const Eigen::Ref<const Eigen::VectorXd>& signal,
                                        const NoiseFloorOptions& options = {});
 
+/// The noise floor of records whose raw-rate noise standard deviation is known (a sensor's data
+/// sheet; simulated records, which have no noise to estimate), carried through decimation by
+/// `decimation` exactly as an estimated floor is: σ after the filter and the variance inflation
+/// of its correlated samples. Throws unless `raw_sigma` is positive and finite.
+inline NoiseFloor noise_floor_from_sigma(double raw_sigma, int decimation = 1, const DecimateOptions& decimate_options = {},
+                                         const NoiseFloorOptions& options = {});
+
 // ------------------------------------------------------------------------------------------
 // Implementation details below.
 // ------------------------------------------------------------------------------------------
 
 namespace detail {
+
+// Sets f.sigma and f.inflation from f.raw_sigma for records decimated by `decimation`.
+inline void propagate_through_decimation(NoiseFloor& f, int decimation, const DecimateOptions& decimate_options,
+                                         const NoiseFloorOptions& options);
 
 inline double binomial(int n, int k) {
   double c = 1.0;
@@ -291,12 +302,33 @@ inline NoiseFloor estimate_noise_floor(const Dataset& data, int output, int deci
   for (double q : qs)
     if (!(std::abs(q - f.quantisation) <= 1e-9 * std::max(1.0, std::abs(q)))) f.quantisation = 0.0;
   f.raw_sigma = std::max(f.raw_sigma, f.quantisation / std::sqrt(12.0));
-  f.decimation = decimation;
   f.method = "robust RMS of order-" + std::to_string(options.difference_order) +
              " differences of the raw output";
+  detail::propagate_through_decimation(f, decimation, decimate_options, options);
+  return f;
+}
+
+inline NoiseFloor noise_floor_from_sigma(double raw_sigma, int decimation, const DecimateOptions& decimate_options,
+                                         const NoiseFloorOptions& options) {
+  require(raw_sigma > 0.0 && std::isfinite(raw_sigma),
+          "noise floor: the given standard deviation must be positive and finite, got " + detail::format_g(raw_sigma),
+          at_parameter("raw_sigma"));
+  require(decimation >= 1, "noise floor: decimation factor must be >= 1", at_parameter("decimation"));
+  NoiseFloor f;
+  f.raw_sigma = raw_sigma;
+  f.method = "given";
+  detail::propagate_through_decimation(f, decimation, decimate_options, options);
+  return f;
+}
+
+namespace detail {
+
+inline void propagate_through_decimation(NoiseFloor& f, int decimation, const DecimateOptions& decimate_options,
+                                         const NoiseFloorOptions& options) {
+  f.decimation = decimation;
   if (decimation == 1) {
     f.sigma = f.raw_sigma;
-    return f;
+    return;
   }
   // Propagate through the same anti-alias filter by Monte Carlo (fixed seed: reproducible).
   const Eigen::Index n = std::max<Eigen::Index>(options.monte_carlo_samples, 200 * decimation);
@@ -321,7 +353,8 @@ inline NoiseFloor estimate_noise_floor(const Dataset& data, int output, int deci
   f.inflation = infl;
   f.method += ", propagated through decimation by " + std::to_string(decimation) +
               " (variance gain " + detail::format_f(var, 6) + ")";
-  return f;
 }
+
+}  // namespace detail
 
 }  // namespace nlid
