@@ -189,9 +189,10 @@ int main(int argc, char** argv) {
         throw nlid::Error(err.message(), l);
       }
     }
-    if (!(m.ts() > 0)) {
+    if (!(m.ts() > 0) && m.kind() != "greybox" && m.kind() != "augmented_greybox") {
       // A discrete-time model without a sample time (a hand-made file, "ts": 0) runs at whatever
-      // rate the file has: no check can catch a record at the wrong rate, so say so.
+      // rate the file has: no check can catch a record at the wrong rate, so say so. (A grey box
+      // is continuous-time: it integrates over any sample time.)
       std::cerr << "nlid-sim: note: " << model << " has no sample time (ts 0): it runs at the file's "
                 << nlid::detail::format_g(e.ts(), 10) << " s without a sample-time check\n";
     }

@@ -360,6 +360,8 @@ TEST_CASE("nlid-sim --band: the covariance nlid-fit saves gives y_std, models wi
   INFO(s.err);
   REQUIRE(s.code == 0);
   CHECK(slurp(banded).rfind("t,y,y_std\n", 0) == 0);
+  // A grey box is continuous-time: no "has no sample time" note (it has no ts of its own).
+  CHECK_THAT(s.err, !Catch::Contains("no sample time"));
   // The same simulation, now with its standard deviation: 0 at the held initial state, then
   // positive and small against the output's range of about 4 (noise 0.01 on 1200 samples).
   const std::vector<double> y0 = csv_column(plain, 1), y = csv_column(banded, 1), sd = csv_column(banded, 2);
