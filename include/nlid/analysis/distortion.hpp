@@ -148,11 +148,12 @@ struct DistortionAnalysis {
       s += "  no conclusion: the output at the excited lines is at the DFT's rounding floor (constant, or not a "
            "response to this input)\n";
     } else if (!conclusive() && noise_free()) {
-      // Well above rounding, below the threshold: the threshold asks for more than double
-      // precision resolves (the rounding floor is 240 dB under the output's power).
+      // Clearly a response, but not as far above rounding as the threshold asks: in a noise-free
+      // record the threshold is the reason, not the output (the rounding floor lies 240 dB under
+      // the output's whole power, DC included).
       s += "  no conclusion: the output at the excited lines is " + detail::format_f(snr_db(), 1) +
            " dB above the DFT's rounding floor, not more than the threshold of " + detail::format_f(threshold_db, 1) +
-           " dB; a noise-free record reaches about 240 dB at most: lower the threshold\n";
+           " dB; a noise-free record is compared with rounding: lower the threshold\n";
     } else if (!conclusive()) {
       s += "  no conclusion: the output at the excited lines is only " + detail::format_f(snr_db(), 1) +
            " dB above the noise (needs more than " + detail::format_f(threshold_db, 1) +
