@@ -14,7 +14,6 @@
 
 #include "nlid/core/error.hpp"
 #include "nlid/core/format.hpp"
-#include "nlid/core/utf8.hpp"
 #include "nlid/data/csv.hpp"
 #include "cli_common.hpp"
 
@@ -42,7 +41,8 @@ inline constexpr const char* record_usage =
     "                    (default 0.01; at most 0.5, so a dropped sample is still found)\n";
 
 /// Consumes option `k` with value `v` if it is one of the record options (returns false
-/// otherwise). Throws `nlid::Error` naming the option for a bad value.
+/// otherwise). Throws naming the option for a bad value: `nlid::Error`, or `UsageError` from the
+/// shared number parsers (--ts); `record_options_from` makes both a usage error.
 inline bool parse_record_option(const std::string& k, const std::string& v, RecordOptions& o) {
   if (k == "--time") {
     if (v.empty()) throw nlid::Error("--time needs a column name", nlid::at_parameter(k));
@@ -173,9 +173,6 @@ inline nlid::Experiment read_record(const RecordOptions& o, const std::string& p
   try {
     nlid::CsvReadInfo info;
     nlid::Experiment e = nlid::read_csv(path, c, info);
-    // The record is named after its file, whose bytes may not be UTF-8 (a Latin-1 "mess\xE4ung"):
-    // the JSON and model files the tools write hold UTF-8 only, and would fail after the work.
-    e.set_name(nlid::valid_utf8(e.name()));
     // The same test as read_csv's note: a step off --ts by more than the time tolerance.
     const double step = info.time_column_step;
     if (o.ts > 0.0 && std::isfinite(step) && std::abs(step - o.ts) > c.time_tolerance * o.ts) {
