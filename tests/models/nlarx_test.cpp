@@ -210,8 +210,21 @@ TEST_CASE("equilibrium initial condition starts the model at rest", "[models][nl
 TEST_CASE("bad data are reported naming the experiment", "[models][nlarx]") {
   const Model m = make_model();
   const nlid::Experiment short_data(inputs(2), Eigen::VectorXd::Zero(2), 0.01, "tiny");
-  CHECK_THROWS_WITH(m.simulate(short_data), Catch::Contains("experiment 'tiny' has 2 samples") &&
-                                                Catch::Contains("needed by the model's lags"));
+  // Starts that read the record's past need more samples than the lags ...
+  CHECK_THROWS_WITH(m.simulate(short_data, nlid::InitialCondition::measured),
+                    Catch::Contains("experiment 'tiny' has 2 samples") && Catch::Contains("needed by the model's lags"));
+  CHECK_THROWS_WITH(m.simulate(short_data, nlid::InitialCondition::estimate), Catch::Contains("needed by the model's lags"));
+  // ... a free run from rest or equilibrium reads none (it was refused the same way): its first
+  // samples are those of a longer run.
+  const nlid::Experiment longer(inputs(40), Eigen::VectorXd::Zero(40), 0.01);
+  for (const auto ic : {nlid::InitialCondition::zero, nlid::InitialCondition::equilibrium}) {
+    const Eigen::MatrixXd a = m.simulate(short_data, ic), b = m.simulate(longer, ic);
+    REQUIRE(a.rows() == 2);
+    CHECK(a(0, 0) == b(0, 0));
+    CHECK(a(1, 0) == b(1, 0));
+  }
+  const nlid::Experiment empty(inputs(0), Eigen::VectorXd::Zero(0), 0.01, "empty");
+  CHECK_THROWS_WITH(m.simulate(empty), Catch::Contains("experiment 'empty' has no samples"));
   Eigen::MatrixXd u2(50, 2);
   u2.setOnes();
   const nlid::Experiment two_inputs(u2, Eigen::VectorXd::Zero(50), 0.01, "wide");

@@ -246,6 +246,18 @@ TEST_CASE("tools: --time-tolerance reads a logger's jittering stamps, and still 
   INFO(r.err);
   CHECK(r.code == 0);
   CHECK_THAT(r.err, Catch::Contains("has no sample time (ts 0): it runs at the file's 0.01 s without a sample-time check"));
+  // A free run from rest reads no past: a record shorter than the lags simulates (it was refused,
+  // "2 samples, not more than the 3 needed by the model's lags"); a measured start still needs them.
+  const fs::path lag3 = work_dir() / "lag3.json", two = work_dir() / "two_rows.csv";
+  REQUIRE(fit("--model nlarx:na=3,nb=3,nk=0:linear --est " + q(clean) + " --save " + q(lag3)).code == 0);
+  std::ofstream(two) << "t,u,y\n0,0.5,0\n0.01,0.5,0\n";
+  r = sim("--model " + q(lag3) + " --input " + q(two) + " --x0 zero --out " + q(work_dir() / "two_y.csv"));
+  INFO(r.err);
+  CHECK(r.code == 0);
+  CHECK(slurp(work_dir() / "two_y.csv").rfind("t,y\n0,", 0) == 0);
+  r = sim("--model " + q(lag3) + " --input " + q(two) + " --x0 measured --out " + q(work_dir() / "two_y.csv"));
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("needed by the model's lags"));
   for (const char* bad : {"0.6", "-0.1", "x", "nan"}) {
     r = fit(spec + " --est " + q(jitter) + " --time-tolerance " + bad);
     CHECK(r.code == 2);
@@ -564,8 +576,9 @@ TEST_CASE("nlid-sim: --decimate and a record too short for the model name the op
   CHECK(r.code == 1);
   CHECK_THAT(r.err, Catch::Contains("parameter '--decimate'") && Catch::Contains("short_three.csv"));
   CHECK(r.err.find("'factor'") == std::string::npos);
-  // Was "experiment has 1 samples, not more than the 2 needed ..." without a location.
-  r = sim("--model " + q(model) + " --input " + q(one) + " --ts 0.01 --out " + q(out));
+  // Was "experiment has 1 samples, not more than the 2 needed ..." without a location. (A measured
+  // start reads the past; a free run from rest needs none and runs on one sample.)
+  r = sim("--model " + q(model) + " --input " + q(one) + " --ts 0.01 --x0 measured --out " + q(out));
   CHECK(r.code == 1);
   CHECK_THAT(r.err, Catch::Contains("short_one.csv"));
   CHECK_FALSE(fs::exists(out));

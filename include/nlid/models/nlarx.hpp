@@ -334,7 +334,11 @@ class Nlarx {
   /// t = n₀). Throws `nlid::Error` naming the experiment on bad data.
   [[nodiscard]] Eigen::VectorXd initial_state(const Experiment& e, InitialCondition ic,
                                               long index = -1) const {
-    detail::check_experiment(e, index, num_inputs(), history_length(), ts_, "nonlinear ARX");
+    // Only the measured and estimated starts read the record's first n0 outputs; a free run from
+    // rest or an equilibrium needs one sample (a 2-sample record was refused for a model with
+    // lag 3, though nothing of its past is read).
+    const bool reads_past = ic == InitialCondition::measured || ic == InitialCondition::estimate;
+    detail::check_experiment(e, index, num_inputs(), reads_past ? history_length() : 0, ts_, "nonlinear ARX");
     const Eigen::VectorXd y = e.y().col(0);
     switch (ic) {
       case InitialCondition::zero: return Eigen::VectorXd::Zero(state_dimension());

@@ -87,8 +87,9 @@ inline void check_experiment(const Experiment& e, long index, int num_inputs, in
               " model reads " + std::to_string(num_inputs),
           where);
   require(e.size() > min_history,
-          who + " has " + std::to_string(e.size()) + " samples, not more than the " +
-              std::to_string(min_history) + " needed by the model's lags",
+          min_history == 0 ? who + " has no samples"
+                           : who + " has " + std::to_string(e.size()) + " samples, not more than the " +
+                                 std::to_string(min_history) + " needed by the model's lags",
           where);
   if (model_ts > 0.0) {
     // format_g(·, 10): std::to_string's six decimals print 0.0100000002 and 0.01 alike.
