@@ -137,6 +137,10 @@ class Dataset {
     for (const auto& e : experiments_) n += e.size();
     return n;
   }
+  /// `Experiment::require_estimable_scale` of every experiment, each named by its index.
+  void require_estimable_scale(const std::string& who) const {
+    for (std::size_t i = 0; i < experiments_.size(); ++i) experiments_[i].require_estimable_scale(who, static_cast<long>(i));
+  }
   /// Names of the experiments in order.
   [[nodiscard]] std::vector<std::string> names() const {
     std::vector<std::string> v;

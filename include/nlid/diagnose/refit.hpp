@@ -260,7 +260,7 @@ RefitResult refit(const AugmentedModel<P>& model, const Dataset& data, const Eig
                   std::vector<Eigen::VectorXd> x0_start, const RefitOptions& options) {
   RefitResult out;
   // Bad data are the caller's error, not a start that failed: thrown, not returned.
-  for (std::size_t i = 0; i < data.size(); ++i) data[i].require_estimable_scale("refit", static_cast<long>(i));
+  data.require_estimable_scale("refit");
   const bool guess = options.initial_condition == InitialCondition::estimate;
   const bool est = guess && !options.hold_initial_states;
   if (x0_start.empty()) {

@@ -563,7 +563,7 @@ inline ArxRegression arx_regression(const Dataset& data, const ArxOrders& o, boo
 inline Arx arx(const Dataset& data, const ArxOrders& orders, const ArxOptions& options = {}) {
   // The user's records only: OE's Steiglitz-McBride pass runs arx_estimate on filtered signals,
   // whose magnitudes are no sample of the data.
-  for (std::size_t e = 0; e < data.size(); ++e) data[e].require_estimable_scale("arx", static_cast<long>(e));
+  data.require_estimable_scale("arx");
   return detail::arx_estimate(data, orders, options, 0, "arx", nullptr);
 }
 

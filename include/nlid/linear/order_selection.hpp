@@ -213,7 +213,7 @@ inline OrderSelection arx_order_selection_impl(const Dataset& est, const Dataset
                                                const ArxOrderGrid& grid, const ArxOptions& opt) {
   const std::string who = "arx_order_selection";
   require(est.size() > 0, who + ": the estimation data set is empty", at_parameter("data"));
-  for (std::size_t e = 0; e < est.size(); ++e) est[e].require_estimable_scale(who, static_cast<long>(e));
+  est.require_estimable_scale(who);
   require(!grid.na.empty() && !grid.nb.empty() && !grid.nk.empty(),
           who + ": every grid list (na, nb, nk) needs at least one value", at_parameter("grid"));
   const int m = est.num_inputs();

@@ -226,7 +226,7 @@ ParameterUncertainty parameter_uncertainty(const GreyBox<P>& model, const Datase
                                            const GreyBoxUncertaintyOptions& options = {}) {
   require(data.size() > 0, "parameter_uncertainty: empty data set", at_parameter("data"));
   model.check_channels(data);
-  for (std::size_t i = 0; i < data.size(); ++i) data[i].require_estimable_scale("parameter_uncertainty", static_cast<long>(i));
+  data.require_estimable_scale("parameter_uncertainty");
   const int np = model.num_parameters(), nx = model.state_dimension();
   const GreyBoxProblem<P> problem(model.physics(), model.integrator(), data, options.initial_condition,
                                   model.fixed_flags());
@@ -263,7 +263,7 @@ GreyBoxEstimate estimate(GreyBox<P>& model, const Dataset& data,
   const auto t0 = std::chrono::steady_clock::now();
   require(data.size() > 0, "grey-box estimation: empty data set");
   model.check_channels(data);
-  for (std::size_t i = 0; i < data.size(); ++i) data[i].require_estimable_scale("grey-box estimation", static_cast<long>(i));
+  data.require_estimable_scale("grey-box estimation");
   if (options.initialize_from_data && !model.initialized()) model.initialize(data);
 
   const GreyBoxProblem<P> problem(model.physics(), model.integrator(), data,
