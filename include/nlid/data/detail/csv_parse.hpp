@@ -558,8 +558,22 @@ inline double exact_sample_time(const Eigen::VectorXd& t) {
   return none;
 }
 
-/// Stage 3 of `snap_sample_time`: the shortest decimal or rate within the endpoint estimate's
-/// own uncertainty 2·J/(N−1), else `est`.
+/// The shortest sample time near `x` that `accept` takes: with 1, 2, … 12 significant digits, as
+/// a sample time (0.001) or as a rate (1/51200); NaN if none. Stages 2 and 3 of
+/// `snap_sample_time` differ only in what they accept.
+template <class Accept>
+double shortest_sample_time(double x, const Accept& accept) {
+  for (int d = 1; d <= 12; ++d) {
+    const double as_time = round_significant(x, d);
+    if (accept(as_time)) return as_time;
+    const double as_rate = 1.0 / round_significant(1.0 / x, d);
+    if (accept(as_rate)) return as_rate;
+  }
+  return std::numeric_limits<double>::quiet_NaN();
+}
+
+/// Stage 3 of `snap_sample_time`: the shortest decimal or rate within 3 standard errors of the
+/// least-squares slope of the stamps, else `est`.
 inline double snap_jittered_sample_time(const Eigen::VectorXd& t, double est) {
   const Eigen::Index n = t.size();
   if (n < 3) return est;  // two stamps define the grid: no jitter can be seen
@@ -584,13 +598,8 @@ inline double snap_jittered_sample_time(const Eigen::VectorXd& t, double est) {
   // 3 standard errors, and a few ulps for stamps that only rounding moved.
   const double reach = 3.0 * se + 8.0 * std::numeric_limits<double>::epsilon() * std::abs(slope);
   if (!(slope > 0.0) || !std::isfinite(slope) || !std::isfinite(reach)) return est;
-  for (int d = 1; d <= 12; ++d) {
-    const double as_time = round_significant(slope, d);
-    if (std::abs(as_time - slope) <= reach) return as_time;
-    const double as_rate = 1.0 / round_significant(1.0 / slope, d);
-    if (std::abs(as_rate - slope) <= reach) return as_rate;
-  }
-  return est;
+  const double snapped = shortest_sample_time(slope, [&](double ts) { return std::abs(ts - slope) <= reach; });
+  return std::isnan(snapped) ? est : snapped;
 }
 
 inline double snap_sample_time(const Eigen::VectorXd& t, double quantum) {
@@ -610,13 +619,8 @@ inline double snap_sample_time(const Eigen::VectorXd& t, double quantum) {
     }
     return true;
   };
-  for (int d = 1; d <= 12; ++d) {
-    const double as_time = round_significant(est, d);
-    if (reproduces(as_time)) return as_time;
-    const double as_rate = 1.0 / round_significant(1.0 / est, d);
-    if (reproduces(as_rate)) return as_rate;
-  }
-  return snap_jittered_sample_time(t, est);
+  const double snapped = shortest_sample_time(est, reproduces);
+  return std::isnan(snapped) ? snap_jittered_sample_time(t, est) : snapped;
 }
 
 inline std::string percent(double x) { return format_g(100.0 * x, 3) + " %"; }
