@@ -117,8 +117,7 @@ int main(int argc, char** argv) {
         throw UsageError("--noise needs a positive standard deviation in the output's units, got '" + a.get("--noise") + "'");
       // At the records' own rate, carried through --decimate's filter as an estimated floor is
       // (σ after the filter and the inflation of its correlated samples).
-      opt.noise = nlid::noise_floor_from_sigma(sigma, opt.decimate, opt.decimate_options);
-      opt.noise.method = "given with --noise" + opt.noise.method.substr(5);
+      opt.noise = nlid::noise_floor_from_sigma(sigma, opt.decimate, opt.decimate_options, {}, "given with --noise");
     }
     if (a.has("--x0"))
       opt.initial_condition = a.get("--x0") == "zero" ? nlid::InitialCondition::zero : nlid::InitialCondition::estimate;

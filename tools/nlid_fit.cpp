@@ -252,16 +252,14 @@ int main(int argc, char** argv) {
       nlid_tools::check_inputs_vary(records, a.est, "--est");
     }
     if (val.size() > 0 && !nlid::same_sample_time(val.ts(), est.ts())) {
+      nlid::Location where = nlid::at_parameter("--val");
+      where.file = a.val.front();  // the validation set's sample time is its first record's
       // 10 digits: std::to_string's six decimals printed 20 µs as "0.000020" for both sides
       throw nlid::Error("validation data have sample time " + nlid::detail::format_g(val.ts(), 10) +
                             " s, estimation data " + nlid::detail::format_g(est.ts(), 10) +
                             " s (relative difference " + nlid::detail::format_g(std::abs(val.ts() - est.ts()) / est.ts(), 3) +
                             "); resample one of them to the other's rate first",
-                        [&] {
-                          nlid::Location l = nlid::at_parameter("--val");
-                          l.file = a.val.front();  // the validation set's sample time is its first record's
-                          return l;
-                        }());
+                        where);
     }
     double yss = 0.0;
     {

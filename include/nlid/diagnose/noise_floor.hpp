@@ -114,9 +114,10 @@ inline NoiseFloor estimate_noise_floor(const Eigen::Ref<const Eigen::VectorXd>& 
 /// The noise floor of records whose raw-rate noise standard deviation is known (a sensor's data
 /// sheet; simulated records, which have no noise to estimate), carried through decimation by
 /// `decimation` exactly as an estimated floor is: σ after the filter and the variance inflation
-/// of its correlated samples. Throws unless `raw_sigma` is positive and finite.
+/// of its correlated samples. `source` starts `NoiseFloor::method` (where σ came from). Throws
+/// unless `raw_sigma` is positive and finite.
 inline NoiseFloor noise_floor_from_sigma(double raw_sigma, int decimation = 1, const DecimateOptions& decimate_options = {},
-                                         const NoiseFloorOptions& options = {});
+                                         const NoiseFloorOptions& options = {}, const std::string& source = "given");
 
 // ------------------------------------------------------------------------------------------
 // Implementation details below.
@@ -309,14 +310,14 @@ inline NoiseFloor estimate_noise_floor(const Dataset& data, int output, int deci
 }
 
 inline NoiseFloor noise_floor_from_sigma(double raw_sigma, int decimation, const DecimateOptions& decimate_options,
-                                         const NoiseFloorOptions& options) {
+                                         const NoiseFloorOptions& options, const std::string& source) {
   require(raw_sigma > 0.0 && std::isfinite(raw_sigma),
           "noise floor: the given standard deviation must be positive and finite, got " + detail::format_g(raw_sigma),
           at_parameter("raw_sigma"));
   require(decimation >= 1, "noise floor: decimation factor must be >= 1", at_parameter("decimation"));
   NoiseFloor f;
   f.raw_sigma = raw_sigma;
-  f.method = "given";
+  f.method = source;
   detail::propagate_through_decimation(f, decimation, decimate_options, options);
   return f;
 }
