@@ -164,9 +164,9 @@ class StateSpacePemProblem {
 }  // namespace detail
 
 /// Estimates an n-state model with simulation focus: PO-MOESP start, then Levenberg–Marquardt on
-/// the simulation error (see file comment). Throws like `moesp`.
+/// the simulation error (see file comment). Throws like `moesp`, naming `ssest`.
 inline StateSpace ssest(const Dataset& data, int order, const SsestOptions& options = {}) {
-  StateSpace start = moesp(data, order, options.subspace);
+  StateSpace start = detail::moesp_as(data, order, options.subspace, "ssest");
   if (!start.is_stable() && options.subspace.enforce_stability) {
     // moesp reflected the unstable eigenvalues already; this catches one left on the circle by
     // rounding.

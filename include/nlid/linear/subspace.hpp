@@ -308,11 +308,12 @@ inline Eigen::VectorXd subspace_singular_values(const Dataset& data, int horizon
   return detail::moesp_svd(data, horizon, remove_means, "subspace_singular_values").sigma;
 }
 
-/// Estimates an n-state model by PO-MOESP (see file comment) on single- or multi-experiment
-/// data. Throws `nlid::Error` for n < 1, an order the horizon cannot resolve, an experiment
-/// shorter than 2·horizon (naming it), or missing samples.
-inline StateSpace moesp(const Dataset& data, int order, const SubspaceOptions& options = {}) {
-  const std::string who = "moesp";
+namespace detail {
+
+// `who` names the function the user called in every message: ssest starts here too, and its
+// users should not read about a function they never called.
+inline StateSpace moesp_as(const Dataset& data, int order, const SubspaceOptions& options,
+                           const std::string& who) {
   detail::check_subspace_data(data, who);
   require(order >= 1, who + ": order must be >= 1, got " + std::to_string(order),
           at_parameter("order"));
@@ -358,6 +359,15 @@ inline StateSpace moesp(const Dataset& data, int order, const SubspaceOptions& o
   model.set_input_names(data[0].input_names());
   model.set_output_names(data[0].output_names());
   return model;
+}
+
+}  // namespace detail
+
+/// Estimates an n-state model by PO-MOESP (see file comment) on single- or multi-experiment
+/// data. Throws `nlid::Error` for n < 1, an order the horizon cannot resolve, an experiment
+/// shorter than 2·horizon (naming it), or missing samples.
+inline StateSpace moesp(const Dataset& data, int order, const SubspaceOptions& options = {}) {
+  return detail::moesp_as(data, order, options, "moesp");
 }
 
 }  // namespace nlid
