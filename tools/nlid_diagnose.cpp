@@ -188,7 +188,7 @@ int main(int argc, char** argv) {
           nlid::Location l;
           l.file = f;
           throw nlid::Error("sample time " + nlid_tools::format_seconds(e.ts()) + " differs from the other records' " +
-                                nlid_tools::format_seconds(d.ts()),
+                                nlid_tools::format_seconds(d.ts()) + "; " + nlid_tools::sample_time_remedy(e.ts(), d.ts()),
                             l);
         }
         d.add(std::move(e));
@@ -207,7 +207,7 @@ int main(int argc, char** argv) {
       l.file = val_files[0];
       throw nlid::Error("estimation records are sampled at " + nlid_tools::format_seconds(est.ts()) + " (" +
                             est_files[0] + ") but validation records at " + nlid_tools::format_seconds(val.ts()) +
-                            " (" + val_files[0] + ")",
+                            " (" + val_files[0] + "); " + nlid_tools::sample_time_remedy(val.ts(), est.ts()),
                         l);
     }
     stage = "diagnosing against the baseline " + baseline;

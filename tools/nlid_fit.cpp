@@ -258,7 +258,7 @@ int main(int argc, char** argv) {
       throw nlid::Error("validation data have sample time " + nlid::detail::format_g(val.ts(), 10) +
                             " s, estimation data " + nlid::detail::format_g(est.ts(), 10) +
                             " s (relative difference " + nlid::detail::format_g(std::abs(val.ts() - est.ts()) / est.ts(), 3) +
-                            "); resample one of them to the other's rate first",
+                            "); " + nlid_tools::sample_time_remedy(val.ts(), est.ts()),
                         where);
     }
     double yss = 0.0;

@@ -201,7 +201,11 @@ int main(int argc, char** argv) {
       const std::string buf = " has sample time " + nlid::detail::format_g(e.ts(), 10) + " s but the model " +
                               nlid::detail::format_g(m.ts(), 10) + " s (relative difference " +
                               nlid::detail::format_g(std::abs(e.ts() - m.ts()) / m.ts(), 3) + ")";
-      std::string hint = "resample the data or re-estimate the model";
+      // Nearly equal: the file's stamps jitter or are rounded around the model's rate.
+      std::string hint = std::abs(e.ts() - m.ts()) < 1e-3 * m.ts()
+                             ? "if the file was logged at the model's rate, give it with --ts " +
+                                   nlid::detail::format_g(m.ts() / static_cast<double>(decimate), 10)
+                             : "resample the data or re-estimate the model";
       // Against the file's own sample time: the remedy is a --decimate factor, or none at all.
       const double ratio = m.ts() / (e.ts() / decimate);
       const double whole = std::round(ratio);

@@ -134,6 +134,15 @@ inline bool header_has(const std::string& path, const std::string& name, char de
 /// print 20 µs as "0.000020" whatever the digits after).
 inline std::string format_seconds(double s) { return nlid::detail::format_g(s, 10) + " s"; }
 
+/// What to do about two records' sample times `a` and `b` that differ. Within 1e-3 they are
+/// almost surely one logger's rate read from differently jittering or rounded stamps, which --ts
+/// sets for every file; farther apart the records were sampled at different rates.
+inline std::string sample_time_remedy(double a, double b) {
+  const double rel = std::abs(a - b) / std::max(std::abs(a), std::abs(b));
+  return rel < 1e-3 ? "if both were logged at one rate, give that sample time with --ts"
+                    : "resample one of them to the other's rate first";
+}
+
 /// `CsvReadOptions` for reading `path` with these options: with `--ts` and no time column in the
 /// file, the file is read without one (t₀ = 0). Only the default name may be missing: a --time
 /// the user typed and the file lacks is a misspelling, and reading on without it would drop the

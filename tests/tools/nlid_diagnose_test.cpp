@@ -96,6 +96,19 @@ TEST_CASE("nlid-diagnose: bad files, missing columns, data too short", "[tools][
   r = diagnose("--baseline first_order --est " + q(good) + " --val " + q(other) + " --decimate 10");
   CHECK(r.code == 1);
   CHECK_THAT(r.err, Catch::Contains("too short") && Catch::Contains("after decimation by 10"));
+  // Records at other rates: named by file, with the remedy - --ts for nearly equal rates (one
+  // logger, differently rounded stamps), resampling for really different ones.
+  const fs::path drift = write_record("good_drift", 400, 5u, 0, true, "y", 0.0100005);
+  r = diagnose("--baseline first_order --est " + q(good) + " --est " + q(drift) + " --val " + q(other));
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("sample time 0.0100005") && Catch::Contains("differs from the other records' 0.01 s") &&
+                        Catch::Contains("give that sample time with --ts") &&
+                        Catch::Contains("[at file '" + drift.string() + "'"));
+  const fs::path slow = write_record("good_slow", 400, 5u, 0, true, "y", 0.02);
+  r = diagnose("--baseline first_order --est " + q(good) + " --val " + q(slow));
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("but validation records at 0.02 s") &&
+                        Catch::Contains("resample one of them to the other's rate first"));
   // An output without measurable noise (here the step input read as the output): the hint named
   // DiagnoseOptions::noise, a C++ field no flag set; --noise now gives the floor.
   r = diagnose("--baseline first_order --est " + q(good) + " --val " + q(other) + " --input y --output u --quiet");

@@ -147,8 +147,15 @@ TEST_CASE("nlid-fit: unknown specs say what is accepted, bad files and columns a
   r = fit("--model linear:oe:nb=1,nf=1,nk=0 --est " + q(good) + " --val " + q(slow) + " --save " + q(model));
   CHECK(r.code == 1);
   CHECK_THAT(r.err, Catch::Contains("validation data have sample time 0.02 s, estimation data 0.01 s") &&
-                        Catch::Contains("--val") && Catch::Contains("file '" + slow.string() + "'"));
+                        Catch::Contains("--val") && Catch::Contains("file '" + slow.string() + "'") &&
+                        Catch::Contains("resample one of them to the other's rate first"));
   CHECK_FALSE(fs::exists(model));
+  // Nearly the same rate: one logger read from differently rounded stamps; --ts sets it.
+  const fs::path drift = write_record("fit_drift", 300, 36u, 0, true, "y", 0.0100005);
+  r = fit("--model linear:oe:nb=1,nf=1,nk=0 --est " + q(good) + " --val " + q(drift) + " --save " + q(model));
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("validation data have sample time 0.0100005") &&
+                        Catch::Contains("if both were logged at one rate, give that sample time with --ts"));
   // Two --est records at different rates: the second is named by its file, not only "experiment 1".
   r = fit("--model linear:oe:nb=1,nf=1,nk=0 --est " + q(good) + " --est " + q(slow) + " --save " + q(model));
   CHECK(r.code == 1);
@@ -249,8 +256,20 @@ TEST_CASE("nlid-sim: sample-time mismatch, missing column, bad model file", "[to
   Run r = sim("--model " + q(model) + " --input " + q(slow) + " --out " + q(out));
   CHECK(r.code == 1);
   CHECK_THAT(r.err, Catch::Contains("sample-time mismatch") && Catch::Contains("sim_slow.csv") &&
-                        Catch::Contains("sample time 0.02 s but the model 0.01 s (relative difference 1)"));
+                        Catch::Contains("sample time 0.02 s but the model 0.01 s (relative difference 1)") &&
+                        Catch::Contains("resample the data or re-estimate the model"));
   CHECK_FALSE(fs::exists(out));
+  // Stamps 5e-5 off the model's rate (a logger's clock, rounded stamps): --ts is the remedy, and
+  // works. (read_csv reads these stamps as 99.995 Hz, 0.01000050003 s: the stamps cannot tell that
+  // from 0.0100005 s, and the rate is the shorter decimal.)
+  const fs::path drift = write_record("sim_drift", 300, 35u, 0, true, "y", 0.0100005);
+  r = sim("--model " + q(model) + " --input " + q(drift) + " --out " + q(out));
+  CHECK(r.code == 1);
+  CHECK_THAT(r.err, Catch::Contains("sim_drift.csv has sample time 0.0100005") &&
+                        Catch::Contains("give it with --ts 0.01"));
+  r = sim("--model " + q(model) + " --input " + q(drift) + " --ts 0.01 --out " + q(out));
+  INFO(r.err);
+  CHECK(r.code == 0);
   r = sim("--model " + q(model) + " --input " + q(est) + " --column throttle --out " + q(out));
   CHECK(r.code == 1);
   CHECK_THAT(r.err, Catch::Contains("throttle"));
