@@ -20,6 +20,13 @@
 namespace {
 using cd = std::complex<double>;
 
+template <class M>
+concept LinearizesAtEquilibrium = requires(const M& m, const Eigen::VectorXd& u) { nlid::linearize_at_equilibrium(m, u); };
+template <class M>
+concept LinearizesAtEquilibriumWithTs = requires(const M& m, const Eigen::VectorXd& u) {
+  nlid::linearize_at_equilibrium(m, u, 0.01);
+};
+
 // Central differences of map(x, u) -> [y; x_next] w.r.t. [x; u].
 template <class Map>
 Eigen::MatrixXd fd_jacobian(const Eigen::VectorXd& z0, int nout, Map map, double h = 1e-6) {
@@ -225,6 +232,10 @@ TEST_CASE("grey-box throttle at a stop: contact stiffness enters A", "[analysis]
   // u = 3 drives y past 90: k(y − 10) + K(y − 90) = 21000 → y ≈ 91.3, 17 contact widths deep
   const nlid::Linearization L = nlid::linearize_at_equilibrium(g, Eigen::VectorXd::Constant(1, 3.0), 0.01);
   CHECK(L.point.y(0) == Approx(922000.0 / 10100.0).epsilon(1e-6));
+  // Without the sample time the call itself is refused (it compiled into the sampled models'
+  // template and failed deep inside it).
+  static_assert(!LinearizesAtEquilibrium<decltype(g)>);
+  static_assert(LinearizesAtEquilibriumWithTs<decltype(g)>);
   CHECK(L.continuous->a(1, 0) == Approx(-(100.0 + 1e4)).epsilon(1e-6));
 }
 

@@ -398,8 +398,13 @@ Linearization linearize(const GreyBox<P>& model, const Eigen::VectorXd& x0, cons
 }
 
 /// Linearisation at the equilibrium for the constant input `u0` (Nlarx, Hammerstein–Wiener).
+/// A grey box needs the sample time too (the overload below); asking `linearize(m, x, u)` here
+/// makes a call without it fail at the call, not inside this template.
 template <class M>
-  requires requires(const M& m, const Eigen::VectorXd& u) { equilibrium(m, u); }
+  requires requires(const M& m, const Eigen::VectorXd& u) {
+    equilibrium(m, u);
+    linearize(m, u, u);
+  }
 Linearization linearize_at_equilibrium(const M& model, const Eigen::VectorXd& u0) {
   const OperatingPoint op = equilibrium(model, u0);
   return linearize(model, op.x, op.u);
