@@ -106,6 +106,41 @@ const auto spring = [](auto y1) { return nlid::max(y1, 90.0) + nlid::min(y1, 15.
 
 }  // namespace
 
+TEST_CASE("model file: a network input held constant in the data is stored unused (scale 0) and stays unused") {
+  // Two inputs, the second held at 0.1 throughout: the network marks it unused (s = 0, z = 0).
+  const Experiment one = test_experiment();
+  Eigen::MatrixXd u(one.size(), 2);
+  u.col(0) = one.u().col(0);
+  u.col(1).setConstant(0.1);
+  const Experiment e(u, one.y(), 0.01, "held");
+  using Regs = RegressorSet<LaggedRegressors<2, 1, 0>, InputLags<1, 0, 1>>;
+  Nlarx model(Regs{}, SigmoidNet<4, 5>{}, 0.01);
+  initialise(model, e);
+  REQUIRE(model.nonlinearity().scale()(3) == 0.0);
+  const std::string path = temp_path("held_input.json");
+  save_model(path, model);
+  CHECK_THAT(read_text(path), Catch::Contains("\"scale\""));
+  const AnyModel any = load_model(path);
+  const Eigen::MatrixXd y0 = model.simulate(e, InitialCondition::measured);
+  CHECK(bit_equal(any.simulate(e, InitialCondition::measured), y0));
+  // Moving the held input changes nothing, before and after the round trip.
+  Eigen::MatrixXd u2 = u;
+  u2.col(1).setConstant(3.0);
+  const Experiment moved(u2, one.y(), 0.01, "moved");
+  CHECK(bit_equal(model.simulate(moved, InitialCondition::measured), y0));
+  CHECK(bit_equal(any.simulate(moved, InitialCondition::measured), y0));
+  // A negative scale is still refused; 0 is the one non-positive value a file may give.
+  const std::string text = read_text(path);
+  const auto at = text.find("\"scale\"");
+  REQUIRE(at != std::string::npos);
+  const auto open = text.find('[', at), comma = text.find(',', open);
+  REQUIRE(comma != std::string::npos);
+  std::string bad = text;
+  bad.replace(open + 1, comma - open - 1, "-1");  // the first scale entry becomes negative
+  const std::string bad_path = write_text("held_input_bad.json", bad);
+  CHECK_THAT(error_of([&] { (void)load_model(bad_path); }), Catch::Contains("positive finite scale (or 0: input not used)"));
+}
+
 TEST_CASE("model file: nlarx with a custom regressor and a sigmoid net round-trips bit for bit") {
   const Experiment e = test_experiment();
   RegressorSet regs{LaggedRegressors<2, 1, 0>{},

@@ -382,6 +382,32 @@ TEST_CASE("Huber loss resists outliers that pull least squares off", "[models][e
   CHECK(err_hub < 0.02);
 }
 
+TEST_CASE("an input held constant in the estimation data does not move the estimated model", "[models][estimate]") {
+  // y ignores u2, which is held at 0.1 (its mean is not exactly 0.1). Before, the rounding
+  // noise x - mean was fitted with weights up to 1e16, and moving u2 by 0.1 moved the
+  // simulated output by 1e11.
+  std::mt19937 rng(4);
+  std::uniform_real_distribution<double> level(-1, 1);
+  const int n = 600;
+  Eigen::MatrixXd u(n, 2);
+  Eigen::VectorXd y(n);
+  for (int t = 0; t < n; ++t) {
+    u(t, 0) = level(rng);
+    u(t, 1) = 0.1;
+    y(t) = (t ? 0.5 * y(t - 1) : 0.0) + std::tanh(2.0 * u(t, 0));
+  }
+  using Regs = nlid::RegressorSet<nlid::LaggedRegressors<1, 1, 0>, nlid::InputLags<1, 0, 1>>;
+  const nlid::Experiment e(u, y, 1.0);
+  const auto m = nlid::estimate(nlid::Nlarx<Regs, nlid::SigmoidNet<3, 4>>{}, nlid::Dataset{e});
+  CHECK(m.parameters().cwiseAbs().maxCoeff() < 1e3);
+  Eigen::MatrixXd u2 = u;
+  u2.col(1).setConstant(0.2);
+  const nlid::Experiment moved(u2, y, 1.0);
+  const Eigen::MatrixXd s1 = m.simulate(e, nlid::InitialCondition::measured);
+  CHECK((m.simulate(moved, nlid::InitialCondition::measured) - s1).cwiseAbs().maxCoeff() == 0.0);
+  CHECK(nlid::fit_percent(y, s1.col(0)) > 99.0);
+}
+
 TEST_CASE("estimation refuses bad data, naming the experiment", "[models][estimate]") {
   using Model = nlid::Nlarx<nlid::LaggedRegressors<4, 2, 1>, nlid::LinearMap<6>>;
   const nlid::Experiment ok(random_steps(50, -1, 1, 7), Eigen::VectorXd::Zero(50), 1.0, "long");

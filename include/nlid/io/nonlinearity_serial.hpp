@@ -109,6 +109,7 @@ Eigen::VectorXd exact_scale(const F& f) {
   const Eigen::VectorXd c = f.center();
   for (int j = 0; j < f.input_dimension(); ++j) {
     const double s0 = s(j);
+    if (s0 == 0.0) continue;  // an unused input: 0 is exact
     double best = s0;
     bool found = false;
     // Candidates in order of distance: s0, then one, two, … ulps either side.

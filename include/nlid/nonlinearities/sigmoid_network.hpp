@@ -197,7 +197,11 @@ class SigmoidNet {
     const int levels = std::max(7, 2 * units_ / (per_dir * static_cast<int>(dirs.size())) + 2);
     std::vector<Eigen::VectorXd> cand_b;
     std::vector<double> cand_c;
-    for (const auto& v : dirs) {
+    for (Eigen::VectorXd v : dirs) {
+      // An unused regressor's z is 0: a weight on it would change nothing, so it gets none
+      // (the projection, and so the dictionary, is the same).
+      for (int j = 0; j < m_; ++j)
+        if (!norm_.used(j)) v(j) = 0.0;
       const Eigen::VectorXd p = Zs * v;
       const double sd = std::sqrt((p.array() - p.mean()).square().mean());
       if (!(sd > 1e-12)) continue;
@@ -286,11 +290,12 @@ class SigmoidNet {
     o += "\n";
     for (int j = 0; j < m_; ++j) {
       o += "  " + left_aligned(names[static_cast<std::size_t>(j)], 16) + " " +
-           left_aligned(detail::format_g(r(j)), 13) + " " + left_aligned(detail::format_g(s(j)), 13);
+           left_aligned(detail::format_g(r(j)), 13) + " " + left_aligned(detail::scale_text(s(j)), 13);
       if constexpr (LinearTerm)
-        o += " " + left_aligned(detail::format_g(th(j)), 13) + " " + detail::format_g(th(j) / s(j));
+        o += " " + left_aligned(detail::format_g(th(j)), 13) + " " + detail::per_unit_text(th(j), s(j));
       o += "\n";
     }
+    o += detail::unused_note(s);
     o += "  d = " + detail::format_g(th(offset_d())) + "\n";
     o += "  unit  a[k]          c[k]          b[k]\n";
     for (int k = 0; k < units_; ++k) {

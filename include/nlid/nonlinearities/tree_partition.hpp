@@ -194,8 +194,8 @@ class TreePartition {
     o += "  r = [";
     for (int j = 0; j < m_; ++j) o += (j ? ", " : "") + detail::format_g(r(j));
     o += "],  s = [";
-    for (int j = 0; j < m_; ++j) o += (j ? ", " : "") + detail::format_g(s(j));
-    o += "]\n  splits (node: go right if v'z > t; children 2n+1, 2n+2):\n";
+    for (int j = 0; j < m_; ++j) o += (j ? ", " : "") + detail::scale_text(s(j));
+    o += "]\n" + detail::unused_note(s) + "  splits (node: go right if v'z > t; children 2n+1, 2n+2):\n";
     for (int nd = 0; nd < leaves() - 1; ++nd) {
       o += "    " + std::to_string(nd) + ": ";
       if (!std::isfinite(thr_[static_cast<std::size_t>(nd)])) {

@@ -224,11 +224,12 @@ class WaveletNet {
     o += "\n";
     for (int j = 0; j < m_; ++j) {
       o += "  " + left_aligned(names[static_cast<std::size_t>(j)], 16) + " " +
-           left_aligned(detail::format_g(r(j)), 13) + " " + left_aligned(detail::format_g(s(j)), 13);
+           left_aligned(detail::format_g(r(j)), 13) + " " + left_aligned(detail::scale_text(s(j)), 13);
       if constexpr (LinearTerm)
-        o += " " + left_aligned(detail::format_g(th(j)), 13) + " " + detail::format_g(th(j) / s(j));
+        o += " " + left_aligned(detail::format_g(th(j)), 13) + " " + detail::per_unit_text(th(j), s(j));
       o += "\n";
     }
+    o += detail::unused_note(s);
     o += "  d = " + detail::format_g(th(offset_d())) + "\n";
     o += "  unit  a[k] (scaling)  w[k] (wavelet)  b[k] (dilation)  c[k] (translation, in z)\n";
     for (int k = 0; k < units_; ++k) {

@@ -22,7 +22,7 @@ inline bool is_constant_column(const Eigen::Ref<const Eigen::VectorXd>& col, dou
 }
 
 /// Column means and standard deviations of X; a (numerically) constant column gets scale 1, so
-/// it does not divide by zero (`Standardizer::fit` then zeroes its standardised values).
+/// it does not divide by zero (`Standardizer::fit` then marks it unused: s = 0, z ≡ 0).
 inline void column_moments_into(const Eigen::MatrixXd& X, Eigen::VectorXd& mean, Eigen::VectorXd& scale) {
   mean = X.colwise().mean().transpose();
   scale.resize(X.cols());
