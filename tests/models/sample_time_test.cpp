@@ -66,7 +66,7 @@ TEST_CASE("with_sample_time: output-error model, exact at the common instants, d
   SampleTimeReport rep;
   const OutputError fast = with_sample_time(oe, 0.005, &rep);
   CHECK(fast.ts() == 0.005);
-  CHECK(fast.nk(0) == 4);
+  CHECK(fast.nk(0) == 3);  // one sample of the sampled plant + 10 ms of dead time = 2 samples
   CHECK(rep.exact);
   CHECK(rep.old_ts == 0.01);
   CHECK(rep.warnings.empty());
@@ -91,6 +91,63 @@ TEST_CASE("with_sample_time: output-error model, exact at the common instants, d
   CHECK(has_warning(r3, "is not a whole number of samples"));
 }
 
+TEST_CASE("with_sample_time: nk = 1 is the sampled plant's own sample, not dead time (known answer)") {
+  // K a/(s + a) without dead time, sampled with a ZOH at h: q^-1 K(1 - e^{-ah}) / (1 - e^{-ah} q^-1),
+  // i.e. nb = nf = 1, nk = 1 (Astrom & Wittenmark sec. 2.3). At any other rate it is the same
+  // formula with that h and nk = 1 again; its step response is K(1 - e^{-a t}) at every sample.
+  const double K = 2.0, a = 3.0;
+  const auto sampled = [&](double h) {
+    return OutputError({Eigen::VectorXd::Constant(1, K * (1 - std::exp(-a * h)))},
+                       {Eigen::VectorXd::Constant(1, -std::exp(-a * h))}, {1}, h, 0.0);
+  };
+  for (const double h : {0.05, 0.2, 0.0125}) {
+    INFO("new sample time " << h);
+    SampleTimeReport rep;
+    const OutputError conv = with_sample_time(sampled(0.1), h, &rep);
+    CHECK(rep.exact);
+    CHECK(conv.nk(0) == 1);
+    REQUIRE(conv.b(0).size() == 1);
+    CHECK(conv.b(0)(0) == Approx(K * (1 - std::exp(-a * h))).epsilon(1e-9));
+    CHECK(conv.f(0)(0) == Approx(-std::exp(-a * h)).epsilon(1e-9));
+    const Experiment step(Eigen::MatrixXd::Ones(12, 1), Eigen::VectorXd::Zero(12), h);
+    const Eigen::MatrixXd y = conv.simulate(step, InitialCondition::zero);
+    for (int k = 0; k < 12; ++k) CHECK(y(k, 0) == Approx(K * (1 - std::exp(-a * h * k))).margin(1e-9));
+    // Faster than the old rate, the smallest delay keeps the study's caution.
+    CHECK(has_warning(rep, "estimate the delay again") == (h < 0.1));
+  }
+  // The same through the linear block of a Hammerstein-Wiener model and through ARX.
+  DynamicHammersteinWiener hw(AnyNonlinearity(UnitGain{}), TransferFunctionBlock<Dynamic, Dynamic, Dynamic>(1, 1, 1),
+                              AnyNonlinearity(UnitGain{}), 0.1);
+  hw.set_parameters(Eigen::Vector2d(K * (1 - std::exp(-a * 0.1)), -std::exp(-a * 0.1)));
+  const auto hw2 = with_sample_time(hw, 0.05);
+  CHECK(hw2.linear_block().nk() == 1);
+  CHECK(hw2.linear_block().nb() == 1);
+  const Experiment step(Eigen::MatrixXd::Ones(8, 1), Eigen::VectorXd::Zero(8), 0.05);
+  const Eigen::MatrixXd yh = hw2.simulate(step, InitialCondition::zero);
+  for (int k = 0; k < 8; ++k) CHECK(yh(k, 0) == Approx(K * (1 - std::exp(-a * 0.05 * k))).margin(1e-9));
+  const Arx arx(Eigen::VectorXd::Constant(1, -std::exp(-a * 0.1)), {Eigen::VectorXd::Constant(1, K * (1 - std::exp(-a * 0.1)))},
+                {3}, 0.1);  // and 0.2 s of dead time
+  const Arx arx2 = with_sample_time(arx, 0.05);
+  CHECK(arx2.nk(0) == 5);  // 1 + 0.2 s / 0.05 s
+  const Eigen::MatrixXd ya = arx2.simulate(step, InitialCondition::zero);
+  for (int k = 0; k < 8; ++k) CHECK(ya(k, 0) == Approx(k < 4 ? 0.0 : K * (1 - std::exp(-a * 0.05 * (k - 4)))).margin(1e-9));
+}
+
+TEST_CASE("with_sample_time: nb > nf with a delay (a fractional dead time) converts inexactly, with a warning") {
+  // q^-1 (b1 + b2 q^-1)/(1 + f1 q^-1): the ZOH model of a first-order plant behind part of a
+  // sample of dead time; no rational model converts that exactly.
+  const OutputError oe({Eigen::Vector2d(0.3, 0.2)}, {Eigen::VectorXd::Constant(1, -0.6)}, {1}, 0.1);
+  SampleTimeReport rep;
+  const OutputError half = with_sample_time(oe, 0.05, &rep);
+  CHECK_FALSE(rep.exact);
+  CHECK(has_warning(rep, "a fraction of a sample of dead time"));
+  CHECK(half.nk(0) == 2);  // the old reading: feed-through behind 0.1 s
+  // Still exact for inputs held over the old samples.
+  const Experiment coarse = steps(0.1, 80), fine = steps(0.1, 80, 2);
+  const Eigen::MatrixXd y1 = oe.simulate(coarse, InitialCondition::zero), y2 = half.simulate(fine, InitialCondition::zero);
+  for (int k = 0; k < 80; ++k) CHECK(y2(2 * k, 0) == Approx(y1(k, 0)).margin(1e-9));
+}
+
 TEST_CASE("with_sample_time: nk = 0 keeps the feed-through and warns, as the study cautions") {
   const OutputError oe({Eigen::Vector2d(0.1, 0.05)}, {Eigen::Vector2d(-1.2, 0.4)}, {0}, 0.01);
   SampleTimeReport rep;
@@ -110,7 +167,7 @@ TEST_CASE("with_sample_time: ARX deterministic part, state space, Hammerstein-Wi
   const Arx arx(Eigen::Vector2d(-1.5, 0.7), {Eigen::Vector2d(0.3, 0.1)}, {1}, 0.01);
   SampleTimeReport ra;
   const Arx arx4 = with_sample_time(arx, 0.0025, &ra);
-  CHECK(arx4.nk(0) == 4);
+  CHECK(arx4.nk(0) == 1);
   CHECK(has_warning(ra, "noise model"));
   CHECK(agree(arx.simulate(coarse, InitialCondition::zero), arx4.simulate(fine, InitialCondition::zero)));
   // The offset c is an equilibrium term (A(1) y0 = c): kept as the same static offset, so runs
@@ -140,7 +197,7 @@ TEST_CASE("with_sample_time: ARX deterministic part, state space, Hammerstein-Wi
   hw.set_parameters(th);
   SampleTimeReport rh;
   const auto hw4 = with_sample_time(hw, 0.0025, &rh);
-  CHECK(hw4.linear_block().nk() == 4);
+  CHECK(hw4.linear_block().nk() == 1);
   CHECK(rh.exact);
   CHECK(agree(hw.simulate(coarse, InitialCondition::zero), hw4.simulate(fine, InitialCondition::zero)));
 
@@ -151,7 +208,7 @@ TEST_CASE("with_sample_time: ARX deterministic part, state space, Hammerstein-Wi
   CHECK(has_warning(rn, "re-estimate"));
   CHECK(has_warning(rn, "custom regressors keep their lags"));
   CHECK(nl2.regressor_names() ==
-        std::vector<std::string>{"y1(t-1)", "y1(t-2)", "u1(t-2)", "u1(t-3)", "y1(t-1)^2"});
+        std::vector<std::string>{"y1(t-1)", "y1(t-2)", "u1(t-1)", "u1(t-2)", "y1(t-1)^2"});  // nk = 1: no dead time
   CHECK(nl2.ts() == 0.005);
 
   // Through AnyModel.

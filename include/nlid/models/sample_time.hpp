@@ -16,12 +16,24 @@
 /// reported as an error. `with_sample_time` chains both: the new model is the exact ZOH
 /// discretisation, at the new sample time, of the continuous system the old one came from.
 ///
-/// Delays. An input delay of nk samples is a dead time of nk·h seconds; at the new sample time h'
-/// it is nk' = round(nk·h/h') samples (a warning says when that is not a whole number). The study
-/// ends with the caution this conversion needs: **nk = 0** states only that the dead time is less
-/// than one *old* sample. At a shorter sample time it may well be one or more samples, so a model
-/// with nk = 0 converted to a faster rate keeps nk' = 0 *with a warning*: estimate the delay again
-/// on data at the new rate (e.g. an ARX order search over nk) rather than trusting it.
+/// Delays. A plant without direct feed-through (strictly proper), sampled with a zero-order hold,
+/// answers one sample late: q⁻¹ is part of its sampled transfer function, not a dead time (Åström
+/// & Wittenmark sec. 2.3). So a model q⁻ⁿᵏ B(q)/F(q) with nk ≥ 1 is read as the sampled plant
+/// q⁻¹B/F — converted exactly, as the toolbox's d2d does with B's leading zeros — behind a dead
+/// time of (nk − 1)·h seconds, which becomes nk' − 1 = round((nk − 1)·h/h') samples (a warning
+/// says when that is not a whole number). With nk = 0, B/F has direct feed-through and no dead time.
+/// (Before 2026-11-29 B/F was converted as having feed-through and nk·h was taken as dead time:
+/// a first-order plant sampled with nk = 1 came back at half the sample time with nk' = 2 and a
+/// feed-through — an extra half sample of delay on every input that moves between the old
+/// instants.) When nb > nf and nk ≥ 1, q⁻¹B/F has poles at z = 0: its extra numerator terms stand
+/// for a fraction of a sample of dead time, which no rational ZOH model converts. That input is
+/// then converted the old way and marked inexact, with a warning.
+///
+/// The study ends with the caution this conversion needs: the smallest delay (nk = 1, or nk = 0 for
+/// feed-through) states only that the dead time is less than one *old* sample. At a shorter sample
+/// time it may well be one or more samples, so such a model converted to a faster rate keeps its nk
+/// *with a warning*: estimate the delay again on data at the new rate (e.g. an ARX order search
+/// over nk) rather than trusting it.
 ///
 /// Which models convert how:
 /// - StateSpace, OutputError, the deterministic part B/A of Arx, and the linear block of a
@@ -82,29 +94,45 @@ inline std::string fmt_seconds(double s) { return format_g(s, 6) + " s"; }
 
 }  // namespace detail
 
-/// nk' = round(nk·old_ts/new_ts) with the warnings of the file comment (appended to `report`).
-[[nodiscard]] inline int rescale_delay(int nk, double old_ts, double new_ts, SampleTimeReport* report = nullptr,
-                                       const std::string& what = "input delay nk") {
-  detail::check_new_ts(new_ts);
+namespace detail {
+
+/// A dead time of `d` old samples in new samples, round(d·old_ts/new_ts), with the warnings of the
+/// file comment; `base` is what nk adds to d (1 for a sampled plant without feed-through, 0 with).
+inline int rescale_dead_time(int d, double old_ts, double new_ts, SampleTimeReport* report, const std::string& what,
+                             int base) {
+  check_new_ts(new_ts);
   require(old_ts > 0, "the model has no sample time to convert from", at_parameter("ts"));
-  const double exact = nk * old_ts / new_ts;
+  const double exact = d * old_ts / new_ts;
   const int out = static_cast<int>(std::lround(exact));
   if (report != nullptr) {
-    if (nk == 0) {
+    const std::string nk = std::to_string(d + base);
+    if (d == 0) {
       report->warnings.push_back(
-          what + " = 0: the input acts within one sample of " + detail::fmt_seconds(old_ts) +
-          "; the true dead time lies somewhere in [0, " + detail::fmt_seconds(old_ts) + ")" +
-          (new_ts < old_ts ? " and may be one or more samples at " + detail::fmt_seconds(new_ts) +
-                                 "; nk = 0 was kept - estimate the delay again on data at the new rate"
-                           : "; nk = 0 was kept"));
+          what + " = " + nk + ": the input acts within " + (base == 0 ? "" : "one sample after ") + "one sample of " +
+          fmt_seconds(old_ts) + "; the true dead time lies somewhere in [0, " + fmt_seconds(old_ts) + ")" +
+          (new_ts < old_ts ? " and may be one or more samples at " + fmt_seconds(new_ts) + "; nk = " + nk +
+                                 " was kept - estimate the delay again on data at the new rate"
+                           : "; nk = " + nk + " was kept"));
     } else if (std::abs(exact - out) > 1e-9 * std::max(1.0, exact)) {
-      report->warnings.push_back(what + " = " + std::to_string(nk) + " (" + detail::fmt_seconds(nk * old_ts) +
-                                 ") is not a whole number of samples of " + detail::fmt_seconds(new_ts) +
-                                 "; rounded to " + std::to_string(out));
+      report->warnings.push_back(what + " = " + nk + " (" + fmt_seconds(d * old_ts) + " of dead time" +
+                                 ") is not a whole number of samples of " + fmt_seconds(new_ts) + "; rounded to " +
+                                 std::to_string(out + base));
       report->exact = false;
     }
   }
   return out;
+}
+
+}  // namespace detail
+
+/// nk' for an input delay of nk samples at a new sample time, read as the file comment says: for
+/// nk ≥ 1 one sample belongs to the sampled plant and the dead time (nk − 1)·old_ts is rescaled,
+/// nk' = 1 + round((nk − 1)·old_ts/new_ts); nk = 0 (feed-through) stays 0. Warnings as in the
+/// file comment (appended to `report`).
+[[nodiscard]] inline int rescale_delay(int nk, double old_ts, double new_ts, SampleTimeReport* report = nullptr,
+                                       const std::string& what = "input delay nk") {
+  return nk == 0 ? detail::rescale_dead_time(0, old_ts, new_ts, report, what, 0)
+                 : 1 + detail::rescale_dead_time(nk - 1, old_ts, new_ts, report, what, 1);
 }
 
 /// Continuous-time equivalent (zero-order hold) of a discrete state-space model. Throws
@@ -213,6 +241,53 @@ inline std::pair<Eigen::VectorXd, std::vector<Eigen::VectorXd>> convert_rational
   return polynomials_of(with_sample_time(s, new_ts));
 }
 
+/// Σ q⁻ⁿᵏʲ B_j/F u_j at a new sample time (see the file comment on delays): the new F and, per
+/// input, B_j' and nk_j'. `names[j]` names input j in warnings.
+struct DelayedRational {
+  Eigen::VectorXd f;               ///< monic [1 f₁ …]
+  std::vector<Eigen::VectorXd> b;  ///< B_j' (leading coefficient first, after the delay)
+  std::vector<int> nk;             ///< nk_j'
+};
+
+inline DelayedRational convert_delayed(const Eigen::VectorXd& f, const std::vector<Eigen::VectorXd>& b,
+                                       const std::vector<int>& nk, double old_ts, double new_ts,
+                                       SampleTimeReport* report, const std::vector<std::string>& names) {
+  const auto nf = f.size() - 1;
+  std::vector<Eigen::VectorXd> rational;
+  std::vector<bool> proper;  // q⁻¹B_j/F is the sampled plant (nk_j ≥ 1, no poles at 0)
+  for (std::size_t j = 0; j < b.size(); ++j) {
+    const bool p = nk[j] >= 1 && b[j].size() <= nf;
+    proper.push_back(p);
+    Eigen::VectorXd r = b[j];
+    if (p) {
+      r.resize(b[j].size() + 1);
+      r << 0.0, b[j];
+    }
+    rational.push_back(std::move(r));
+  }
+  auto [fn, bn] = convert_rational(f, rational, old_ts, new_ts);
+  DelayedRational out{fn, {}, {}};
+  for (std::size_t j = 0; j < b.size(); ++j) {
+    if (proper[j]) {
+      // ZOH keeps D = 0, so bn[j](0) is exactly 0 (polynomials_of: monic minus monic, D·F = 0).
+      out.b.push_back(bn[j].tail(bn[j].size() - 1));
+      out.nk.push_back(1 + rescale_dead_time(nk[j] - 1, old_ts, new_ts, report, names[j], 1));
+    } else {
+      out.b.push_back(bn[j]);
+      if (nk[j] >= 1 && report != nullptr) {
+        report->exact = false;
+        report->warnings.push_back(
+            names[j] + " = " + std::to_string(nk[j]) + " with nb = " + std::to_string(b[j].size()) + " > nf = " +
+            std::to_string(nf) + ": the extra numerator terms stand for a fraction of a sample of dead time, "
+            "which has no exact zero-order-hold conversion; converted as feed-through behind " +
+            fmt_seconds(nk[j] * old_ts) + " of dead time, exact only for inputs held over the old samples");
+      }
+      out.nk.push_back(rescale_dead_time(nk[j], old_ts, new_ts, nk[j] >= 1 ? nullptr : report, names[j], 0));
+    }
+  }
+  return out;
+}
+
 }  // namespace detail
 
 /// Output-error model B/F at a new sample time: B/F converted exactly, delays rescaled.
@@ -228,11 +303,12 @@ inline std::pair<Eigen::VectorXd, std::vector<Eigen::VectorXd>> convert_rational
   for (int i = 0; i < m.num_inputs(); ++i) {
     Eigen::VectorXd fi(m.f(i).size() + 1);
     fi << 1.0, m.f(i);
-    auto [fn, bn] = detail::convert_rational(fi, {m.b(i)}, m.ts(), new_ts);
-    b.push_back(bn[0]);
-    f.push_back(fn.tail(fn.size() - 1));
-    nk.push_back(rescale_delay(m.nk(i), m.ts(), new_ts, report,
-                               m.num_inputs() == 1 ? "input delay nk" : "input delay nk of u" + std::to_string(i + 1)));
+    const detail::DelayedRational c = detail::convert_delayed(
+        fi, {m.b(i)}, {m.nk(i)}, m.ts(), new_ts, report,
+        {m.num_inputs() == 1 ? "input delay nk" : "input delay nk of u" + std::to_string(i + 1)});
+    b.push_back(c.b[0]);
+    f.push_back(c.f.tail(c.f.size() - 1));
+    nk.push_back(c.nk[0]);
   }
   return OutputError(b, f, nk, new_ts, m.offset());
 }
@@ -251,12 +327,16 @@ inline std::pair<Eigen::VectorXd, std::vector<Eigen::VectorXd>> convert_rational
   const Eigen::VectorXd a = m.a_polynomial();
   std::vector<Eigen::VectorXd> b;
   std::vector<int> nk;
+  std::vector<std::string> what;
   for (int i = 0; i < m.num_inputs(); ++i) {
     b.push_back(m.b(i));
-    nk.push_back(rescale_delay(m.nk(i), m.ts(), new_ts, report,
-                               m.num_inputs() == 1 ? "input delay nk" : "input delay nk of u" + std::to_string(i + 1)));
+    nk.push_back(m.nk(i));
+    what.push_back(m.num_inputs() == 1 ? "input delay nk" : "input delay nk of u" + std::to_string(i + 1));
   }
-  auto [an, bn] = detail::convert_rational(a, b, m.ts(), new_ts);
+  const detail::DelayedRational conv = detail::convert_delayed(a, b, nk, m.ts(), new_ts, report, what);
+  const Eigen::VectorXd& an = conv.f;
+  const std::vector<Eigen::VectorXd>& bn = conv.b;
+  nk = conv.nk;
   // Same static offset y0 = c / A(1) at the new rate.
   const double a1 = a.sum();
   const double c = m.offset() == 0.0 || a1 == 0.0 ? m.offset() : m.offset() / a1 * an.sum();
@@ -267,7 +347,8 @@ inline std::pair<Eigen::VectorXd, std::vector<Eigen::VectorXd>> convert_rational
 }
 
 /// Hammerstein–Wiener model at a new sample time: the linear block B/F converted exactly (its
-/// orders become nb' = n + 1, nf' = n with n = max(nf, nb − 1)), nk rescaled, the static
+/// orders become nb' = nf' = nf for nk ≥ 1 and nb ≤ nf, else nb' = n + 1, nf' = n with
+/// n = max(nf, nb − 1); see the file comment on delays), nk rescaled, the static
 /// nonlinearities unchanged.
 template <class In, class Out>
 [[nodiscard]] HammersteinWiener<In, TransferFunctionBlock<Dynamic, Dynamic, Dynamic>, Out> with_sample_time(
@@ -285,8 +366,10 @@ template <class In, class Out>
   for (int i = 0; i < l.nb(); ++i) b(i) = th[static_cast<std::size_t>(i)];
   f(0) = 1.0;
   for (int i = 0; i < l.nf(); ++i) f(i + 1) = th[static_cast<std::size_t>(l.nb() + i)];
-  auto [fn, bn] = detail::convert_rational(f, {b}, m.ts(), new_ts);
-  const int nk = rescale_delay(l.nk(), m.ts(), new_ts, report);
+  const detail::DelayedRational c = detail::convert_delayed(f, {b}, {l.nk()}, m.ts(), new_ts, report, {"input delay nk"});
+  const Eigen::VectorXd& fn = c.f;
+  const std::vector<Eigen::VectorXd>& bn = c.b;
+  const int nk = c.nk[0];
   const auto nb_new = static_cast<int>(bn[0].size()), nf_new = static_cast<int>(fn.size() - 1);
   using L = TransferFunctionBlock<Dynamic, Dynamic, Dynamic>;
   HammersteinWiener<In, L, Out> out(m.input_nonlinearity(), L(nb_new, nf_new, nk), m.output_nonlinearity(), new_ts);
