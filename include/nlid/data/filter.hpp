@@ -221,7 +221,8 @@ inline SosFilter lowpass_from_prototype(int order, double cutoff, double sh, dou
 }  // namespace detail
 
 /// Chebyshev type I low-pass: `order` poles, pass band [0, cutoff·π] rad/sample with ripple
-/// `ripple_db` (gain within [0, +ripple_db] dB, DC gain exactly 1), monotone stop band.
+/// `ripple_db` (gain within [0, +ripple_db] dB for an even order, [−ripple_db, 0] dB for an odd
+/// one, whose DC is a ripple peak; DC gain exactly 1 either way), monotone stop band.
 /// `cutoff` is the ripple-band edge as a fraction of the Nyquist frequency, in (0, 1).
 inline SosFilter chebyshev1_lowpass(int order, double ripple_db, double cutoff) {
   detail::check_lowpass_args(order, cutoff);
