@@ -283,4 +283,14 @@ TEST_CASE("Dataset refuses records whose channels carry different names at one p
   e.set_input_names({"", "load"});
   const nlid::Dataset ok{a, ramp(10, 0.01, 2, 1, "plain"), e, a};
   CHECK(ok.size() == 4);
+  // ... but a default name at another position is a reordering: a CSV with columns u1, u2 read
+  // once as {u1, u2} and once as {u2, u1} was fitted as one system with the inputs swapped.
+  nlid::Experiment f = ramp(10, 0.01, 2, 1, "f");
+  f.set_input_names({"u1", "u2"});
+  nlid::Experiment g = ramp(10, 0.01, 2, 1, "g");
+  g.set_input_names({"u2", "u1"});
+  CHECK_THROWS_WITH(nlid::Dataset({f, g}), Contains("experiment 'g' has input 1 named 'u2' but the data set's input 1 is 'u1'"));
+  CHECK_THROWS_WITH(nlid::Dataset({g, f}), Contains("has input 1 named 'u1' but the data set's input 1 is 'u2'"));
+  CHECK_THROWS_WITH(nlid::Dataset({g, a}), Contains("has input 1 named 'cmd' but the data set's input 1 is 'u2'"));
+  CHECK(nlid::Dataset({f, a}).size() == 2);  // u1, u2 in their own places name nothing
 }

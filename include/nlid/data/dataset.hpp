@@ -163,6 +163,18 @@ class Dataset {
     if (name.empty()) return false;
     return name != (n == 1 ? std::string(stem) : stem + std::to_string(i + 1));
   }
+  // ... except a default name at the wrong position: 'u2' as the first of two inputs says the
+  // channels were reordered (a CSV with columns u1,u2 read as {u2, u1}).
+  static bool misplaced_default(const std::string& name, const char* stem, std::size_t i, std::size_t n) {
+    for (std::size_t k = 0; n > 1 && k < n; ++k)
+      if (k != i && name == stem + std::to_string(k + 1)) return true;
+    return false;
+  }
+  static bool disagree(const std::string& a, const std::string& b, const char* stem, std::size_t i, std::size_t n) {
+    if (a.empty() || b.empty() || a == b) return false;
+    return (chosen(a, stem, i, n) && chosen(b, stem, i, n)) || misplaced_default(a, stem, i, n) ||
+           misplaced_default(b, stem, i, n);
+  }
   // Channels are matched by position when criteria add up over records, so two records whose
   // channels carry different names (inputs {cmd, load} and {load, cmd}) would be fitted as one
   // system with the signals swapped.
@@ -170,7 +182,7 @@ class Dataset {
                           const std::vector<std::string>& names, const std::vector<std::string>& have) {
     const char* stem = kind[0] == 'i' ? "u" : "y";
     for (std::size_t i = 0; i < names.size() && i < have.size(); ++i) {
-      if (chosen(names[i], stem, i, names.size()) && chosen(have[i], stem, i, have.size()) && names[i] != have[i]) {
+      if (names.size() == have.size() && disagree(names[i], have[i], stem, i, names.size())) {
         Location l = at_experiment(index);
         l.column = static_cast<long>(i) + 1;
         l.column_name = detail::printable(names[i], std::string::npos);
