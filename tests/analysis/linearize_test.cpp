@@ -314,4 +314,11 @@ TEST_CASE("linearize rejects bad input with located messages", "[analysis][linea
   hw.set_parameters(th);
   CHECK(nlid::equilibrium_for_output(hw, 0.25, 0.0).u(0) == Approx(0.25).epsilon(1e-9));
   CHECK_THROWS_WITH(nlid::equilibrium_for_output(hw, 5.0, 0.3), Catch::Contains("no constant input found"));
+  // A two-input model: said up front (it read "the model reads 2 input(s), got 1 value(s)").
+  using TwoInputs = nlid::Nlarx<nlid::RegressorSet<nlid::OutputLags<1>, nlid::InputLags<1, 0, 0>, nlid::InputLags<1, 0, 1>>,
+                                nlid::LinearMap<3>>;
+  TwoInputs two;
+  two.set_parameters(Eigen::Vector4d(0.5, 0.2, 0.3, 0.0));
+  CHECK_THROWS_WITH(nlid::equilibrium_for_output(two, 1.0, 0.3),
+                    Catch::Contains("the model reads 2 inputs; this search varies one input"));
 }

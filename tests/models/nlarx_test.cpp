@@ -11,6 +11,7 @@
 #include "nlid/models/nlarx.hpp"
 #include "nlid/nonlinearities/linear.hpp"
 #include "nlid/regressors.hpp"
+#include "nlid/regressors/expression.hpp"
 
 using nlid::Dynamic;
 
@@ -205,6 +206,47 @@ TEST_CASE("equilibrium initial condition starts the model at rest", "[models][nl
   const Eigen::VectorXd th = m.parameters();
   const double ys = y(0, 0);
   CHECK(ys == Approx(th(0) * ys + th(1) * ys + th(2) * 0.5 + th(3) * std::tanh(ys) * 0.5 + th(4)).epsilon(1e-10));
+}
+
+TEST_CASE("an equilibrium start that does not exist names the whole held input", "[models][nlarx]") {
+  // y(t) = y(t-1) + 0.5 u1(t) + 0.5 u2(t): an integrator, no steady state unless u1 + u2 = 0.
+  using TwoInputs = nlid::Nlarx<nlid::RegressorSet<nlid::OutputLags<1>, nlid::InputLags<1, 0, 0>, nlid::InputLags<1, 0, 1>>,
+                                nlid::LinearMap<3>>;
+  TwoInputs m;
+  m.set_parameters(Eigen::Vector4d(1.0, 0.5, 0.5, 0.0));
+  Eigen::MatrixXd u(20, 2);
+  u.col(0).setZero();
+  u.col(1).setConstant(0.7);
+  const nlid::Experiment e(u, Eigen::VectorXd::Zero(20), 0.01);
+  // The message gave u = 0 (the first channel only).
+  CHECK_THROWS_WITH(m.simulate(e, nlid::InitialCondition::equilibrium),
+                    Catch::Contains("no steady state found for the held input u = (0, 0.7)"));
+}
+
+TEST_CASE("channel names under which a custom regressor's text would read other channels are refused", "[models][nlarx]") {
+  // "u2(t-1)^2" was written for input 2. Inputs named {u2, u1} (a CSV with columns u1, u2 read in
+  // the other order) would make its text name input 1: describe() and a saved file (loaded by
+  // name) described another model than the one estimated.
+  nlid::RegressorList list;
+  list.add_output_lags(1).add_input_lags(1, 0, 0).add_input_lags(1, 0, 1).add_custom("u2(t-1)^2");
+  nlid::Nlarx<nlid::RegressorList, nlid::LinearMap<nlid::Dynamic>> m(list, nlid::LinearMap<nlid::Dynamic>(4));
+  CHECK_THROWS_WITH(m.set_channel_names({"u2", "u1"}, "y1"),
+                    Catch::Contains("custom regressor 'u2(t-1)^2' reads other channels than its text names under the input "
+                                    "names {u2, u1}"));
+  CHECK((m.input_names() != std::vector<std::string>{"u2", "u1"}));  // unchanged
+  m.set_channel_names({"u1", "u2"}, "y1");
+  m.set_channel_names({"flow", "temp"}, "level");  // no channel is called u2: u2 is input 2
+  // A regressor written with the channel names follows them.
+  nlid::RegressorList named;
+  named.add_output_lags(1).add_custom("temp(t-1)*flow(t)", {"flow", "temp"});
+  nlid::Nlarx<nlid::RegressorList, nlid::LinearMap<nlid::Dynamic>> n(named, nlid::LinearMap<nlid::Dynamic>(2));
+  n.set_channel_names({"flow", "temp"}, "y1");
+  CHECK_THROWS_WITH(n.set_channel_names({"temp", "flow"}, "y1"), Catch::Contains("'temp(t-1)*flow(t)'"));
+  // The compile-time set with a text regressor checks the same way; estimation names the data's
+  // channels first, so data read as {u2, u1} are refused before any fit.
+  using Set = nlid::RegressorSet<nlid::LaggedRegressors<1, 1, 0>, nlid::InputLags<1, 0, 1>, nlid::ExpressionRegressor>;
+  nlid::Nlarx<Set, nlid::LinearMap<4>> s(Set{{}, {}, nlid::ExpressionRegressor("u2(t-1)^2")}, nlid::LinearMap<4>{});
+  CHECK_THROWS_WITH(s.set_channel_names({"u2", "u1"}, "y1"), Catch::Contains("'u2(t-1)^2'"));
 }
 
 TEST_CASE("bad data are reported naming the experiment", "[models][nlarx]") {

@@ -118,6 +118,15 @@ OperatingPoint equilibrium_for_output(const M& model, double y_target, double u_
                                       double tol = 1e-9) {
   require(std::isfinite(y_target) && std::isfinite(u_guess) && du != 0.0 && std::isfinite(du),
           "equilibrium_for_output: target, guess and step must be finite (step non-zero)", at_parameter("y_target"));
+  // One input to search for: with several, the equilibrium's own count check would blame a
+  // vector the caller never passed.
+  int inputs = 1;
+  if constexpr (requires { model.num_inputs(); }) inputs = static_cast<int>(model.num_inputs());
+  else if constexpr (requires { model.input_dimension(); }) inputs = static_cast<int>(model.input_dimension());
+  require(inputs == 1,
+          "equilibrium_for_output: the model reads " + std::to_string(inputs) +
+              " inputs; this search varies one input (use equilibrium(model, u0) with every input given)",
+          at_parameter("model"));
   auto g = [&](double u, OperatingPoint& op) {
     op = equilibrium(model, Eigen::VectorXd::Constant(1, u));
     require(op.y.size() >= 1, "equilibrium_for_output: the model has no output", at_parameter("model"));

@@ -277,8 +277,11 @@ class Nlarx {
     }
     // A DivergenceError (at sample 0: the start cannot be formed), so that compare scores the
     // record as diverged, as it does a zero start that blows up.
-    throw DivergenceError("no steady state found for the held input u = " + detail::format_g(u0(0), 4) +
-                              " (the model oscillates or diverges)",
+    // Every channel: with several inputs, u0(0) alone misstated the operating point.
+    std::string held = u0.size() == 1 ? "" : "(";
+    for (Eigen::Index c = 0; c < u0.size(); ++c) held += (c ? ", " : "") + detail::format_g(u0(c), 4);
+    if (u0.size() != 1) held += ")";
+    throw DivergenceError("no steady state found for the held input u = " + held + " (the model oscillates or diverges)",
                           0, at_parameter("initial"));
   }
 
@@ -309,8 +312,10 @@ class Nlarx {
   [[nodiscard]] const std::vector<std::string>& input_names() const { return input_names_; }
   /// Output channel name (default "y1").
   [[nodiscard]] const std::string& output_name() const { return output_name_; }
-  /// Sets channel names (used by `regressor_names` and `describe`).
+  /// Sets channel names (used by `regressor_names` and `describe`). Throws `nlid::Error` if a
+  /// custom regressor's text would then name other channels than it reads (RegressorList).
   void set_channel_names(std::vector<std::string> inputs, std::string output) {
+    if constexpr (requires { regs_.check_channel_names(inputs, output); }) regs_.check_channel_names(inputs, output);
     input_names_ = std::move(inputs);
     output_name_ = std::move(output);
   }

@@ -564,6 +564,31 @@ inline Expression Expression::parse(std::string_view text, const std::vector<std
   return ExpressionParser(text, input_names, output_name).run();
 }
 
+namespace detail {
+
+/// Throws `nlid::Error` if `e`'s text, read with these channel names, names other signals than
+/// `e` reads: "u2(t-1)^2" written for the second input reads the first once the inputs are named
+/// {u2, u1}, so its printed name and a model file saved under those names would describe another
+/// model.
+inline void check_expression_names(const Expression& e, const std::vector<std::string>& input_names,
+                                   const std::string& output_name) {
+  bool same = false;
+  try {
+    same = Expression::parse(e.text(), input_names, output_name).signals() == e.signals();
+  } catch (const Error&) {
+    same = false;
+  }
+  if (same) return;
+  std::string list;
+  for (std::size_t c = 0; c < input_names.size(); ++c) list += (c ? ", " : "") + input_names[c];
+  throw Error("custom regressor '" + e.text() + "' reads other channels than its text names under the input names {" +
+                  list + "} (output '" + output_name + "'); rename the channels (u<k> means input k only where no "
+                  "channel carries that name) or write the regressor with the channel names",
+              at_parameter("input_names"));
+}
+
+}  // namespace detail
+
 /// One custom regressor given as an expression: a `Regressor` whose lags are known at run time.
 /// Satisfies `Regressor` (sizes `Dynamic`); getreg prints the expression text.
 class ExpressionRegressor {
@@ -601,6 +626,11 @@ class ExpressionRegressor {
   [[nodiscard]] std::vector<std::string> names(const std::vector<std::string>& /*input_names*/,
                                                const std::string& /*output_name*/) const {
     return {e_.text()};
+  }
+  /// Throws if the text, read with these channel names, would name other signals than it reads
+  /// (see `RegressorList::check_channel_names`).
+  void check_channel_names(const std::vector<std::string>& input_names, const std::string& output_name) const {
+    detail::check_expression_names(e_, input_names, output_name);
   }
 
  private:
@@ -734,6 +764,15 @@ class RegressorList {
         out[i] = blocks_[static_cast<std::size_t>(t.expression)].expression.evaluate(w);
       }
     }
+  }
+
+  /// Throws `nlid::Error` if a custom regressor's text, read with these channel names, would
+  /// name other signals than it reads: "u2(t-1)^2" written for the second input reads the first
+  /// once the inputs are named {u2, u1}, so its name (describe, getreg) and a model file saved
+  /// under those names would describe another model. Every other naming passes.
+  void check_channel_names(const std::vector<std::string>& input_names, const std::string& output_name) const {
+    for (const Block& b : blocks_)
+      if (b.kind == Kind::custom) detail::check_expression_names(b.expression, input_names, output_name);
   }
 
   /// getreg names: "y1(t-1)", "u1(t)" with the given channel names; custom ones as written.

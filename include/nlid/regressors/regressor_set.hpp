@@ -71,6 +71,21 @@ class RegressorSet {
                       terms_);
   }
 
+  /// Lets every block that can check its printed names against channel names do so (custom
+  /// regressors from text: `ExpressionRegressor::check_channel_names`).
+  void check_channel_names(const std::vector<std::string>& input_names, const std::string& output_name) const {
+    std::apply(
+        [&](const auto&... t) {
+          (
+              [&](const auto& b) {
+                if constexpr (requires { b.check_channel_names(input_names, output_name); })
+                  b.check_channel_names(input_names, output_name);
+              }(t),
+              ...);
+        },
+        terms_);
+  }
+
   /// Block I.
   template <std::size_t I>
   [[nodiscard]] const auto& term() const {
