@@ -319,6 +319,10 @@ inline std::string translate(std::string s) {
       {"use InitialCondition::zero or ::estimate", "use --x0 zero"},
       {"use InitialCondition::estimate or zero", "start from an estimated or a zero state (nlid-fit: ic=estimate or ic=zero in the greybox SPEC; nlid-sim: --x0 estimate or zero)"},
       {"equilibrium_input", "--u0"},
+      // The linear models' refusals of a measured start (nlid-sim --x0 measured).
+      {"use InitialCondition::estimate for a state-space model", "use --x0 estimate for a state-space model"},
+      {"; use ::estimate", "; use --x0 estimate"},
+      {"InitialCondition::measured", "--x0 measured"},
   };
   for (const auto& [from, to] : table) {
     for (std::size_t p = s.find(from); p != std::string::npos; p = s.find(from, p + std::string(to).size()))

@@ -271,6 +271,12 @@ int main(int argc, char** argv) {
       throw diverged(d.sample(), "");
     } catch (const nlid::Error& err) {
       // The library says "InitialCondition::measured"; a tool user wrote --x0 measured.
+      if (ic == nlid::InitialCondition::measured && err.where().parameter == "InitialCondition::measured") {
+        // The linear models say why in their own words (OE with several inputs, state space).
+        nlid::Location l = nlid::at_parameter("--x0");
+        l.file = input;
+        throw nlid::Error(err.message(), l);
+      }
       if (ic == nlid::InitialCondition::measured &&
           (err.where().parameter == "initial" || err.where().parameter == "initial_condition"))
         throw nlid::Error("--x0 measured takes the start from the record's past outputs, which are not the state of a " +

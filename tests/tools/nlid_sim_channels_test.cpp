@@ -77,6 +77,13 @@ TEST_CASE("nlid-sim: every output of a multi-output model is written, y1,y2,..",
   INFO(r.err);
   REQUIRE(r.code == 0);
   CHECK(slurp(out) == "t,y1,y2\n0,0,0\n0.01,1,2\n0.02,1.5,3\n");
+  // A measured start is the ARX family's; the state-space model's refusal in the tool's words
+  // (it said "InitialCondition::measured ... use InitialCondition::estimate").
+  const fs::path with_y = write_text("sim_two_outputs_uy.csv", "t,u1,y1,y2\n0,1,0,0\n0.01,1,1,2\n0.02,1,1.5,3\n");
+  const Run m = sim("--model " + q(model) + " --input " + q(with_y) + " --x0 measured --out " + q(out));
+  CHECK(m.code == 1);
+  CHECK_THAT(m.err, Catch::Contains("--x0 measured needs a model whose state is a list of past outputs") &&
+                        Catch::Contains("use --x0 estimate for a state-space model") && !Catch::Contains("InitialCondition"));
 }
 
 TEST_CASE("nlid-sim: a multi-input model reads one column per input, --column names them, --with-input writes them",
