@@ -358,3 +358,40 @@ TEST_CASE("ARX rejects bad orders and data with located messages", "[linear][arx
   }
   SECTION("empty data set") { CHECK_THROWS_WITH(nlid::arx(nlid::Dataset{}, {2, 2, 1}), Catch::Contains("empty")); }
 }
+
+TEST_CASE("linear models refuse a record whose channels carry their names in another order", "[linear][errors]") {
+  // Models read channels by position: a record read as {temp, flow} ran a {flow, temp} model on
+  // swapped inputs without a word (found by a multi-input review).
+  Eigen::MatrixXd u(40, 2);
+  for (Eigen::Index k = 0; k < 40; ++k) u.row(k) << std::sin(0.3 * static_cast<double>(k)), (k / 7) % 2;
+  Experiment e(u, Eigen::VectorXd::Zero(40), 1.0, "rec");
+  Arx arx(vec({-0.5}), {vec({1.0}), vec({0.5})}, {1, 1}, 1.0);
+  arx.set_input_names({"flow", "temp"});
+  e.set_input_names({"temp", "flow"});
+  CHECK_THROWS_WITH(arx.simulate(e), Catch::Contains("Arx::simulate: experiment 'rec' has the inputs {temp, flow} but the model "
+                                                     "reads {flow, temp} in that order"));
+  CHECK_THROWS_WITH(arx.predict(e, 1), Catch::Contains("Arx::predict") && Catch::Contains("reorder them (select_channels)"));
+  nlid::OutputError oe({vec({1.0}), vec({0.5})}, {vec({-0.5}), vec({-0.5})}, {1, 1}, 1.0);
+  oe.set_input_names({"flow", "temp"});
+  CHECK_THROWS_WITH(oe.simulate(e), Catch::Contains("OutputError::simulate") && Catch::Contains("{temp, flow}"));
+  // Other names, defaults or the same order pass: only a reordering is certain to be a mistake.
+  e.set_input_names({"a", "b"});
+  CHECK(arx.simulate(e).rows() == 40);
+  e.set_input_names({"flow", "temp"});
+  CHECK(oe.simulate(e).rows() == 40);
+  // Default names count too: a model estimated on a CSV's u1, u2, run on the file read as {u2, u1}.
+  Arx plain(vec({-0.5}), {vec({1.0}), vec({0.5})}, {1, 1}, 1.0);
+  plain.set_input_names({"u1", "u2"});
+  e.set_input_names({"u2", "u1"});
+  CHECK_THROWS_WITH(plain.simulate(e), Catch::Contains("has the inputs {u2, u1} but the model reads {u1, u2}"));
+  // A model built by hand has no names: nothing to compare.
+  const Arx unnamed(vec({-0.5}), {vec({1.0}), vec({0.5})}, {1, 1}, 1.0);
+  CHECK(unnamed.simulate(e).rows() == 40);
+  // Two outputs of a state-space model, swapped.
+  nlid::StateSpace ss(Eigen::MatrixXd::Identity(2, 2) * 0.5, Eigen::MatrixXd::Identity(2, 2), Eigen::MatrixXd::Identity(2, 2),
+                      Eigen::MatrixXd::Zero(2, 2), 1.0);
+  ss.set_output_names({"level", "pressure"});
+  Experiment two(u, Eigen::MatrixXd::Zero(40, 2), 1.0, "two");
+  two.set_output_names({"pressure", "level"});
+  CHECK_THROWS_WITH(ss.simulate(two), Catch::Contains("has the outputs {pressure, level} but the model reads {level, pressure}"));
+}

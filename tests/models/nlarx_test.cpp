@@ -236,6 +236,16 @@ TEST_CASE("channel names under which a custom regressor's text would read other 
   CHECK((m.input_names() != std::vector<std::string>{"u2", "u1"}));  // unchanged
   m.set_channel_names({"u1", "u2"}, "y1");
   m.set_channel_names({"flow", "temp"}, "level");  // no channel is called u2: u2 is input 2
+  // A record carrying the model's channel names in another order would run it on swapped inputs.
+  Eigen::MatrixXd u(20, 2);
+  u.setOnes();
+  nlid::Experiment swapped(u, Eigen::VectorXd::Zero(20), 1.0, "swapped");
+  swapped.set_input_names({"temp", "flow"});
+  CHECK_THROWS_WITH(m.simulate(swapped, nlid::InitialCondition::zero),
+                    Catch::Contains("experiment 'swapped' has the inputs {temp, flow} but the model reads {flow, temp}"));
+  CHECK_THROWS_WITH(m.predict(swapped, 1), Catch::Contains("reorder them (select_channels)"));
+  swapped.set_input_names({"flow", "temp"});
+  CHECK(m.simulate(swapped, nlid::InitialCondition::zero).rows() == 20);
   // A regressor written with the channel names follows them.
   nlid::RegressorList named;
   named.add_output_lags(1).add_custom("temp(t-1)*flow(t)", {"flow", "temp"});

@@ -27,6 +27,7 @@
 /// Nothing that changes the numbers happens silently; preprocessing appends a note each time.
 
 #include <Eigen/Core>
+#include <algorithm>
 #include <cmath>
 #include <cstddef>
 #include <cstdio>
@@ -404,5 +405,30 @@ class Experiment {
   std::vector<std::string> output_units_;
   std::vector<std::string> notes_;
 };
+
+namespace detail {
+
+/// Throws `nlid::Error` if the experiment's channels (`kind` "input" or "output") carry the
+/// model's names in another order: models read channels by position, so a record read as
+/// {temp, flow} (or a CSV's u1, u2 read as {u2, u1}) would run the model on swapped signals.
+/// Anything else — other names, defaults, fewer names — passes: only a reordering is certain.
+inline void check_channel_order(const std::vector<std::string>& have, const std::vector<std::string>& model,
+                                const char* kind, const std::string& who, Location where) {
+  if (have.size() < 2 || have.size() != model.size() || have == model) return;
+  std::vector<std::string> a = have, b = model;
+  std::sort(a.begin(), a.end());
+  std::sort(b.begin(), b.end());
+  if (a != b || std::adjacent_find(a.begin(), a.end()) != a.end()) return;
+  const auto list = [](const std::vector<std::string>& v) {
+    std::string s;
+    for (std::size_t i = 0; i < v.size(); ++i) s += (i ? ", " : "") + printable(v[i]);
+    return "{" + s + "}";
+  };
+  throw Error(who + " has the " + kind + "s " + list(have) + " but the model reads " + list(model) +
+                  " in that order; channels are matched by position: reorder them (select_channels)",
+              where);
+}
+
+}  // namespace detail
 
 }  // namespace nlid

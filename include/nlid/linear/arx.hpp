@@ -292,6 +292,7 @@ class Arx {
                                          InitialCondition ic = InitialCondition::zero) const {
     const bool need_y = ic == InitialCondition::estimate || ic == InitialCondition::measured;
     detail::check_linear_experiment(e, num_inputs(), 1, ts_, -1, "Arx::simulate", need_y);
+    detail::check_linear_channel_order(e, *this, "Arx::simulate");
     const Eigen::Index N = e.size();
     Eigen::MatrixXd y(N, 1);
     switch (ic) {
@@ -328,6 +329,7 @@ class Arx {
     require(k >= 1, "Arx::predict: horizon k must be >= 1, got " + std::to_string(k),
             at_parameter("k"));
     detail::check_linear_experiment(e, num_inputs(), 1, ts_, -1, "Arx::predict", true);
+    detail::check_linear_channel_order(e, *this, "Arx::predict");
     const Eigen::Index N = e.size();
     if (static_cast<Eigen::Index>(k) >= N) return simulate(e, InitialCondition::measured);
     const Eigen::Index n = std::min<Eigen::Index>(orders().max_lag(), N);

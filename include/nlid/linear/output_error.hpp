@@ -301,6 +301,7 @@ class OutputError {
                                          InitialCondition ic = InitialCondition::zero) const {
     const bool need_y = ic == InitialCondition::estimate || ic == InitialCondition::measured;
     detail::check_linear_experiment(e, num_inputs(), 1, ts_, -1, "OutputError::simulate", need_y);
+    detail::check_linear_channel_order(e, *this, "OutputError::simulate");
     Eigen::MatrixXd y = Eigen::MatrixXd::Constant(e.size(), 1, offset_);
     switch (ic) {
       case InitialCondition::zero:

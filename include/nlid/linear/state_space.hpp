@@ -209,6 +209,7 @@ class StateSpace {
   [[nodiscard]] Eigen::VectorXd initial_state(const Experiment& e, InitialCondition ic) const {
     const bool need_y = ic == InitialCondition::estimate;
     detail::check_linear_experiment(e, num_inputs(), num_outputs(), ts_, -1, "StateSpace", need_y);
+    detail::check_linear_channel_order(e, *this, "StateSpace");
     const int n = order();
     switch (ic) {
       case InitialCondition::zero:

@@ -327,6 +327,7 @@ class Nlarx {
   /// Regressor values from measured data (getreg with data): row i is φ(n₀ + i)ᵀ.
   [[nodiscard]] Eigen::MatrixXd regressor_values(const Experiment& e) const {
     detail::check_experiment(e, -1, num_inputs(), history_length(), ts_, "nonlinear ARX");
+    detail::check_channel_order(e.input_names(), input_names_, "input", detail::experiment_label(e, -1), {});
     return regressor_matrix(regs_, e.u(), e.y().col(0));
   }
 
@@ -344,6 +345,8 @@ class Nlarx {
     // lag 3, though nothing of its past is read).
     const bool reads_past = ic == InitialCondition::measured || ic == InitialCondition::estimate;
     detail::check_experiment(e, index, num_inputs(), reads_past ? history_length() : 0, ts_, "nonlinear ARX");
+    detail::check_channel_order(e.input_names(), input_names_, "input", detail::experiment_label(e, index),
+                                detail::experiment_location(index));
     const Eigen::VectorXd y = e.y().col(0);
     switch (ic) {
       case InitialCondition::zero: return Eigen::VectorXd::Zero(state_dimension());
@@ -406,6 +409,7 @@ class Nlarx {
   [[nodiscard]] Eigen::MatrixXd predict(const Experiment& e, int k = 1) const {
     require(k >= 1, "prediction horizon k must be >= 1, got " + std::to_string(k), at_parameter("k"));
     detail::check_experiment(e, -1, num_inputs(), history_length(), ts_, "nonlinear ARX");
+    detail::check_channel_order(e.input_names(), input_names_, "input", detail::experiment_label(e, -1), {});
     detail::require_complete_for(e, -1, true, "prediction");
     const Eigen::Index n = e.size();
     const int n0 = history_length();

@@ -31,6 +31,15 @@ inline Location linear_experiment_location(long index) {
   return l;
 }
 
+// Refuses a record whose channels carry the model's names in another order (see
+// detail::check_channel_order): the model would run on swapped signals.
+template <class M>
+void check_linear_channel_order(const Experiment& e, const M& m, const std::string& who) {
+  const std::string label = who + ": " + linear_experiment_label(e, -1);
+  check_channel_order(e.input_names(), m.input_names(), "input", label, linear_experiment_location(-1));
+  check_channel_order(e.output_names(), m.output_names(), "output", label, linear_experiment_location(-1));
+}
+
 // Checks that `e` can drive a model with `nu` inputs and sample time `ts`; with `need_y` also
 // that it has `ny` finite outputs (for initial-state estimation or fitting).
 inline void check_linear_experiment(const Experiment& e, int nu, int ny, double ts, long index,
