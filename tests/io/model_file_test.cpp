@@ -141,6 +141,42 @@ TEST_CASE("model file: a network input held constant in the data is stored unuse
   CHECK_THAT(error_of([&] { (void)load_model(bad_path); }), Catch::Contains("positive finite scale (or 0: input not used)"));
 }
 
+TEST_CASE("model file: a C++ custom regressor whose name reads another channel under the model's names is saved by name only") {
+  // The lambda squares input 2 (u2(t-1)). Files are read back with the model's channel names, and
+  // under inputs {u2, u1} the text "u2(t-1)^2" reads input 1: written as the expression, the file
+  // loaded as another model (found by a multi-input review).
+  const Experiment one = test_experiment();
+  Eigen::MatrixXd u(one.size(), 2);
+  u.col(0) = one.u().col(0);
+  u.col(1) = one.u().col(0).reverse();
+  const Experiment e(u, one.y(), 0.01, "two");
+  const auto square = [](auto v) { return v * v; };
+  RegressorSet regs{LaggedRegressors<1, 1, 0>{}, InputLags<1, 0, 1>{}, custom_regressor<InputLag<1, 1>>("u2(t-1)^2", square)};
+  Nlarx model(regs, LinearMap<4>{}, 0.01);
+  Eigen::VectorXd th(5);
+  th << 0.9, 0.5, -0.25, 0.125, 1.0;
+  model.set_parameters(th);
+  const Eigen::MatrixXd y0 = model.simulate(e, InitialCondition::zero);
+  // Names under which the text reads input 2: written as the expression, loadable at run time.
+  model.set_channel_names({"a", "b"}, "y");
+  const std::string named = temp_path("lambda_named.json");
+  save_model(named, model);
+  CHECK_THAT(read_text(named), Catch::Contains("\"expression\": \"u2(t-1)^2\""));
+  Experiment ab = e;
+  ab.set_input_names({"a", "b"});
+  CHECK(bit_equal(load_model(named).simulate(ab, InitialCondition::zero), y0));
+  // Inputs named {u2, u1}: the name only, so only a C++ prototype holding the lambda loads it.
+  model.set_channel_names({"u2", "u1"}, "y");
+  const std::string swapped = temp_path("lambda_swapped.json");
+  save_model(swapped, model);
+  CHECK_THAT(error_of([&] { (void)load_model(swapped); }), Catch::Contains("C++ function without an expression"));
+  Nlarx proto(regs, LinearMap<4>{}, 0.0);
+  load_model(swapped, proto);
+  Experiment uu = e;
+  uu.set_input_names({"u2", "u1"});
+  CHECK(bit_equal(proto.simulate(uu, InitialCondition::zero), y0));
+}
+
 TEST_CASE("model file: nlarx with a custom regressor and a sigmoid net round-trips bit for bit") {
   const Experiment e = test_experiment();
   RegressorSet regs{LaggedRegressors<2, 1, 0>{},

@@ -282,11 +282,20 @@ template <class Fn, class... Args>
 struct RegressorSerial<CustomRegressor<Fn, Args...>> {
   /// Appends one "custom" block.
   static void save_blocks(const CustomRegressor<Fn, Args...>& r, Json::Array& a) {
+    save_blocks(r, a, {}, "y1");
+  }
+  /// Appends one "custom" block for a model whose channels carry these names: the file is read
+  /// back with them, so the name is written as the expression only if it reads the same
+  /// signals under them ("u2(t-1)^2" for input 2 reads input 1 when the inputs are {u2, u1}).
+  static void save_blocks(const CustomRegressor<Fn, Args...>& r, Json::Array& a,
+                          const std::vector<std::string>& input_names, const std::string& output_name) {
     const std::string name = r.names(default_input_names(r.num_input_channels()), "y1")[0];
     Json b = Json::object({{"type", "custom"}});
     bool matches = false;
     try {
-      matches = detail::expression_matches(r, Expression::parse(name));
+      const Expression e = Expression::parse(name);
+      matches = detail::expression_matches(r, e) &&
+                (input_names.empty() || Expression::parse(name, input_names, output_name).signals() == e.signals());
     } catch (const Error&) {
       matches = false;
     }
@@ -344,7 +353,12 @@ template <class... Terms>
 struct RegressorSerial<RegressorSet<Terms...>> {
   /// Appends every term's blocks.
   static void save_blocks(const RegressorSet<Terms...>& r, Json::Array& a) {
-    save_terms(r, a, std::index_sequence_for<Terms...>{});
+    save_terms(r, a, {}, "y1", std::index_sequence_for<Terms...>{});
+  }
+  /// The same for a model whose channels carry these names (terms that check names use them).
+  static void save_blocks(const RegressorSet<Terms...>& r, Json::Array& a, const std::vector<std::string>& input_names,
+                          const std::string& output_name) {
+    save_terms(r, a, input_names, output_name, std::index_sequence_for<Terms...>{});
   }
   /// Reads the terms in order.
   static RegressorSet<Terms...> load(const JsonView& blocks, std::size_t& next,
@@ -359,8 +373,17 @@ struct RegressorSerial<RegressorSet<Terms...>> {
 
  private:
   template <std::size_t... I>
-  static void save_terms(const RegressorSet<Terms...>& r, Json::Array& a, std::index_sequence<I...>) {
-    (RegressorSerial<std::remove_cvref_t<decltype(r.template term<I>())>>::save_blocks(r.template term<I>(), a), ...);
+  static void save_terms(const RegressorSet<Terms...>& r, Json::Array& a, const std::vector<std::string>& input_names,
+                         const std::string& output_name, std::index_sequence<I...>) {
+    (save_term(r.template term<I>(), a, input_names, output_name), ...);
+  }
+  template <class T>
+  static void save_term(const T& t, Json::Array& a, const std::vector<std::string>& input_names,
+                        const std::string& output_name) {
+    if constexpr (requires { RegressorSerial<T>::save_blocks(t, a, input_names, output_name); })
+      RegressorSerial<T>::save_blocks(t, a, input_names, output_name);
+    else
+      RegressorSerial<T>::save_blocks(t, a);
   }
 };
 
@@ -369,7 +392,10 @@ template <SavableRegressor R>
 [[nodiscard]] Json regressors_to_json(const R& r, const std::vector<std::string>& input_names,
                                       const std::string& output_name) {
   Json::Array blocks;
-  RegressorSerial<R>::save_blocks(r, blocks);
+  if constexpr (requires { RegressorSerial<R>::save_blocks(r, blocks, input_names, output_name); })
+    RegressorSerial<R>::save_blocks(r, blocks, input_names, output_name);
+  else
+    RegressorSerial<R>::save_blocks(r, blocks);
   Json j = Json::object();
   j["blocks"] = Json(std::move(blocks));
   j["names"] = string_list(r.names(input_names, output_name));
