@@ -114,6 +114,8 @@ TEST_CASE("with_sample_time: nk = 1 is the sampled plant's own sample, not dead 
     for (int k = 0; k < 12; ++k) CHECK(y(k, 0) == Approx(K * (1 - std::exp(-a * h * k))).margin(1e-9));
     // Faster than the old rate, the smallest delay keeps the study's caution.
     CHECK(has_warning(rep, "estimate the delay again") == (h < 0.1));
+    CHECK(has_warning(rep, "input delay nk = 1: beyond the one sample that sampling itself takes, the input acts "
+                           "within one sample of 0.1 s"));
   }
   // The same through the linear block of a Hammerstein-Wiener model and through ARX.
   DynamicHammersteinWiener hw(AnyNonlinearity(UnitGain{}), TransferFunctionBlock<Dynamic, Dynamic, Dynamic>(1, 1, 1),

@@ -108,8 +108,11 @@ inline int rescale_dead_time(int d, double old_ts, double new_ts, SampleTimeRepo
     const std::string nk = std::to_string(d + base);
     if (d == 0) {
       report->warnings.push_back(
-          what + " = " + nk + ": the input acts within " + (base == 0 ? "" : "one sample after ") + "one sample of " +
-          fmt_seconds(old_ts) + "; the true dead time lies somewhere in [0, " + fmt_seconds(old_ts) + ")" +
+          what + " = " + nk +
+          (base == 0 ? ": the input acts within one sample of " + fmt_seconds(old_ts)
+                     : ": beyond the one sample that sampling itself takes, the input acts within one sample of " +
+                           fmt_seconds(old_ts)) +
+          "; the true dead time lies somewhere in [0, " + fmt_seconds(old_ts) + ")" +
           (new_ts < old_ts ? " and may be one or more samples at " + fmt_seconds(new_ts) + "; nk = " + nk +
                                  " was kept - estimate the delay again on data at the new rate"
                            : "; nk = " + nk + " was kept"));
