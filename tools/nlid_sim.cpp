@@ -202,7 +202,7 @@ int main(int argc, char** argv) {
                               nlid::detail::format_g(m.ts(), 10) + " s (relative difference " +
                               nlid::detail::format_g(std::abs(e.ts() - m.ts()) / m.ts(), 3) + ")";
       // Nearly equal: the file's stamps jitter or are rounded around the model's rate.
-      std::string hint = std::abs(e.ts() - m.ts()) < 1e-3 * m.ts()
+      std::string hint = std::abs(e.ts() - m.ts()) < nlid::one_rate_hint_tolerance * m.ts()
                              ? "if the file was logged at the model's rate, give it with --ts " +
                                    nlid::detail::format_g(m.ts() / static_cast<double>(decimate), 10)
                              : "resample the data or re-estimate the model";

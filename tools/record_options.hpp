@@ -14,6 +14,7 @@
 
 #include "nlid/core/error.hpp"
 #include "nlid/core/format.hpp"
+#include "nlid/core/sample_time.hpp"
 #include "nlid/data/csv.hpp"
 #include "cli_common.hpp"
 
@@ -134,12 +135,12 @@ inline bool header_has(const std::string& path, const std::string& name, char de
 /// print 20 µs as "0.000020" whatever the digits after).
 inline std::string format_seconds(double s) { return nlid::detail::format_g(s, 10) + " s"; }
 
-/// What to do about two records' sample times `a` and `b` that differ. Within 1e-3 they are
-/// almost surely one logger's rate read from differently jittering or rounded stamps, which --ts
-/// sets for every file; farther apart the records were sampled at different rates.
+/// What to do about two records' sample times `a` and `b` that differ: within
+/// nlid::one_rate_hint_tolerance, give the one rate with --ts (it sets every file's); farther
+/// apart the records were sampled at different rates.
 inline std::string sample_time_remedy(double a, double b) {
   const double rel = std::abs(a - b) / std::max(std::abs(a), std::abs(b));
-  return rel < 1e-3 ? "if both were logged at one rate, give that sample time with --ts"
+  return rel < nlid::one_rate_hint_tolerance ? "if both were logged at one rate, give that sample time with --ts"
                     : "resample one of them to the other's rate first";
 }
 

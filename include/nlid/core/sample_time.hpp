@@ -19,6 +19,11 @@ namespace nlid {
 /// Relative tolerance of "same sample time" (see the file comment).
 inline constexpr double sample_time_tolerance = 1e-6;
 
+/// Sample times that differ (beyond `sample_time_tolerance`) by less than this, relatively, are
+/// almost surely one logger's rate read from differently jittering or rounded stamps: messages then
+/// suggest giving that one rate (CsvReadOptions::ts, --ts) rather than resampling.
+inline constexpr double one_rate_hint_tolerance = 1e-3;
+
 /// |a − b| ≤ sample_time_tolerance · |b|: `b` is the reference (the model's, the data set's).
 inline bool same_sample_time(double a, double b) {
   return std::abs(a - b) <= sample_time_tolerance * std::abs(b);

@@ -80,7 +80,7 @@ class Dataset {
         throw Error(label(e) + "has sample time " + number(e.ts()) + " but the data set has " +
                         number(first.ts()) + " (relative difference " + detail::format_g(rel, 3) +
                         "); resample or decimate it first" +
-                        (rel < 1e-3 ? std::string("; if both were logged at one rate, set that sample time (CsvReadOptions::ts)")
+                        (rel < one_rate_hint_tolerance ? std::string("; if both were logged at one rate, set that sample time (CsvReadOptions::ts)")
                                     : std::string()),
                     at_experiment(index));
       }
