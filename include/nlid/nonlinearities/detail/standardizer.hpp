@@ -50,9 +50,7 @@ class Standardizer {
   [[nodiscard]] const Vector& center() const { return center_; }
   /// Regressor scale s (standard deviation, or 1 if standardisation is off; 0 for a regressor
   /// that was constant in the initialisation data, whose z is always 0).
-  [[nodiscard]] Vector scale() const {
-    return inv_scale_.unaryExpr([](double v) { return v == 0.0 ? 0.0 : 1.0 / v; });
-  }
+  [[nodiscard]] Vector scale() const { return inverse_or_zero(inv_scale_); }
   /// ∂zⱼ/∂xⱼ = 1/sⱼ, 0 for an unused regressor (analytic gradients).
   [[nodiscard]] double inv_scale(Eigen::Index j) const { return inv_scale_(j); }
   /// Whether `initialize` divides by the standard deviation (default) or only centres.
@@ -79,7 +77,7 @@ class Standardizer {
       }
     }
     center_ = center;
-    inv_scale_ = scale.unaryExpr([](double v) { return v == 0.0 ? 0.0 : 1.0 / v; });
+    inv_scale_ = inverse_or_zero(scale);
   }
 
   /// Learns r (and s) from the rows of X and returns the standardised data Z. A numerically
@@ -110,6 +108,11 @@ class Standardizer {
   }
 
  private:
+  // s ↔ 1/s both ways, with 0 (unused) kept as 0.
+  static Vector inverse_or_zero(const Eigen::Ref<const Eigen::VectorXd>& v) {
+    return v.unaryExpr([](double x) { return x == 0.0 ? 0.0 : 1.0 / x; });
+  }
+
   Vector center_;
   Vector inv_scale_;
   bool standardize_ = true;
