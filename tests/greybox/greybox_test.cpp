@@ -9,7 +9,9 @@
 #include <limits>
 #include <numbers>
 
+#include "nlid/data/preprocess.hpp"
 #include "nlid/models/greybox.hpp"
+#include "nlid/models/greybox_estimate.hpp"
 #include "nlid/models/greybox_problem.hpp"
 #include "nlid/models/physics/catalogue.hpp"
 #include "../support/sanitizer.hpp"
@@ -68,6 +70,19 @@ struct DeclaredRadius {
   }
   template <class T>
   void derivative(const T* x, const T* u, const T* p, T* dx) const { dx[0] = -p[0] * (x[0] - u[0]); }
+  template <class T>
+  void output(const T* x, const T*, const T*, T* y) const { y[0] = x[0]; }
+};
+
+// dx/dt = −a x + b₁ u₁ + b₂ u₂ with unequal gains, so swapped inputs give another output.
+struct TwoInputMix {
+  static constexpr int num_states = 1, num_inputs = 2, num_outputs = 1, num_params = 3;
+  std::array<nlid::ParameterInfo, 3> parameter_info() const {
+    return {{{"a", "1/s", "", 2.0, 0.0, INFINITY}, {"b1", "", "", 3.0, -INFINITY, INFINITY},
+             {"b2", "", "", -1.0, -INFINITY, INFINITY}}};
+  }
+  template <class T>
+  void derivative(const T* x, const T* u, const T* p, T* dx) const { dx[0] = -p[0] * x[0] + p[1] * u[0] + p[2] * u[1]; }
   template <class T>
   void output(const T* x, const T*, const T*, T* y) const { y[0] = x[0]; }
 };
@@ -674,6 +689,44 @@ TEST_CASE("Data errors say what and where", "[greybox][errors]") {
     CHECK_THROWS_WITH(m.simulate(u, ts, Eigen::Vector2d(15.0, 0.0)),
                       Catch::Contains("diverged at sample") && Catch::Contains("substeps"));
   }
+}
+
+TEST_CASE("A record naming the model's channels in another order is refused", "[greybox][errors]") {
+  // The physics reads u[0] as the first column whatever its name: {heater, fan} fed to a model
+  // estimated on {fan, heater} ran (and re-fitted) the equations on swapped inputs.
+  GreyBox<TwoInputMix> m;
+  Eigen::MatrixXd u(200, 2);
+  for (Eigen::Index t = 0; t < u.rows(); ++t) {
+    u(t, 0) = (t / 40) % 2 ? 1.0 : 0.0;
+    u(t, 1) = (t / 25) % 2 ? -0.5 : 0.5;
+  }
+  Experiment e(u, m.simulate(u, 0.1, Eigen::VectorXd::Zero(1)), 0.1, "bench");
+  e.set_input_names({"fan", "heater"});
+  e.set_output_names({"temp"});
+  m.initialize(Dataset(e));
+  REQUIRE(m.input_names() == std::vector<std::string>{"fan", "heater"});
+  const Eigen::MatrixXd y = m.simulate(e, Eigen::VectorXd::Zero(1));
+  Eigen::MatrixXd u_swapped(u.rows(), 2);
+  u_swapped << u.col(1), u.col(0);
+  Experiment swapped(u_swapped, e.y(), 0.1, "swapped");
+  swapped.set_input_names({"heater", "fan"});
+  swapped.set_output_names({"temp"});
+  CHECK_THROWS_WITH(m.simulate(swapped, Eigen::VectorXd::Zero(1)),
+                    Catch::Contains("experiment ('swapped') has the inputs {heater, fan} but the model reads "
+                                    "{fan, heater} in that order"));
+  try {
+    nlid::estimate(m, Dataset(swapped));
+    FAIL("no throw");
+  } catch (const nlid::Error& err) {
+    CHECK_THAT(err.what(), Catch::Contains("experiment 0 ('swapped') has the inputs {heater, fan}") &&
+                               Catch::Contains("reorder them (select_channels)"));
+    CHECK(err.where().experiment == 0);
+  }
+  // Reordered, it is the same record: the same simulation, bit for bit.
+  CHECK(m.simulate(nlid::select_channels(swapped, {"fan", "heater"}, {"temp"}), Eigen::VectorXd::Zero(1)) == y);
+  // Other names are other channels: matched by position, as before.
+  swapped.set_input_names({"a", "b"});
+  CHECK_NOTHROW(m.simulate(swapped, Eigen::VectorXd::Zero(1)));
 }
 
 TEST_CASE("Missing outputs are skipped, not invented", "[greybox]") {

@@ -641,7 +641,8 @@ class GreyBox {
     return s;
   }
 
-  /// Checks an experiment's channel counts; throws naming experiment `index` (if ≥ 0).
+  /// Checks an experiment's channel counts and, where it names its channels as the model does, their
+  /// order; throws naming experiment `index` (if ≥ 0).
   void check_channels(const Experiment& e, long index) const {
     const Location where = index >= 0 ? at_experiment(index) : Location{};
     const std::string label = "experiment " + (index >= 0 ? std::to_string(index) + " " : std::string()) +
@@ -655,6 +656,11 @@ class GreyBox {
             label + "has " + std::to_string(e.num_outputs()) + " output(s), grey-box model '" +
                 name() + "' gives " + std::to_string(output_dimension()),
             where);
+    // The physics reads its inputs and outputs by position: a record carrying the model's channel
+    // names in another order would run (or fit) the equations on swapped signals.
+    const std::string who = label.substr(0, label.size() - 1);
+    detail::check_channel_order(e.input_names(), input_names_, "input", who, where);
+    detail::check_channel_order(e.output_names(), output_names_, "output", who, where);
   }
   /// Checks every experiment of a data set.
   void check_channels(const Dataset& d) const {
