@@ -3,7 +3,8 @@
 /// Umbrella header of the model layer: nonlinear ARX (`Nlarx`), Hammerstein–Wiener
 /// (`HammersteinWiener` with `TransferFunctionBlock`), their estimation (`estimate`), and the
 /// grey-box models (`GreyBox`, integrators, physics catalogue, batched runs of many parameter sets),
-/// and the parameter uncertainty of estimated models (`parameter_uncertainty`).
+/// the parameter uncertainty of estimated models (`parameter_uncertainty`), and `Stepper`, which runs a
+/// model one sample at a time.
 
 #include "nlid/models/concepts.hpp"
 #include "nlid/models/estimate.hpp"
@@ -14,5 +15,6 @@
 #include "nlid/models/integrators.hpp"
 #include "nlid/models/nlarx.hpp"
 #include "nlid/models/simulation_band.hpp"
+#include "nlid/models/stepper.hpp"
 #include "nlid/models/transfer_function_block.hpp"
 #include "nlid/models/uncertainty.hpp"

@@ -18,8 +18,11 @@
 #include "nlid/core/format.hpp"
 #include "nlid/data/detail/csv_parse.hpp"
 #include "nlid/models/estimate.hpp"
+#include "nlid/models/greybox.hpp"
 #include "nlid/models/hammerstein_wiener.hpp"
 #include "nlid/models/nlarx.hpp"
+#include "nlid/models/physics/catalogue.hpp"
+#include "nlid/models/stepper.hpp"
 #include "nlid/nonlinearities/linear.hpp"
 #include "nlid/nonlinearities/piecewise_linear.hpp"
 #include "nlid/nonlinearities/sigmoid_network.hpp"
@@ -169,6 +172,45 @@ TEST_CASE("Hammerstein-Wiener pwlinear/[3 3 0]/pwlinear allocates nothing", "[no
     CHECK(guard.new_calls() == 0);
   }
   CHECK(ok);
+}
+
+TEST_CASE("Steppers of fixed-size models allocate nothing per step or reset", "[nomalloc][models][stepper]") {
+  // The real-time loop: step after step, a reset from a state, stepping on. Construction (which
+  // copies the model) is outside the traps.
+  const Nlarx5 m = make_nlarx5();
+  using Hw = nlid::HammersteinWiener<nlid::PwLinear<4>, nlid::TransferFunctionBlock<3, 3, 2>, nlid::PwLinear<4>>;
+  Hw hw;
+  Eigen::VectorXd th(Hw::num_params);
+  th << 0.0, -0.5, -0.5, -0.5, 0.0, 0.5, 1.0, 1.6, 0.2, 0.1, 0.05, -0.9, 0.2, -0.02, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0,
+      2.0, 3.0;
+  hw.set_parameters(th);
+  nlid::GreyBox<nlid::physics::Throttle> gb;
+  Eigen::VectorXd p(7);
+  p << 30.0, 400.0, 1e5, 400.0 * 140.0, 15.0, 90.0, 0.0;
+  gb.set_parameters(p);
+  const Eigen::MatrixXd u = test_input(500);
+  const Eigen::Matrix<double, 5, 1> x_nlarx = Eigen::Matrix<double, 5, 1>::Constant(0.4);
+  const Eigen::Matrix<double, 4, 1> x_hw = Eigen::Matrix<double, 4, 1>::Constant(0.1);
+  const Eigen::Vector2d x_gb(15.0, 0.0);
+  nlid::Stepper a(m);
+  nlid::Stepper b(hw);
+  nlid::Stepper c(gb, 0.01, x_gb);
+  double sum = 0.0;
+  {
+    NoHeap guard;
+    for (Eigen::Index t = 0; t < u.rows(); ++t) {
+      const double ut = u(t, 0);
+      if (t == 250) {
+        a.reset(x_nlarx);
+        b.reset(x_hw);
+        c.reset(x_gb);
+      }
+      sum += a.step(ut) + b.step(ut) + c.step(ut)[0] + a.step(std::span<const double>(&ut, 1));
+    }
+    CHECK(guard.new_calls() == 0);
+  }
+  CHECK(std::isfinite(sum));
+  CHECK(a.samples() == 500);
 }
 
 TEST_CASE("a simulation-focus residual + Jacobian evaluation allocates nothing", "[nomalloc][models]") {

@@ -493,8 +493,10 @@ class GreyBox {
   }
 
   /// Generic simulation core on scalar T (double, float, Dual): see `simulate_physics`.
-  /// `p` holds n_p values, `x` the n_x initial states (overwritten by the final state); returns
-  /// the number of samples delivered to `on_sample(k, const T* y)`.
+  /// `p` holds n_p values, `x` the n_x initial states (overwritten with the state *at* the last
+  /// sample, x(N−1): the interval after it is not integrated, so a chunked run would repeat that
+  /// sample — `Stepper` carries the state from one sample to the next); returns the number of
+  /// samples delivered to `on_sample(k, const T* y)`.
   template <class T, class OnSample>
   Eigen::Index simulate_with(const Eigen::MatrixXd& u, double ts, const T* p, T* x, int substeps,
                              OnSample&& on_sample) const {
