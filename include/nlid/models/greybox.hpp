@@ -729,7 +729,17 @@ class GreyBox {
                   "' diverges from every initial-state guess; check the parameters or raise "
                   "IntegratorOptions::substeps");
     }
-    solve_least_squares(problem, theta, lm);
+    try {
+      solve_least_squares(problem, theta, lm);
+    } catch (const Error& err) {
+      // The solver speaks of "parameters" theta[i]; here they are the record's initial states.
+      std::string start;
+      for (Eigen::Index i = 0; i < theta.size(); ++i) start += (i ? ", " : "") + detail::format_g(theta[i]);
+      throw Error("estimating the initial state of grey-box model '" + name() + "' on '" + e.name() +
+                      "' (its unknowns theta[i] are the states, from [" + start + "]): " + err.message() +
+                      "; give the physics an initial_state hook, or start from InitialCondition::zero or an x0",
+                  err.where());
+    }
     return StateVector(theta);
   }
 

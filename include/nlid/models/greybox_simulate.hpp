@@ -24,7 +24,7 @@
 ///
 /// Equilibrium. x̄ with f(x̄, ū, p) = 0 is found by Newton's method with a least-squares step
 /// (column-pivoting QR, so singular directions such as a free position are left at the guess)
-/// and backtracking on ‖f‖. Its parameter sensitivity follows from the implicit function theorem,
+/// and backtracking on ‖f‖; where ∂f/∂x is not finite, a step along the flow f itself. Its parameter sensitivity follows from the implicit function theorem,
 /// ∂x̄/∂p = −(∂f/∂x)⁻¹ ∂f/∂p, which `equilibrium_sensitivity_step` evaluates as one Newton step in
 /// Dual arithmetic from the converged point.
 
@@ -460,9 +460,12 @@ EquilibriumResult physics_equilibrium(const P& phys, const double* u, const doub
   const double target = tol * (1.0 + (std::isfinite(fn) ? fn : 0.0));
   for (res.iterations = 0; res.iterations < max_iterations && fn > target; ++res.iterations) {
     const Eigen::MatrixXd J = physics_state_jacobian(phys, xv.data(), u, p);
-    Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(J);
-    const Eigen::VectorXd dx = qr.solve(-fx);
-    if (!dx.allFinite()) break;
+    Eigen::VectorXd dx;
+    if (J.allFinite()) dx = Eigen::ColPivHouseholderQR<Eigen::MatrixXd>(J).solve(-fx);
+    // Where ∂f/∂x is not finite (√x of an emptying tank at x = 0, the guess every search without
+    // a better one starts from) follow the flow x' = f instead: towards a stable equilibrium it
+    // lowers ‖f‖, and a few steps reach states where Newton's step is defined.
+    if (dx.size() != nx || !dx.allFinite()) dx = fx;
     // Backtracking: piecewise-smooth physics (stops, saturations) can overshoot a kink.
     double step = 1.0;
     bool improved = false;
