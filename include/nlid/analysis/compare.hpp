@@ -111,6 +111,9 @@ struct CompareResult {
 inline std::ostream& operator<<(std::ostream& os, const CompareResult& r) { return os << r.table(); }
 
 /// Simulates `model` on every experiment of `data` from `ic` and scores it (see file comment).
+/// The default start is `zero`, which costs nothing and lets a model's own transient count; the
+/// toolbox's `compare` estimates the initial state by default — pass `InitialCondition::estimate`
+/// for its numbers (the study does).
 /// Throws `nlid::Error` naming the experiment if the simulated output has the wrong shape or a
 /// measured output is constant; errors of the model's own checks pass through.
 template <SimulationModel M>

@@ -75,7 +75,9 @@ struct OrderCandidate {
   double aic = 0.0;                       ///< N log V + 2d
   double mdl = 0.0;                       ///< N log V + d log N
   std::optional<double> validation_loss;  ///< one-step V on the validation data
-  std::optional<double> validation_fit;   ///< simulation fit (%) on the validation data
+  /// Simulation fit (%) on the validation data, initial state estimated: 100 (1 − √(Σ‖y − ŷ‖² /
+  /// Σ‖y − ȳ‖²)) summed over the records, each about its own mean (one record: `compare`'s fit).
+  std::optional<double> validation_fit;
 };
 
 /// The order-selection table with the best candidate by each criterion.
@@ -273,8 +275,8 @@ inline OrderSelection arx_order_selection_impl(const Dataset& est, const Dataset
         c.aic = aic_criterion(c.loss, sel.num_samples, c.num_parameters);
         c.mdl = mdl_criterion(c.loss, sel.num_samples, c.num_parameters);
         if (val) {
-          double ss = 0, ssy = 0, sse = 0, sum = 0;
-          Eigen::Index n = 0, nall = 0;
+          double ss = 0, ssy = 0, sse = 0;
+          Eigen::Index n = 0;
           bool diverges = false;
           for (std::size_t e = 0; e < val->size(); ++e) {
             const Experiment& ex = (*val)[e];
@@ -291,11 +293,10 @@ inline OrderSelection arx_order_selection_impl(const Dataset& est, const Dataset
             } catch (const Error&) {
               diverges = true;
             }
-            sum += ex.y().sum();
-            nall += ex.size();
+            // Each record about its own mean, as compare scores it: one mean for all would count
+            // the step between records at different operating points as explained variance.
+            ssy += (ex.y().array() - ex.y().mean()).square().sum();
           }
-          const double mean = sum / static_cast<double>(std::max<Eigen::Index>(nall, 1));
-          for (const auto& ex : *val) ssy += (ex.y().array() - mean).square().sum();
           c.validation_loss = ss / static_cast<double>(n);  // n > 0: checked above
           c.validation_fit = ssy > 0 ? 100.0 * (1.0 - std::sqrt(sse / ssy))
                                      : -std::numeric_limits<double>::infinity();
