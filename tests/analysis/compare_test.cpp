@@ -138,6 +138,38 @@ TEST_CASE("compare works on a linear model end to end", "[analysis][compare]") {
   CHECK(nlid::compare(m.to_state_space(), nlid::Dataset{e}).fit(0, 0) == Approx(100.0));
 }
 
+TEST_CASE("compare_prediction scores k-step-ahead predictions", "[analysis][compare]") {
+  // ARX y(t) = 0.9 y(t-1) + 0.5 u(t-1) + e(t) with noise: the one-step predictor beats the free
+  // run, a long horizon approaches it, and every fit is that of the model's own predict(e, k).
+  Eigen::VectorXd a(1), b(1);
+  a << -0.9;
+  b << 0.5;
+  const nlid::Arx m(a, {b}, {1}, 0.1);
+  Eigen::MatrixXd u(400, 1), y(400, 1);
+  unsigned state = 12345u;
+  auto noise = [&] {
+    state = state * 1664525u + 1013904223u;
+    return (static_cast<double>(state >> 8) / 16777216.0 - 0.5) * 0.6;
+  };
+  for (int t = 0; t < 400; ++t) {
+    u(t, 0) = (t / 25) % 2 ? 1.0 : -1.0;
+    y(t, 0) = (t > 0 ? 0.9 * y(t - 1, 0) + 0.5 * u(t - 1, 0) : 0.0) + noise();
+  }
+  const nlid::Dataset d{nlid::Experiment(u, y, 0.1, "noisy")};
+  double last = 101.0;
+  for (const int k : {1, 2, 5, 20}) {
+    const nlid::CompareResult r = nlid::compare_prediction(m, d, k);
+    CHECK(r.horizon == k);
+    CHECK(r.fit(0, 0) == nlid::fit_percent(y, m.predict(d[0], k))(0));
+    CHECK(r.simulated.at(0) == m.predict(d[0], k));
+    CHECK(r.fit(0, 0) < last);  // a longer horizon predicts worse on this record
+    last = r.fit(0, 0);
+  }
+  CHECK(nlid::compare_prediction(m, d, 1).fit(0, 0) > nlid::compare(m, d, nlid::InitialCondition::estimate).fit(0, 0) + 5.0);
+  CHECK_THAT(nlid::compare_prediction(m, d, 5).table(), Catch::Contains("Fit (%) of the 5-step-ahead predicted output"));
+  CHECK_THROWS_WITH(nlid::compare_prediction(m, d, 0), Catch::Contains("the horizon k must be >= 1, got 0"));
+}
+
 TEST_CASE("a diverging simulation is a result of compare, other errors are not", "[analysis][compare]") {
   const nlid::Experiment a(ramp(10, 1.0), ramp(10, 2.0), 0.1, "a");
   const nlid::Experiment unstable(ramp(10, 1.0), ramp(10, 2.0), 0.1, "unstable");

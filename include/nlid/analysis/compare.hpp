@@ -66,7 +66,9 @@ struct CompareResult {
   /// Per experiment, the first sample (0-based) at which a model that threw
   /// `DivergenceError` stopped being finite; −1 where it did not.
   std::vector<long> diverged_at;
-  InitialCondition initial_condition = InitialCondition::zero;  ///< policy used
+  InitialCondition initial_condition = InitialCondition::zero;  ///< policy used (simulation)
+  /// 0: free-run simulation (`compare`); k ≥ 1: k-step-ahead prediction (`compare_prediction`).
+  int horizon = 0;
 
   /// Fit of experiment `e`, output `j`; throws if out of range.
   [[nodiscard]] double fit_of(std::size_t e, int j = 0) const {
@@ -82,8 +84,12 @@ struct CompareResult {
     std::ostringstream os;
     os.imbue(std::locale::classic());  // a global locale's grouping or decimal comma must not reach the text
     char buf[128];
-    os << "Fit (%) of the simulated output, initial condition '" << detail::initial_condition_name(initial_condition)
-       << "'\n";
+    if (horizon > 0) {
+      os << "Fit (%) of the " << horizon << "-step-ahead predicted output\n";
+    } else {
+      os << "Fit (%) of the simulated output, initial condition '"
+         << detail::initial_condition_name(initial_condition) << "'\n";
+    }
     std::snprintf(buf, sizeof buf, "%-20s", "experiment");
     os << buf;
     for (const auto& n : output_names) {
@@ -110,18 +116,13 @@ struct CompareResult {
 /// Prints `r.table()`.
 inline std::ostream& operator<<(std::ostream& os, const CompareResult& r) { return os << r.table(); }
 
-/// Simulates `model` on every experiment of `data` from `ic` and scores it (see file comment).
-/// The default start is `zero`, which costs nothing and lets a model's own transient count; the
-/// toolbox's `compare` estimates the initial state by default — pass `InitialCondition::estimate`
-/// for its numbers (the study does).
-/// Throws `nlid::Error` naming the experiment if the simulated output has the wrong shape or a
-/// measured output is constant; errors of the model's own checks pass through.
-template <SimulationModel M>
-CompareResult compare(const M& model, const Dataset& data,
-                      InitialCondition ic = InitialCondition::zero) {
+namespace detail {
+
+// The loop of `compare` and `compare_prediction`: `output(e)` is the model's N × n_y answer for
+// experiment e (it may throw DivergenceError).
+template <class Output>
+CompareResult compare_each(const Dataset& data, CompareResult r, const Output& output) {
   require(data.size() > 0, "compare: the data set is empty", at_parameter("data"));
-  CompareResult r;
-  r.initial_condition = ic;
   r.output_names = data[0].output_names();
   r.fit.resize(static_cast<Eigen::Index>(data.size()), data.num_outputs());
   for (std::size_t e = 0; e < data.size(); ++e) {
@@ -131,7 +132,7 @@ CompareResult compare(const M& model, const Dataset& data,
     r.experiment_names.push_back(label);
     Eigen::MatrixXd yhat;
     try {
-      yhat = model.simulate(ex, ic);
+      yhat = output(ex);
     } catch (const DivergenceError& d) {
       r.fit.row(static_cast<Eigen::Index>(e)).setConstant(-std::numeric_limits<double>::infinity());
       r.simulated.emplace_back();
@@ -166,6 +167,37 @@ CompareResult compare(const M& model, const Dataset& data,
     r.simulated.push_back(std::move(yhat));
   }
   return r;
+}
+
+}  // namespace detail
+
+/// Simulates `model` on every experiment of `data` from `ic` and scores it (see file comment).
+/// The default start is `zero`, which costs nothing and lets a model's own transient count; the
+/// toolbox's `compare` estimates the initial state by default — pass `InitialCondition::estimate`
+/// for its numbers (the study does).
+/// Throws `nlid::Error` naming the experiment if the simulated output has the wrong shape or a
+/// measured output is constant; errors of the model's own checks pass through.
+template <SimulationModel M>
+CompareResult compare(const M& model, const Dataset& data,
+                      InitialCondition ic = InitialCondition::zero) {
+  CompareResult r;
+  r.initial_condition = ic;
+  return detail::compare_each(data, std::move(r), [&](const Experiment& ex) { return model.simulate(ex, ic); });
+}
+
+/// Fit of the k-step-ahead prediction ŷ(t | t − k) on every experiment (the toolbox's
+/// `compare(data, sys, k)`): the model is run k samples from the measured past, so k = 1 scores
+/// the one-step predictor and a k beyond the record the simulation from measured past data. The
+/// first samples, which have no past to predict from, are the measured ones (each model's
+/// `predict`); models without a noise model (output error, Hammerstein–Wiener) predict by
+/// simulating, whatever k. Result as `compare`, with `horizon` = k (the simulated outputs hold
+/// the predictions). Throws `nlid::Error` naming "k" if k < 1.
+template <KStepPredictor M>
+CompareResult compare_prediction(const M& model, const Dataset& data, int k) {
+  require(k >= 1, "compare_prediction: the horizon k must be >= 1, got " + std::to_string(k), at_parameter("k"));
+  CompareResult r;
+  r.horizon = k;
+  return detail::compare_each(data, std::move(r), [&](const Experiment& ex) { return model.predict(ex, k); });
 }
 
 /// Fit (%) of several models on several experiments, printed as one table (models as rows).
