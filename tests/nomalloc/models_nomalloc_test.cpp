@@ -19,6 +19,7 @@
 #include "nlid/data/detail/csv_parse.hpp"
 #include "nlid/models/estimate.hpp"
 #include "nlid/models/greybox.hpp"
+#include "nlid/models/greybox_dynamic.hpp"
 #include "nlid/models/hammerstein_wiener.hpp"
 #include "nlid/models/nlarx.hpp"
 #include "nlid/models/physics/catalogue.hpp"
@@ -27,6 +28,7 @@
 #include "nlid/nonlinearities/piecewise_linear.hpp"
 #include "nlid/nonlinearities/sigmoid_network.hpp"
 #include "nlid/regressors.hpp"
+#include "nlid/regressors/expression.hpp"
 
 #ifndef EIGEN_RUNTIME_NO_MALLOC
 #error "tests/nomalloc must be compiled with EIGEN_RUNTIME_NO_MALLOC"
@@ -211,6 +213,39 @@ TEST_CASE("Steppers of fixed-size models allocate nothing per step or reset", "[
   }
   CHECK(std::isfinite(sum));
   CHECK(a.samples() == 500);
+}
+
+TEST_CASE("Steppers of the Dynamic twins allocate nothing per step either", "[nomalloc][models][stepper]") {
+  // Orders, units and physics chosen at run time (what a loaded model file is): the sizes are
+  // set when the stepper is built, so stepping reuses its buffers.
+  nlid::RegressorList list;
+  list.add_output_lags(3).add_input_lags(3, 0, 0).add_custom("max(y1(t-1),90)+min(y1(t-1),15)-105");
+  using DynNet = nlid::SigmoidNet<nlid::Dynamic, nlid::Dynamic>;
+  nlid::Nlarx<nlid::RegressorList, DynNet> m(list, DynNet(7, 5));
+  Eigen::VectorXd th = Eigen::VectorXd::Constant(m.num_parameters(), 0.01);
+  th.head(3) << 0.5, 0.1, 0.05;
+  m.set_parameters(th);
+  using Pw = nlid::PwLinear<nlid::Dynamic>;
+  using Tf = nlid::TransferFunctionBlock<nlid::Dynamic, nlid::Dynamic, nlid::Dynamic>;
+  nlid::HammersteinWiener<Pw, Tf, Pw> hw(Pw(4), Tf(3, 3, 2), Pw(4));
+  Eigen::VectorXd thw(hw.num_parameters());
+  thw << 0.0, -0.5, -0.5, -0.5, 0.0, 0.5, 1.0, 1.6, 0.2, 0.1, 0.05, -0.9, 0.2, -0.02, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0,
+      2.0, 3.0;
+  hw.set_parameters(thw);
+  const nlid::DynamicGreyBox gb(nlid::make_physics("throttle"));
+  Eigen::VectorXd x0 = Eigen::VectorXd::Zero(gb.state_dimension());
+  x0(0) = 15.0;
+  nlid::Stepper a(m);
+  nlid::Stepper b(hw);
+  nlid::Stepper c(gb, 0.01, x0);
+  const Eigen::MatrixXd u = test_input(300);
+  double sum = 0.0;
+  {
+    NoHeap guard;
+    for (Eigen::Index t = 0; t < u.rows(); ++t) sum += a.step(u(t, 0)) + b.step(u(t, 0)) + c.step(u(t, 0))[0];
+    CHECK(guard.new_calls() == 0);
+  }
+  CHECK(std::isfinite(sum));
 }
 
 TEST_CASE("a simulation-focus residual + Jacobian evaluation allocates nothing", "[nomalloc][models]") {

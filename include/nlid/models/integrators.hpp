@@ -224,6 +224,8 @@ class EulerStepper {
     f(x, k1_);
     x += R(h) * k1_;
   }
+  /// Sizes the stage buffer for states of `n` entries, so that later steps allocate nothing.
+  void reserve(Eigen::Index n) { k1_.resize(n); }
 
  private:
   State k1_;
@@ -264,6 +266,14 @@ class Rk4Stepper {
     }
   }
 
+  /// Sizes the stage buffers for states of `n` entries, so that later steps allocate nothing.
+  void reserve(Eigen::Index n) {
+    k1_.resize(n);
+    k2_.resize(n);
+    k3_.resize(n);
+    k4_.resize(n);
+    tmp_.resize(n);
+  }
   /// Advances `x` by `n` equal steps covering `h`. Returns false (x then holds the first
   /// non-finite state) if the solution left the finite numbers: the caller reports divergence.
   template <class System>
@@ -326,6 +336,9 @@ class DormandPrinceStepper {
     err = hh * (R(e1) * k1_ + R(e3) * k3_ + R(e4) * k4_ + R(e5) * k5_ + R(e6) * k6_ + R(e7) * k7_);
     x = y5_;
   }
+
+  /// Sizes the stage buffers for states of `n` entries, so that later steps allocate nothing.
+  void reserve(Eigen::Index n) { resize(n); }
 
   /// Integrates over an interval of length `h` with adaptive steps. `h_try` carries the step
   /// size between calls (0 = choose one from h). Returns false if the step budget ran out or the

@@ -20,8 +20,9 @@
 /// - `state()` is the state after the last step in the layout of the model's x0, so a run can
 ///   be stopped and resumed, or continued by a batch `simulate` from that state. A stepper is a
 ///   value: copy it to branch several scenarios from one point.
-/// - Static sizes: `step` allocates nothing (tests/nomalloc); construction, copies and
-///   `state()` may.
+/// - `step` and `reset` allocate nothing, with static sizes and with the Dynamic twins alike
+///   (sizes are fixed when the stepper is built; tests/nomalloc); construction, copies and
+///   `state()` allocate.
 /// - A non-finite input, or an output or state that leaves the finite numbers, throws
 ///   (`nlid::Error` / `nlid::DivergenceError` naming the sample counted from the last reset);
 ///   the state is then left as it was before that step.
@@ -185,17 +186,21 @@ class Stepper<HammersteinWiener<In, L, Out>> {
 
   /// A stepper of (a copy of) `model`, with the linear block at rest.
   explicit Stepper(const Model& model) : model_(model) {
-    if constexpr (L::num_states == Dynamic) s_.resize(model_.state_dimension());
+    if constexpr (L::num_states == Dynamic) {
+      s_.resize(model_.state_dimension());
+      next_.resize(model_.state_dimension());
+    }
     bind();
     reset();
   }
   /// Copies re-bind the maps to their own copy of θ (the maps' prepared tables view it).
-  Stepper(const Stepper& o) : model_(o.model_), s_(o.s_), k_(o.k_) { bind(); }
+  Stepper(const Stepper& o) : model_(o.model_), s_(o.s_), next_(o.next_), k_(o.k_) { bind(); }
   /// See the copy constructor.
   Stepper& operator=(const Stepper& o) {
     if (this != &o) {
       model_ = o.model_;
       s_ = o.s_;
+      next_ = o.next_;
       k_ = o.k_;
       bind();
     }
@@ -225,8 +230,8 @@ class Stepper<HammersteinWiener<In, L, Out>> {
   /// y(t) for u(t); advances the linear block to t + 1.
   double step(double u) {
     detail::check_step_input(u, 0, k_);
-    State s = s_;  // the state is kept if this sample fails
-    const std::span<double> ss(s.data(), static_cast<std::size_t>(s.size()));
+    next_ = s_;  // the state is kept if this sample fails (same size: no allocation, also Dynamic)
+    const std::span<double> ss(next_.data(), static_cast<std::size_t>(next_.size()));
     const double w = (*f_)(u);
     const double x = model_.linear_block().step(ss, w, theta_l_);
     const double y = (*h_)(x);
@@ -235,7 +240,7 @@ class Stepper<HammersteinWiener<In, L, Out>> {
                                 std::to_string(k_) + " (the state is kept as it was before this sample)",
                             static_cast<long>(k_));
     }
-    s_ = s;
+    s_.swap(next_);
     ++k_;
     return y;
   }
@@ -271,7 +276,7 @@ class Stepper<HammersteinWiener<In, L, Out>> {
   }
 
   Model model_;
-  State s_;
+  State s_, next_;
   std::int64_t k_ = 0;
   std::span<const double> theta_l_;
   std::optional<InMap> f_;
@@ -310,7 +315,13 @@ class Stepper<GreyBox<P>> {
     const int nu = model_.input_dimension();
     if constexpr (P::num_inputs == Dynamic) uk_.resize(nu);
     if constexpr (P::num_outputs == Dynamic) y_.resize(model_.output_dimension());
-    if constexpr (P::num_states == Dynamic) x_.resize(model_.state_dimension());
+    if constexpr (P::num_states == Dynamic) {
+      x_.resize(model_.state_dimension());
+      next_.resize(model_.state_dimension());
+    }
+    rk4_.reserve(model_.state_dimension());
+    euler_.reserve(model_.state_dimension());
+    dopri_.reserve(model_.state_dimension());
     fixed_count_ = model_.integrator().substeps > 0;
     if constexpr (detail::HasSpectralRadius<P>) {
       if (static_cast<double>(model_.physics().spectral_radius(p_.data())) >= 0.0) fixed_count_ = true;
@@ -379,22 +390,19 @@ class Stepper<GreyBox<P>> {
       }
     }
     auto f = [&](const State& s, State& ds) { phys.derivative(s.data(), uk_.data(), p_.data(), ds.data()); };
-    State next = x_;
+    next_ = x_;  // same size: no allocation, also for a run-time physics
     double h = h_try_;
     bool ok = true;
     if (o.method == IntegratorMethod::dormand_prince) {
-      DormandPrinceStepper<State> dopri;
-      ok = dopri.integrate(f, next, ts_, h, o);
+      ok = dopri_.integrate(f, next_, ts_, h, o);
     } else {
-      Rk4Stepper<State> rk4;
-      EulerStepper<State> euler;
-      ok = detail::fixed_step_interval(o.method, rk4, euler, f, next, ts_, std::max(1, substeps_));
+      ok = detail::fixed_step_interval(o.method, rk4_, euler_, f, next_, ts_, std::max(1, substeps_));
     }
     ++k_;
     if (!ok) {
       diverged_ = true;  // y(t) is still valid; the next sample cannot be delivered
     } else {
-      x_ = next;
+      x_.swap(next_);
       h_try_ = h;
     }
     return y_;
@@ -417,7 +425,11 @@ class Stepper<GreyBox<P>> {
   Model model_;
   typename Model::ParameterVector p_;
   double ts_;
-  State x_;
+  State x_, next_;
+  // The integrators' stage buffers, kept so that a run-time state size allocates them once.
+  Rk4Stepper<State> rk4_;
+  EulerStepper<State> euler_;
+  DormandPrinceStepper<State> dopri_;
   Eigen::Matrix<double, P::num_inputs, 1> uk_;
   OutputVector y_;
   bool fixed_count_ = false;
