@@ -10,6 +10,7 @@
 #include <numbers>
 
 #include "nlid/data/preprocess.hpp"
+#include "nlid/models/equilibrium.hpp"
 #include "nlid/models/greybox.hpp"
 #include "nlid/models/greybox_estimate.hpp"
 #include "nlid/models/greybox_problem.hpp"
@@ -621,6 +622,20 @@ TEST_CASE("An initial-state window shorter than the states need is widened", "[g
   REQUIRE_NOTHROW(x0 = m.initial_state(e, InitialCondition::estimate));
   CHECK(x0[0] == Approx(1.3).epsilon(1e-6));
   CHECK(x0[1] == Approx(-4.0).epsilon(1e-4));
+}
+
+TEST_CASE("A guess picks one of several equilibria: the pendulum hanging or upright", "[greybox]") {
+  GreyBox<nlid_test::UnratedPendulum> m;
+  const Eigen::VectorXd u0 = Eigen::VectorXd::Zero(1);
+  CHECK(m.equilibrium(u0)(0) == 0.0);
+  const Eigen::Vector2d upright = m.equilibrium(u0, Eigen::Vector2d(3.0, 0.0));
+  CHECK(upright(0) == Approx(std::numbers::pi).epsilon(1e-12));
+  CHECK(upright(1) == Approx(0.0).margin(1e-12));
+  const nlid::OperatingPoint op = nlid::equilibrium(m, u0, Eigen::Vector2d(-3.0, 0.0));
+  CHECK(op.x(0) == Approx(-std::numbers::pi).epsilon(1e-12));
+  CHECK(op.y(0) == op.x(0));
+  CHECK(nlid::equilibrium(m, u0).x(0) == 0.0);
+  CHECK_THROWS_WITH(m.equilibrium(u0, Eigen::Vector3d::Zero()), Catch::Contains("the guess must have 2 finite entries, got 3"));
 }
 
 TEST_CASE("An emptying tank: equilibrium where df/dx is infinite at the zero guess", "[greybox]") {

@@ -91,17 +91,19 @@ OperatingPoint equilibrium(const HammersteinWiener<In, L, Out>& model, const Eig
   return op;
 }
 
-/// Equilibrium of a grey-box model for the constant input `u0` (n_u values): f(x̄, ū, p) = 0.
+/// Equilibrium of a grey-box model for the constant input `u0` (n_u values): f(x̄, ū, p) = 0,
+/// Newton from `x_guess` (empty: the zero state; with several equilibria, the guess picks one).
 /// Throws (from `GreyBox::equilibrium`) if Newton's method finds none.
 template <class P>
-OperatingPoint equilibrium(const GreyBox<P>& model, const Eigen::VectorXd& u0) {
+OperatingPoint equilibrium(const GreyBox<P>& model, const Eigen::VectorXd& u0,
+                           const Eigen::VectorXd& x_guess = {}) {
   require(u0.size() == model.input_dimension(),
           "equilibrium: the model takes " + std::to_string(model.input_dimension()) + " input(s), got " +
               std::to_string(u0.size()),
           at_parameter("u0"));
   require(u0.allFinite(), "equilibrium: the held input must be finite", at_parameter("u0"));
   OperatingPoint op;
-  op.x = model.equilibrium(u0);
+  op.x = x_guess.size() == 0 ? model.equilibrium(u0) : model.equilibrium(u0, x_guess);
   op.u = u0;
   const auto p = model.parameters();
   op.y.resize(model.output_dimension());

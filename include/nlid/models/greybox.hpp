@@ -535,10 +535,21 @@ class GreyBox {
   /// Throws `nlid::Error` if there is none (e.g. a free body under a net force).
   [[nodiscard]] StateVector equilibrium(const Eigen::Ref<const Eigen::VectorXd>& u,
                                         const std::string& label = {}) const {
+    return equilibrium(u, StateVector::Zero(state_dimension()), label);
+  }
+  /// As above, Newton started from `x_guess` (n_x values): where there are several equilibria (a
+  /// pendulum hanging or upright, a tank's levels) the guess picks the one near it.
+  [[nodiscard]] StateVector equilibrium(const Eigen::Ref<const Eigen::VectorXd>& u,
+                                        const Eigen::Ref<const Eigen::VectorXd>& x_guess,
+                                        const std::string& label = {}) const {
     require(u.size() == input_dimension(), "equilibrium: input has " + std::to_string(u.size()) +
                                                " entries, the model takes " +
                                                std::to_string(input_dimension()));
-    return equilibrium_from(StateVector::Zero(state_dimension()), u, label);
+    require(x_guess.size() == state_dimension() && x_guess.allFinite(),
+            "equilibrium: the guess must have " + std::to_string(state_dimension()) + " finite entries, got " +
+                std::to_string(x_guess.size()),
+            at_parameter("x_guess"));
+    return equilibrium_from(StateVector(x_guess), u, label);
   }
 
   /// Number of leading samples `InitialCondition::estimate` fits x₀ to in `simulate` and
