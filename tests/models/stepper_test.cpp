@@ -20,6 +20,7 @@
 #include "nlid/nonlinearities/sigmoid_network.hpp"
 #include "nlid/regressors.hpp"
 #include "nlid/regressors/expression.hpp"
+#include "../support/pwlinear_hw.hpp"
 #include "../support/unrated_pendulum.hpp"
 
 namespace {
@@ -119,10 +120,7 @@ TEST_CASE("Stepper: multi-input nonlinear ARX with a long dead time and a custom
 TEST_CASE("Stepper: Hammerstein-Wiener steps equal the batch simulation, copies stand alone", "[models][stepper]") {
   using Hw = nlid::HammersteinWiener<nlid::PwLinear<4>, nlid::TransferFunctionBlock<3, 3, 20>, nlid::PwLinear<4>>;
   Hw m;
-  Eigen::VectorXd th(Hw::num_params);
-  th << 0.0, -0.5, -0.5, -0.5, 0.0, 0.5, 1.0, 1.6,  // input breakpoints and values
-      0.2, 0.1, 0.05, -0.9, 0.2, -0.02,             // linear block
-      0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 2.0, 3.0;       // output breakpoints and values
+  const Eigen::VectorXd th = nlid_test::pwlinear_hw_theta();
   m.set_parameters(th);
   const Eigen::MatrixXd u = stepper_input(300);
   const Eigen::VectorXd x0 = m.equilibrium_state<double>(u(0, 0), std::span<const double>(th.data(), Hw::num_params));

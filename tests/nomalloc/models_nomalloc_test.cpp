@@ -30,6 +30,8 @@
 #include "nlid/regressors.hpp"
 #include "nlid/regressors/expression.hpp"
 
+#include "../support/pwlinear_hw.hpp"
+
 #ifndef EIGEN_RUNTIME_NO_MALLOC
 #error "tests/nomalloc must be compiled with EIGEN_RUNTIME_NO_MALLOC"
 #endif
@@ -155,10 +157,7 @@ TEST_CASE("Nlarx with the hard-spring custom regressor allocates nothing", "[nom
 TEST_CASE("Hammerstein-Wiener pwlinear/[3 3 0]/pwlinear allocates nothing", "[nomalloc][models]") {
   using Hw = nlid::HammersteinWiener<nlid::PwLinear<4>, nlid::TransferFunctionBlock<3, 3, 0>, nlid::PwLinear<4>>;
   Hw m;
-  Eigen::VectorXd th(Hw::num_params);
-  th << 0.0, -0.5, -0.5, -0.5, 0.0, 0.5, 1.0, 1.6,         // input breakpoints and values
-      0.2, 0.1, 0.05, -0.9, 0.2, -0.02,                    // linear block
-      0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 2.0, 3.0;              // output breakpoints and values
+  const Eigen::VectorXd th = nlid_test::pwlinear_hw_theta();
   m.set_parameters(th);
   const Eigen::MatrixXd u = test_input(500);
   Eigen::VectorXd y(500);
@@ -182,10 +181,7 @@ TEST_CASE("Steppers of fixed-size models allocate nothing per step or reset", "[
   const Nlarx5 m = make_nlarx5();
   using Hw = nlid::HammersteinWiener<nlid::PwLinear<4>, nlid::TransferFunctionBlock<3, 3, 2>, nlid::PwLinear<4>>;
   Hw hw;
-  Eigen::VectorXd th(Hw::num_params);
-  th << 0.0, -0.5, -0.5, -0.5, 0.0, 0.5, 1.0, 1.6, 0.2, 0.1, 0.05, -0.9, 0.2, -0.02, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0,
-      2.0, 3.0;
-  hw.set_parameters(th);
+  hw.set_parameters(nlid_test::pwlinear_hw_theta());
   nlid::GreyBox<nlid::physics::Throttle> gb;
   Eigen::VectorXd p(7);
   p << 30.0, 400.0, 1e5, 400.0 * 140.0, 15.0, 90.0, 0.0;
@@ -228,10 +224,7 @@ TEST_CASE("Steppers of the Dynamic twins allocate nothing per step either", "[no
   using Pw = nlid::PwLinear<nlid::Dynamic>;
   using Tf = nlid::TransferFunctionBlock<nlid::Dynamic, nlid::Dynamic, nlid::Dynamic>;
   nlid::HammersteinWiener<Pw, Tf, Pw> hw(Pw(4), Tf(3, 3, 2), Pw(4));
-  Eigen::VectorXd thw(hw.num_parameters());
-  thw << 0.0, -0.5, -0.5, -0.5, 0.0, 0.5, 1.0, 1.6, 0.2, 0.1, 0.05, -0.9, 0.2, -0.02, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0,
-      2.0, 3.0;
-  hw.set_parameters(thw);
+  hw.set_parameters(nlid_test::pwlinear_hw_theta());
   const nlid::DynamicGreyBox gb(nlid::make_physics("throttle"));
   Eigen::VectorXd x0 = Eigen::VectorXd::Zero(gb.state_dimension());
   x0(0) = 15.0;
