@@ -10,3 +10,4 @@
 #include "nlid/analysis/fit.hpp"
 #include "nlid/analysis/linearize.hpp"
 #include "nlid/analysis/resid.hpp"
+#include "nlid/analysis/step_response.hpp"

@@ -1,0 +1,112 @@
+#pragma once
+/// @file
+/// Step responses (the toolbox's `step`): from rest for any model, and about an operating point
+/// for the nonlinear models, whose response depends on where and how far they are pushed.
+///
+///     y = step_response(model, 100);              // unit step on input 0 at t = 0, from rest
+///     y = step_response(model, op, delta, 100);   // from the equilibrium op (nlid::equilibrium),
+///                                                 // input op.u + delta from t = 0
+///
+/// From rest: zero initial state and zero input before t = 0, u_j(t) = amplitude for t ≥ 0 —
+/// for a linear model the toolbox's discrete step response (y(0) is the feed-through term; a
+/// delay nk shows as nk leading zeros). About an operating point: the model starts at the
+/// equilibrium x̄ of ū = op.u and sees ū + δ from t = 0, so y(0) = ȳ (plus any feed-through of
+/// δ) and the response settles at the equilibrium of ū + δ, if there is one; the result is the
+/// output itself, not y − ȳ. Run through `Stepper`, so it is the batch simulation's numbers.
+
+#include <cmath>
+#include <concepts>
+#include <span>
+#include <string>
+#include <type_traits>
+
+#include <Eigen/Core>
+
+#include "nlid/analysis/concepts.hpp"
+#include "nlid/core/error.hpp"
+#include "nlid/core/initial_condition.hpp"
+#include "nlid/data/experiment.hpp"
+#include "nlid/models/equilibrium.hpp"
+#include "nlid/models/stepper.hpp"
+
+namespace nlid {
+
+/// A model `step_response` can drive from rest: it simulates an experiment and says its channel
+/// counts and sample time (0: none set).
+template <class M>
+concept StepResponseModel = SimulationModel<M> && requires(const M& m) {
+  { m.num_inputs() } -> std::convertible_to<int>;
+  { m.num_outputs() } -> std::convertible_to<int>;
+  { m.ts() } -> std::convertible_to<double>;
+};
+
+/// Response (n × n_y) to a step of height `amplitude` on input `input` at t = 0, from rest (see
+/// the file comment). Throws `nlid::Error` naming "n", "input" or "amplitude" on a bad argument;
+/// a model that cannot run at rest (no zero start) passes its own error through.
+template <StepResponseModel M>
+[[nodiscard]] Eigen::MatrixXd step_response(const M& model, Eigen::Index n, int input = 0, double amplitude = 1.0) {
+  require(n >= 1, "step_response: the number of samples must be >= 1, got " + std::to_string(n), at_parameter("n"));
+  require(input >= 0 && input < model.num_inputs(),
+          "step_response: input " + std::to_string(input) + " out of range, the model has " +
+              std::to_string(model.num_inputs()) + " input(s)",
+          at_parameter("input"));
+  require(std::isfinite(amplitude), "step_response: the step height must be finite", at_parameter("amplitude"));
+  Eigen::MatrixXd u = Eigen::MatrixXd::Zero(n, model.num_inputs());
+  u.col(input).setConstant(amplitude);
+  const double ts = model.ts() > 0.0 ? model.ts() : 1.0;
+  const Experiment e(u, Eigen::MatrixXd::Zero(n, model.num_outputs()), ts, "step");
+  return model.simulate(e, InitialCondition::zero);
+}
+
+namespace detail {
+template <class S>
+Eigen::MatrixXd step_from(S& run, const OperatingPoint& op, const Eigen::VectorXd& delta, Eigen::Index n,
+                          int ny) {
+  require(n >= 1, "step_response: the number of samples must be >= 1, got " + std::to_string(n), at_parameter("n"));
+  require(delta.size() == op.u.size() && delta.allFinite(),
+          "step_response: the step must have one finite value per input (" + std::to_string(op.u.size()) + "), got " +
+              std::to_string(delta.size()),
+          at_parameter("delta"));
+  run.reset(op.x);
+  const Eigen::VectorXd u = op.u + delta;
+  const std::span<const double> us(u.data(), static_cast<std::size_t>(u.size()));
+  Eigen::MatrixXd y(n, ny);
+  for (Eigen::Index t = 0; t < n; ++t) {
+    if constexpr (std::is_same_v<std::decay_t<decltype(run.step(us))>, double>) {
+      y(t, 0) = run.step(us);
+    } else {
+      y.row(t) = run.step(us).transpose();
+    }
+  }
+  return y;
+}
+}  // namespace detail
+
+/// Response (n × 1) of a nonlinear ARX model started at the operating point `op` (its lag
+/// window, `nlid::equilibrium(model, u)`) to the input op.u + `delta` from t = 0.
+template <class R, class F>
+[[nodiscard]] Eigen::MatrixXd step_response(const Nlarx<R, F>& model, const OperatingPoint& op,
+                                            const Eigen::VectorXd& delta, Eigen::Index n) {
+  Stepper run(model);
+  return detail::step_from(run, op, delta, n, 1);
+}
+
+/// Response (n × 1) of a Hammerstein–Wiener model started at the operating point `op` (its
+/// block's steady state) to the input op.u + `delta` from t = 0.
+template <class In, class L, class Out>
+[[nodiscard]] Eigen::MatrixXd step_response(const HammersteinWiener<In, L, Out>& model, const OperatingPoint& op,
+                                            const Eigen::VectorXd& delta, Eigen::Index n) {
+  Stepper run(model);
+  return detail::step_from(run, op, delta, n, 1);
+}
+
+/// Response (n × n_y) of a grey-box model sampled at `ts`, started at the operating point `op`
+/// (its physics' state), to the input op.u + `delta` from t = 0 (zero-order hold).
+template <class P>
+[[nodiscard]] Eigen::MatrixXd step_response(const GreyBox<P>& model, double ts, const OperatingPoint& op,
+                                            const Eigen::VectorXd& delta, Eigen::Index n) {
+  Stepper run(model, ts, op.x);
+  return detail::step_from(run, op, delta, n, model.output_dimension());
+}
+
+}  // namespace nlid
