@@ -635,7 +635,8 @@ TEST_CASE("A guess picks one of several equilibria: the pendulum hanging or upri
   CHECK(op.x(0) == Approx(-std::numbers::pi).epsilon(1e-12));
   CHECK(op.y(0) == op.x(0));
   CHECK(nlid::equilibrium(m, u0).x(0) == 0.0);
-  CHECK_THROWS_WITH(m.equilibrium(u0, Eigen::Vector3d::Zero()), Catch::Contains("the guess must have 2 finite entries, got 3"));
+  CHECK_THROWS_WITH(m.equilibrium(u0, Eigen::Vector3d::Zero()), Catch::Contains("the guess must have 2 entries, got 3"));
+  CHECK_THROWS_WITH(m.equilibrium(u0, Eigen::Vector2d(std::nan(""), 0.0)), Catch::Contains("the guess is not finite"));
 }
 
 TEST_CASE("An emptying tank: equilibrium where df/dx is infinite at the zero guess", "[greybox]") {

@@ -2,6 +2,7 @@
 // their state across chunks and copies, and refuse bad samples without losing their state.
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <memory>
@@ -17,6 +18,8 @@
 #include "nlid/models/transfer_function_block.hpp"
 #include "nlid/nonlinearities/linear.hpp"
 #include "nlid/nonlinearities/piecewise_linear.hpp"
+#include "nlid/nonlinearities/saturation.hpp"
+#include "nlid/nonlinearities/unit_gain.hpp"
 #include "nlid/nonlinearities/sigmoid_network.hpp"
 #include "nlid/regressors.hpp"
 #include "nlid/regressors/expression.hpp"
@@ -234,6 +237,40 @@ TEST_CASE("Stepper: grey box without a spectral radius raises its sub-steps as i
   CHECK(y == m.simulate(u, ts, x0).col(0));
 }
 
+TEST_CASE("Stepper: an unstable block behind a saturating output map is caught by its state", "[models][stepper][errors]") {
+  // x(t) = 1.5 x(t-1) + u(t-1) runs off to inf while y = saturation(x) stays at its limit: the
+  // stepper must stop at the state, as the contract says, not deliver y = 1 from an inf state.
+  using Hw = nlid::HammersteinWiener<nlid::UnitGain, nlid::TransferFunctionBlock<1, 1, 1>, nlid::Saturation>;
+  Hw m;
+  Eigen::VectorXd th(m.num_parameters());
+  th << 1.0, -1.5, -1.0, 1.0;  // b1, f1, then the saturation's lower and upper limits
+  m.set_parameters(th);
+  nlid::Stepper run(m);
+  long at = -1;
+  double largest = 0.0;
+  try {
+    for (int t = 0; t < 5000; ++t) largest = std::max(largest, std::abs(run.step(1.0)));
+  } catch (const nlid::DivergenceError& e) {
+    at = e.sample();
+    CHECK_THAT(e.what(), Catch::Contains("linear block's state") && Catch::Contains("not finite at sample"));
+  }
+  REQUIRE(at > 1000);  // 1.5^t overflows near t = 1750
+  CHECK(largest == 1.0);  // the output never showed it
+  CHECK(run.samples() == at);
+  CHECK(run.state().allFinite());
+  run.reset(run.state());  // resumable from the last finite state
+}
+
+TEST_CASE("Stepper: grey-box parameters simulate refuses are refused", "[models][stepper][greybox][errors]") {
+  nlid::GreyBox<nlid::physics::Throttle> m;
+  m.set_parameter("upper_stop", 20.0);
+  m.set_parameter("lower_stop", 30.0);  // crossed, one at a time
+  CHECK_THROWS_WITH(m.simulate(Eigen::MatrixXd::Zero(5, 1), 0.01, Eigen::Vector2d(25.0, 0.0)),
+                    Catch::Contains("must be below upper_stop"));
+  CHECK_THROWS_WITH(nlid::Stepper(m, 0.01, Eigen::Vector2d(25.0, 0.0)),
+                    Catch::Contains("Stepper") && Catch::Contains("must be below upper_stop"));
+}
+
 TEST_CASE("Stepper: a diverging grey box delivers its last valid output, then refuses", "[models][stepper][greybox][errors]") {
   nlid::GreyBox<nlid::physics::Throttle> m;
   Eigen::VectorXd p(7);
@@ -262,7 +299,11 @@ TEST_CASE("Stepper: a diverging grey box delivers its last valid output, then re
   } catch (const nlid::DivergenceError& e) {
     CHECK(e.sample() == at);
   }
-  CHECK_THROWS_WITH(run.step(std::numeric_limits<double>::infinity()), Catch::Contains("diverged at sample"));
+  // samples() counts the outputs delivered; state() is the last finite state, x(at - 1).
+  CHECK(run.samples() == at);
+  CHECK(run.state().allFinite());
+  CHECK_THROWS_WITH(run.step(std::numeric_limits<double>::infinity()),
+                    Catch::Contains("diverged at sample") && Catch::Contains("1 sub-step(s) per sample"));
   run.reset(Eigen::Vector2d(15.0, 0.0));
   CHECK_THROWS_WITH(run.step(std::numeric_limits<double>::infinity()), Catch::Contains("input 0 is inf at sample 0"));
 }

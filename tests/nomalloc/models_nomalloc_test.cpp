@@ -233,9 +233,18 @@ TEST_CASE("Steppers of the Dynamic twins allocate nothing per step either", "[no
   nlid::Stepper c(gb, 0.01, x0);
   const Eigen::MatrixXd u = test_input(300);
   double sum = 0.0;
+  const Eigen::VectorXd xa = Eigen::VectorXd::Constant(m.state_dimension(), 0.2);
+  const Eigen::VectorXd xb = Eigen::VectorXd::Constant(hw.state_dimension(), 0.1);
   {
     NoHeap guard;
-    for (Eigen::Index t = 0; t < u.rows(); ++t) sum += a.step(u(t, 0)) + b.step(u(t, 0)) + c.step(u(t, 0))[0];
+    for (Eigen::Index t = 0; t < u.rows(); ++t) {
+      if (t == 150) {
+        a.reset(xa);
+        b.reset(xb);
+        c.reset(x0);
+      }
+      sum += a.step(u(t, 0)) + b.step(u(t, 0)) + c.step(u(t, 0))[0];
+    }
     CHECK(guard.new_calls() == 0);
   }
   CHECK(std::isfinite(sum));

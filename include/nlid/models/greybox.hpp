@@ -538,17 +538,19 @@ class GreyBox {
     return equilibrium(u, StateVector::Zero(state_dimension()), label);
   }
   /// As above, Newton started from `x_guess` (n_x values): where there are several equilibria (a
-  /// pendulum hanging or upright, a tank's levels) the guess picks the one near it.
+  /// pendulum hanging or upright, a tank's levels) the guess selects which one the search
+  /// converges to (usually the nearest; a step along f where ∂f/∂x is not finite may move further).
   [[nodiscard]] StateVector equilibrium(const Eigen::Ref<const Eigen::VectorXd>& u,
                                         const Eigen::Ref<const Eigen::VectorXd>& x_guess,
                                         const std::string& label = {}) const {
     require(u.size() == input_dimension(), "equilibrium: input has " + std::to_string(u.size()) +
                                                " entries, the model takes " +
                                                std::to_string(input_dimension()));
-    require(x_guess.size() == state_dimension() && x_guess.allFinite(),
-            "equilibrium: the guess must have " + std::to_string(state_dimension()) + " finite entries, got " +
+    require(x_guess.size() == state_dimension(),
+            "equilibrium: the guess must have " + std::to_string(state_dimension()) + " entries, got " +
                 std::to_string(x_guess.size()),
             at_parameter("x_guess"));
+    require(x_guess.allFinite(), "equilibrium: the guess is not finite", at_parameter("x_guess"));
     return equilibrium_from(StateVector(x_guess), u, label);
   }
 
@@ -683,6 +685,9 @@ class GreyBox {
   // ---- Implementation details below ----------------------------------------------------------
 
  private:
+  template <class>
+  friend class Stepper;  // checks the relations as simulate does
+
   // The physics' relations between the values p (`check_parameters`); `what` says which
   // operation set them.
   void check_relations(const Eigen::Ref<const Eigen::VectorXd>& p, const std::string& what) const {

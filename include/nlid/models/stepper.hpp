@@ -67,7 +67,8 @@ inline void check_step_input(double u, int channel, std::int64_t k) {
 template <class Model>
 class Stepper {
   static_assert(detail::stepper_unsupported<Model>,
-                "nlid::Stepper runs Nlarx, HammersteinWiener and GreyBox models; a linear model (Arx, "
+                "nlid::Stepper runs Nlarx, HammersteinWiener and GreyBox models (a model file: load it as its "
+                "run-time type, e.g. load_model<nlid::DynamicNlarx>, not as an AnyModel); a linear model (Arx, "
                 "OutputError, StateSpace) is stepped by its own simulate over one sample from a state");
 };
 
@@ -235,9 +236,11 @@ class Stepper<HammersteinWiener<In, L, Out>> {
     const double w = (*f_)(u);
     const double x = model_.linear_block().step(ss, w, theta_l_);
     const double y = (*h_)(x);
-    if (!std::isfinite(y)) {
-      throw DivergenceError("Stepper: the output of the Hammerstein-Wiener model is not finite at sample " +
-                                std::to_string(k_) + " (the state is kept as it was before this sample)",
+    // The state too: behind a saturating output map an unstable block runs off to inf unseen.
+    if (!std::isfinite(y) || !detail::values_finite(next_)) {
+      throw DivergenceError("Stepper: the " + std::string(std::isfinite(y) ? "linear block's state" : "output") +
+                                " of the Hammerstein-Wiener model is not finite at sample " + std::to_string(k_) +
+                                " (the state is kept as it was before this sample)",
                             static_cast<long>(k_));
     }
     s_.swap(next_);
@@ -295,8 +298,9 @@ class Stepper<HammersteinWiener<In, L, Out>> {
 /// the stepper starts at the count of its initial state and raises it as stiffer states are
 /// reached. Its numbers then differ from the batch run's by the integrator's error, not more;
 /// set `IntegratorOptions::substeps` (e.g. to `GreyBox::substeps(u, ts, x0)` of a representative
-/// record) where online and offline runs must agree exactly. The adaptive method carries its
-/// step size from sample to sample, as the batch simulation does.
+/// record) where online and offline runs must agree exactly — and for a run-time physics, whose
+/// stiffness is then judged at every step from a Jacobian that allocates. The adaptive method
+/// carries its step size from sample to sample, as the batch simulation does.
 template <class P>
 class Stepper<GreyBox<P>> {
  public:
@@ -322,11 +326,19 @@ class Stepper<GreyBox<P>> {
     rk4_.reserve(model_.state_dimension());
     euler_.reserve(model_.state_dimension());
     dopri_.reserve(model_.state_dimension());
+    model_.check_relations(p_, "Stepper");  // what simulate refuses, the stepper refuses
     fixed_count_ = model_.integrator().substeps > 0;
     if constexpr (detail::HasSpectralRadius<P>) {
       if (static_cast<double>(model_.physics().spectral_radius(p_.data())) >= 0.0) fixed_count_ = true;
     }
     reset(x0);
+    if (fixed_count_) {
+      // The batch run's own rule with its own arguments: one count for every state, so it is
+      // judged once here (it allocates for a run-time physics; reset and step must not).
+      fixed_substeps_ = physics_substeps(model_.physics(), model_.integrator(), p_.data(), x_.data(),
+                                         Eigen::MatrixXd(0, model_.input_dimension()), ts_);
+      substeps_ = fixed_substeps_;
+    }
   }
 
   /// Starts again from the state `x0` (n_x values). Throws `nlid::Error` naming "x0" if its size
@@ -346,11 +358,7 @@ class Stepper<GreyBox<P>> {
     k_ = 0;
     diverged_ = false;
     worst_ = -1.0;  // the count is judged again from this state
-    if (fixed_count_) {
-      // The batch run's own rule with its own arguments: one count for every state.
-      substeps_ = physics_substeps(model_.physics(), model_.integrator(), p_.data(), x_.data(),
-                                   Eigen::MatrixXd(0, model_.input_dimension()), ts_);
-    }
+    substeps_ = fixed_count_ ? fixed_substeps_ : model_.integrator().min_substeps;
   }
 
   /// y(t) for the input sample u(t) (n_u values); advances the state to t + 1. Throws
@@ -364,9 +372,12 @@ class Stepper<GreyBox<P>> {
                   at_parameter("u"));
     }
     if (diverged_) {
+      const std::string how = model_.integrator().method == IntegratorMethod::dormand_prince
+                                  ? "with the adaptive Dormand-Prince method (IntegratorOptions::max_adaptive_steps = " +
+                                        std::to_string(model_.integrator().max_adaptive_steps) + ")"
+                                  : "with " + std::to_string(substeps_) + " sub-step(s) per sample";
       throw DivergenceError("Stepper: simulation of grey-box model '" + model_.name() + "' diverged at sample " +
-                                std::to_string(k_) + " with " + std::to_string(substeps_) +
-                                " sub-step(s) per sample; reset it from a finite state",
+                                std::to_string(k_) + " " + how + "; reset it from a finite state",
                             static_cast<long>(k_));
     }
     for (int j = 0; j < nu; ++j) {
@@ -410,7 +421,8 @@ class Stepper<GreyBox<P>> {
   /// Single-input models: y(t) for u(t).
   const OutputVector& step(double u) { return step(std::span<const double>(&u, 1)); }
 
-  /// The state after the last step (x(t + 1)), n_x values.
+  /// The state after the last step (x(t + 1)), n_x values. After a divergence (the step that
+  /// returned y(t) could not integrate on), the last finite state x(t).
   [[nodiscard]] Eigen::VectorXd state() const { return x_; }
   /// Sub-steps per sample the fixed-step methods use now.
   [[nodiscard]] int substeps() const { return substeps_; }
@@ -433,6 +445,7 @@ class Stepper<GreyBox<P>> {
   Eigen::Matrix<double, P::num_inputs, 1> uk_;
   OutputVector y_;
   bool fixed_count_ = false;
+  int fixed_substeps_ = 1;
   int substeps_ = 1;
   double worst_ = -1.0;
   double h_try_ = 0.0;
