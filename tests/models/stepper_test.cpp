@@ -14,10 +14,12 @@
 #include "nlid/models/hammerstein_wiener.hpp"
 #include "nlid/models/nlarx.hpp"
 #include "nlid/models/physics/catalogue.hpp"
+#include "nlid/models/series.hpp"
 #include "nlid/models/stepper.hpp"
 #include "nlid/models/transfer_function_block.hpp"
 #include "nlid/nonlinearities/linear.hpp"
 #include "nlid/nonlinearities/piecewise_linear.hpp"
+#include "nlid/nonlinearities/polynomial.hpp"
 #include "nlid/nonlinearities/saturation.hpp"
 #include "nlid/nonlinearities/unit_gain.hpp"
 #include "nlid/nonlinearities/sigmoid_network.hpp"
@@ -140,6 +142,27 @@ TEST_CASE("Stepper: Hammerstein-Wiener steps equal the batch simulation, copies 
   again.reset(x0);
   (void)stepped(again, u.topRows(100));
   CHECK(batch(m, u.bottomRows(200), again.state()) == whole.tail(200));
+}
+
+TEST_CASE("Stepper: a Wiener-Hammerstein chain steps as its batch simulation", "[models][stepper]") {
+  // G1 = (0.5 q^-1 + 0.3 q^-2)/(1 - 1.2 q^-1 + 0.5 q^-2), N(x) = 0.05 + x + 0.1 x^2 - 0.15 x^3,
+  // G2 = (1 + 0.4 q^-1)/(1 - 0.6 q^-1).
+  using Wh = nlid::WienerHammerstein<nlid::TransferFunctionBlock<2, 2, 1>, nlid::Poly1d<3>,
+                                     nlid::TransferFunctionBlock<2, 1, 0>>;
+  Wh m;
+  Eigen::VectorXd th(11);
+  th << 0.5, 0.3, -1.2, 0.5, 0.05, 1.0, 0.1, -0.15, 1.0, 0.4, -0.6;
+  m.set_parameters(th);
+  const Eigen::MatrixXd u = stepper_input(300) * 0.5;
+  const Eigen::VectorXd x0 = m.equilibrium_state<double>(u(0, 0), std::span<const double>(th.data(), 11));
+  const Eigen::VectorXd whole = batch(m, u, x0);
+  nlid::Stepper run(m);
+  STATIC_REQUIRE(std::is_same_v<decltype(run), nlid::Stepper<Wh>>);
+  run.reset(x0);
+  CHECK(stepped(run, u.topRows(120)) == whole.head(120));
+  CHECK(batch(m, u.bottomRows(180), run.state()) == whole.tail(180));
+  CHECK(stepped(run, u.bottomRows(180)) == whole.tail(180));
+  CHECK_THROWS_WITH(run.reset(Eigen::VectorXd::Zero(2)), Catch::Contains("the chain's linear blocks have 3 states"));
 }
 
 TEST_CASE("Stepper: a bad sample is refused and the state kept", "[models][stepper][errors]") {

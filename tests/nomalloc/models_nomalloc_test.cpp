@@ -23,9 +23,11 @@
 #include "nlid/models/hammerstein_wiener.hpp"
 #include "nlid/models/nlarx.hpp"
 #include "nlid/models/physics/catalogue.hpp"
+#include "nlid/models/series.hpp"
 #include "nlid/models/stepper.hpp"
 #include "nlid/nonlinearities/linear.hpp"
 #include "nlid/nonlinearities/piecewise_linear.hpp"
+#include "nlid/nonlinearities/polynomial.hpp"
 #include "nlid/nonlinearities/sigmoid_network.hpp"
 #include "nlid/regressors.hpp"
 #include "nlid/regressors/expression.hpp"
@@ -190,9 +192,17 @@ TEST_CASE("Steppers of fixed-size models allocate nothing per step or reset", "[
   const Eigen::Matrix<double, 5, 1> x_nlarx = Eigen::Matrix<double, 5, 1>::Constant(0.4);
   const Eigen::Matrix<double, 4, 1> x_hw = Eigen::Matrix<double, 4, 1>::Constant(0.1);
   const Eigen::Vector2d x_gb(15.0, 0.0);
+  using Wh = nlid::WienerHammerstein<nlid::TransferFunctionBlock<2, 2, 1>, nlid::Poly1d<3>,
+                                     nlid::TransferFunctionBlock<2, 1, 0>>;
+  Wh wh;
+  Eigen::VectorXd thw(11);
+  thw << 0.5, 0.3, -1.2, 0.5, 0.05, 1.0, 0.1, -0.15, 1.0, 0.4, -0.6;
+  wh.set_parameters(thw);
+  const Eigen::Vector3d x_wh = Eigen::Vector3d::Constant(0.05);
   nlid::Stepper a(m);
   nlid::Stepper b(hw);
   nlid::Stepper c(gb, 0.01, x_gb);
+  nlid::Stepper d(wh);
   double sum = 0.0;
   {
     NoHeap guard;
@@ -202,8 +212,9 @@ TEST_CASE("Steppers of fixed-size models allocate nothing per step or reset", "[
         a.reset(x_nlarx);
         b.reset(x_hw);
         c.reset(x_gb);
+        d.reset(x_wh);
       }
-      sum += a.step(ut) + b.step(ut) + c.step(ut)[0] + a.step(std::span<const double>(&ut, 1));
+      sum += a.step(ut) + b.step(ut) + c.step(ut)[0] + a.step(std::span<const double>(&ut, 1)) + d.step(0.5 * ut);
     }
     CHECK(guard.new_calls() == 0);
   }

@@ -3,7 +3,7 @@
 /// `Stepper<Model>`: a model run one sample at a time — the form a controller, an observer or a
 /// hardware-in-the-loop rig needs, where the next input is not known before the current output.
 ///
-///     nlid::Stepper run(model);              // Nlarx or HammersteinWiener, at rest
+///     nlid::Stepper run(model);              // Nlarx, HammersteinWiener or Series, at rest
 ///     run.reset(x0);                         // or from a state (layout of the model's x0)
 ///     for (;;) { const double y = run.step(u); … }
 ///
@@ -43,6 +43,7 @@
 #include "nlid/models/hammerstein_wiener.hpp"
 #include "nlid/models/integrators.hpp"
 #include "nlid/models/nlarx.hpp"
+#include "nlid/models/series.hpp"
 #include "nlid/nonlinearities/detail/bound_map.hpp"
 #include "nlid/regressors/history.hpp"
 #include "nlid/regressors/lag_window.hpp"
@@ -63,11 +64,11 @@ inline void check_step_input(double u, int channel, std::int64_t k) {
 }  // namespace detail
 
 /// A model run one sample at a time (see the file comment). Defined for `Nlarx`,
-/// `HammersteinWiener` and `GreyBox`.
+/// `HammersteinWiener`, `Series` (block chains) and `GreyBox`.
 template <class Model>
 class Stepper {
   static_assert(detail::stepper_unsupported<Model>,
-                "nlid::Stepper runs Nlarx, HammersteinWiener and GreyBox models (a model file: load it as its "
+                "nlid::Stepper runs Nlarx, HammersteinWiener, Series and GreyBox models (a model file: load it as its "
                 "run-time type, e.g. load_model<nlid::DynamicNlarx>, not as an AnyModel); a linear model (Arx, "
                 "OutputError, StateSpace) is stepped by its own simulate over one sample from a state");
 };
@@ -284,6 +285,84 @@ class Stepper<HammersteinWiener<In, L, Out>> {
   std::span<const double> theta_l_;
   std::optional<InMap> f_;
   std::optional<OutMap> h_;
+};
+
+// ---- block chains ----------------------------------------------------------------------------
+
+/// A block chain (`Series`: Hammerstein, Wiener, Wiener–Hammerstein, …) run sample by sample.
+/// State: the stacked states of its linear blocks (`state_dimension()`, the model's x0 layout).
+template <SeriesBlock... Blocks>
+class Stepper<Series<Blocks...>> {
+ public:
+  /// The model type.
+  using Model = Series<Blocks...>;
+
+  /// A stepper of (a copy of) `model`, every linear block at rest.
+  explicit Stepper(const Model& model) : model_(model) {
+    if constexpr (Model::num_states == Dynamic) {
+      s_.resize(model_.state_dimension());
+      next_.resize(model_.state_dimension());
+    }
+    reset();
+  }
+
+  /// Every linear block back to rest.
+  void reset() {
+    s_.setZero();
+    k_ = 0;
+  }
+  /// Starts from the stacked block state `x0` (`state_dimension()` values: the model's
+  /// `initial_state`, `equilibrium_state`, or an earlier `state()`). Throws `nlid::Error` naming
+  /// "x0" if its size differs or a value is not finite.
+  void reset(const Eigen::Ref<const Eigen::VectorXd>& x0) {
+    if (x0.size() != model_.state_dimension()) {
+      throw Error("Stepper: initial state has " + std::to_string(x0.size()) + " values, the chain's linear blocks have " +
+                      std::to_string(model_.state_dimension()) + " states",
+                  at_parameter("x0"));
+    }
+    if (!x0.allFinite()) throw Error("Stepper: initial state is not finite", at_parameter("x0"));
+    s_ = x0;
+    k_ = 0;
+  }
+
+  /// y(t) for u(t); advances every linear block to t + 1 (the operations of the batch loop).
+  double step(double u) {
+    detail::check_step_input(u, 0, k_);
+    next_ = s_;
+    const double y = model_.step(std::span<double>(next_.data(), static_cast<std::size_t>(next_.size())), u,
+                                 std::span<const double>(model_.parameters().data(),
+                                                         static_cast<std::size_t>(model_.num_parameters())));
+    if (!std::isfinite(y) || !detail::values_finite(next_)) {
+      throw DivergenceError("Stepper: the " + std::string(std::isfinite(y) ? "block state" : "output") +
+                                " of the block chain is not finite at sample " + std::to_string(k_) +
+                                " (the state is kept as it was before this sample)",
+                            static_cast<long>(k_));
+    }
+    s_.swap(next_);
+    ++k_;
+    return y;
+  }
+  /// The one-input form of the span signature the other steppers share.
+  double step(std::span<const double> u) {
+    if (u.size() != 1) {
+      throw Error("Stepper: " + std::to_string(u.size()) + " input values given, the model reads 1",
+                  at_parameter("u"));
+    }
+    return step(u[0]);
+  }
+
+  /// The stacked block state after the last step (the model's x0 layout).
+  [[nodiscard]] Eigen::VectorXd state() const { return s_; }
+  /// Steps taken since the last reset.
+  [[nodiscard]] std::int64_t samples() const { return k_; }
+  /// The stepper's copy of the model.
+  [[nodiscard]] const Model& model() const { return model_; }
+
+ private:
+  using State = Eigen::Matrix<double, Model::num_states, 1>;
+  Model model_;
+  State s_, next_;
+  std::int64_t k_ = 0;
 };
 
 // ---- grey box --------------------------------------------------------------------------------
