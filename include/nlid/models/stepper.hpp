@@ -176,71 +176,68 @@ class Stepper<Nlarx<R, F>> {
   std::int64_t k_ = 0;
 };
 
-// ---- Hammerstein–Wiener ----------------------------------------------------------------------
+// ---- Hammerstein–Wiener and block chains ----------------------------------------------------
 
-/// Hammerstein–Wiener model run sample by sample. State: the linear block's n states
-/// (`state_dimension()`, the model's x0 layout; `TransferFunctionBlock`).
-template <class In, class L, class Out>
-class Stepper<HammersteinWiener<In, L, Out>> {
+namespace detail {
+
+// What the block-state steppers share (Hammerstein–Wiener, chains): a state made of linear-block
+// states, stepped in a scratch copy that is swapped in only when the output and the state are
+// finite — behind a saturating output map an unstable block would run off to inf unseen.
+template <int NS>
+class BlockStateStepper {
  public:
-  /// The model type.
-  using Model = HammersteinWiener<In, L, Out>;
-
-  /// A stepper of (a copy of) `model`, with the linear block at rest.
-  explicit Stepper(const Model& model) : model_(model) {
-    if constexpr (L::num_states == Dynamic) {
-      s_.resize(model_.state_dimension());
-      next_.resize(model_.state_dimension());
-    }
-    bind();
-    reset();
-  }
-  /// Copies re-bind the maps to their own copy of θ (the maps' prepared tables view it).
-  Stepper(const Stepper& o) : model_(o.model_), s_(o.s_), next_(o.next_), k_(o.k_) { bind(); }
-  /// See the copy constructor.
-  Stepper& operator=(const Stepper& o) {
-    if (this != &o) {
-      model_ = o.model_;
-      s_ = o.s_;
-      next_ = o.next_;
-      k_ = o.k_;
-      bind();
-    }
-    return *this;
-  }
-  ~Stepper() = default;
-
-  /// Linear block back to rest.
+  /// Every linear block back to rest.
   void reset() {
     s_.setZero();
     k_ = 0;
   }
-  /// Starts from the linear block's state `x0` (`state_dimension()` values: the model's
-  /// `initial_state`, `equilibrium_state`, or an earlier `state()`). Throws `nlid::Error` naming
-  /// "x0" if its size differs or a value is not finite.
+  /// Starts from the block state `x0` (the model's x0 layout). Throws `nlid::Error` naming "x0"
+  /// if its size differs or a value is not finite.
   void reset(const Eigen::Ref<const Eigen::VectorXd>& x0) {
-    if (x0.size() != model_.state_dimension()) {
-      throw Error("Stepper: initial state has " + std::to_string(x0.size()) + " values, the linear block has " +
-                      std::to_string(model_.state_dimension()) + " states",
+    // Tested before a message is built: a reset inside a control loop must not allocate.
+    if (x0.size() != s_.size()) {
+      throw Error("Stepper: initial state has " + std::to_string(x0.size()) + " values, " + states_of_ + " " +
+                      std::to_string(s_.size()) + " states",
                   at_parameter("x0"));
     }
     if (!x0.allFinite()) throw Error("Stepper: initial state is not finite", at_parameter("x0"));
     s_ = x0;
     k_ = 0;
   }
+  /// The block state after the last step (the model's x0 layout).
+  [[nodiscard]] Eigen::VectorXd state() const { return s_; }
+  /// Steps taken since the last reset.
+  [[nodiscard]] std::int64_t samples() const { return k_; }
 
-  /// y(t) for u(t); advances the linear block to t + 1.
-  double step(double u) {
-    detail::check_step_input(u, 0, k_);
-    next_ = s_;  // the state is kept if this sample fails (same size: no allocation, also Dynamic)
-    const std::span<double> ss(next_.data(), static_cast<std::size_t>(next_.size()));
-    const double w = (*f_)(u);
-    const double x = model_.linear_block().step(ss, w, theta_l_);
-    const double y = (*h_)(x);
-    // The state too: behind a saturating output map an unstable block runs off to inf unseen.
-    if (!std::isfinite(y) || !detail::values_finite(next_)) {
-      throw DivergenceError("Stepper: the " + std::string(std::isfinite(y) ? "linear block's state" : "output") +
-                                " of the Hammerstein-Wiener model is not finite at sample " + std::to_string(k_) +
+ protected:
+  using State = Eigen::Matrix<double, NS, 1>;
+  // `states_of`: "the linear block has"; `owner`: "Hammerstein-Wiener model" (for messages).
+  BlockStateStepper(Eigen::Index n, const char* states_of, const char* state_noun, const char* owner)
+      : states_of_(states_of), state_noun_(state_noun), owner_(owner) {
+    if constexpr (NS == Dynamic) {
+      s_.resize(n);
+      next_.resize(n);
+    }
+    reset();
+  }
+  // The one input of a span, for the signature the other steppers share.
+  static double single(std::span<const double> u) {
+    if (u.size() != 1) {
+      throw Error("Stepper: " + std::to_string(u.size()) + " input values given, the model reads 1", at_parameter("u"));
+    }
+    return u[0];
+  }
+  // Starts a step: refuses a non-finite input; the step then works on next_.
+  std::span<double> begin(double u) {
+    check_step_input(u, 0, k_);
+    next_ = s_;  // same size: no allocation, also Dynamic
+    return {next_.data(), static_cast<std::size_t>(next_.size())};
+  }
+  // Ends a step that gave y: keeps the new state if it and y are finite, else throws.
+  double commit(double y) {
+    if (!std::isfinite(y) || !values_finite(next_)) {
+      throw DivergenceError("Stepper: the " + std::string(std::isfinite(y) ? state_noun_ : "output") + " of the " +
+                                owner_ + " is not finite at sample " + std::to_string(k_) +
                                 " (the state is kept as it was before this sample)",
                             static_cast<long>(k_));
     }
@@ -248,24 +245,61 @@ class Stepper<HammersteinWiener<In, L, Out>> {
     ++k_;
     return y;
   }
-  /// The one-input form of the span signature the other steppers share.
-  double step(std::span<const double> u) {
-    if (u.size() != 1) {
-      throw Error("Stepper: " + std::to_string(u.size()) + " input values given, the model reads 1",
-                  at_parameter("u"));
-    }
-    return step(u[0]);
-  }
 
-  /// The linear block's state after the last step (the model's x0 layout).
-  [[nodiscard]] Eigen::VectorXd state() const { return s_; }
-  /// Steps taken since the last reset.
-  [[nodiscard]] std::int64_t samples() const { return k_; }
+ private:
+  State s_, next_;
+  std::int64_t k_ = 0;
+  const char* states_of_;
+  const char* state_noun_;
+  const char* owner_;
+};
+
+}  // namespace detail
+
+/// Hammerstein–Wiener model run sample by sample. State: the linear block's n states
+/// (`state_dimension()`, the model's x0 layout; `TransferFunctionBlock`): `reset(x0)` from the
+/// model's `initial_state` or `equilibrium_state`.
+template <class In, class L, class Out>
+class Stepper<HammersteinWiener<In, L, Out>> : public detail::BlockStateStepper<L::num_states> {
+  using Base = detail::BlockStateStepper<L::num_states>;
+
+ public:
+  /// The model type.
+  using Model = HammersteinWiener<In, L, Out>;
+
+  /// A stepper of (a copy of) `model`, with the linear block at rest.
+  explicit Stepper(const Model& model)
+      : Base(model.state_dimension(), "the linear block has", "linear block's state", "Hammerstein-Wiener model"),
+        model_(model) {
+    bind();
+  }
+  /// Copies re-bind the maps to their own copy of θ (the maps' prepared tables view it).
+  Stepper(const Stepper& o) : Base(o), model_(o.model_) { bind(); }
+  /// See the copy constructor.
+  Stepper& operator=(const Stepper& o) {
+    if (this != &o) {
+      Base::operator=(o);
+      model_ = o.model_;
+      bind();
+    }
+    return *this;
+  }
+  ~Stepper() = default;
+
+  /// y(t) for u(t); advances the linear block to t + 1.
+  double step(double u) {
+    const std::span<double> s = this->begin(u);
+    const double w = (*f_)(u);
+    const double x = model_.linear_block().step(s, w, theta_l_);
+    return this->commit((*h_)(x));
+  }
+  /// The one-input form of the span signature the other steppers share.
+  double step(std::span<const double> u) { return step(Base::single(u)); }
+
   /// The stepper's copy of the model.
   [[nodiscard]] const Model& model() const { return model_; }
 
  private:
-  using State = Eigen::Matrix<double, L::num_states, 1>;
   using InMap = detail::BoundScalarMap<In, double>;
   using OutMap = detail::BoundScalarMap<Out, double>;
 
@@ -280,89 +314,40 @@ class Stepper<HammersteinWiener<In, L, Out>> {
   }
 
   Model model_;
-  State s_, next_;
-  std::int64_t k_ = 0;
   std::span<const double> theta_l_;
   std::optional<InMap> f_;
   std::optional<OutMap> h_;
 };
 
-// ---- block chains ----------------------------------------------------------------------------
-
 /// A block chain (`Series`: Hammerstein, Wiener, Wiener–Hammerstein, …) run sample by sample.
 /// State: the stacked states of its linear blocks (`state_dimension()`, the model's x0 layout).
 template <SeriesBlock... Blocks>
-class Stepper<Series<Blocks...>> {
+class Stepper<Series<Blocks...>> : public detail::BlockStateStepper<Series<Blocks...>::num_states> {
+  using Base = detail::BlockStateStepper<Series<Blocks...>::num_states>;
+
  public:
   /// The model type.
   using Model = Series<Blocks...>;
 
   /// A stepper of (a copy of) `model`, every linear block at rest.
-  explicit Stepper(const Model& model) : model_(model) {
-    if constexpr (Model::num_states == Dynamic) {
-      s_.resize(model_.state_dimension());
-      next_.resize(model_.state_dimension());
-    }
-    reset();
-  }
-
-  /// Every linear block back to rest.
-  void reset() {
-    s_.setZero();
-    k_ = 0;
-  }
-  /// Starts from the stacked block state `x0` (`state_dimension()` values: the model's
-  /// `initial_state`, `equilibrium_state`, or an earlier `state()`). Throws `nlid::Error` naming
-  /// "x0" if its size differs or a value is not finite.
-  void reset(const Eigen::Ref<const Eigen::VectorXd>& x0) {
-    if (x0.size() != model_.state_dimension()) {
-      throw Error("Stepper: initial state has " + std::to_string(x0.size()) + " values, the chain's linear blocks have " +
-                      std::to_string(model_.state_dimension()) + " states",
-                  at_parameter("x0"));
-    }
-    if (!x0.allFinite()) throw Error("Stepper: initial state is not finite", at_parameter("x0"));
-    s_ = x0;
-    k_ = 0;
-  }
+  explicit Stepper(const Model& model)
+      : Base(model.state_dimension(), "the chain's linear blocks have", "block state", "block chain"),
+        model_(model) {}
 
   /// y(t) for u(t); advances every linear block to t + 1 (the operations of the batch loop).
   double step(double u) {
-    detail::check_step_input(u, 0, k_);
-    next_ = s_;
-    const double y = model_.step(std::span<double>(next_.data(), static_cast<std::size_t>(next_.size())), u,
-                                 std::span<const double>(model_.parameters().data(),
-                                                         static_cast<std::size_t>(model_.num_parameters())));
-    if (!std::isfinite(y) || !detail::values_finite(next_)) {
-      throw DivergenceError("Stepper: the " + std::string(std::isfinite(y) ? "block state" : "output") +
-                                " of the block chain is not finite at sample " + std::to_string(k_) +
-                                " (the state is kept as it was before this sample)",
-                            static_cast<long>(k_));
-    }
-    s_.swap(next_);
-    ++k_;
-    return y;
+    const std::span<double> s = this->begin(u);
+    return this->commit(model_.step(s, u, std::span<const double>(model_.parameters().data(),
+                                                                 static_cast<std::size_t>(model_.num_parameters()))));
   }
   /// The one-input form of the span signature the other steppers share.
-  double step(std::span<const double> u) {
-    if (u.size() != 1) {
-      throw Error("Stepper: " + std::to_string(u.size()) + " input values given, the model reads 1",
-                  at_parameter("u"));
-    }
-    return step(u[0]);
-  }
+  double step(std::span<const double> u) { return step(Base::single(u)); }
 
-  /// The stacked block state after the last step (the model's x0 layout).
-  [[nodiscard]] Eigen::VectorXd state() const { return s_; }
-  /// Steps taken since the last reset.
-  [[nodiscard]] std::int64_t samples() const { return k_; }
   /// The stepper's copy of the model.
   [[nodiscard]] const Model& model() const { return model_; }
 
  private:
-  using State = Eigen::Matrix<double, Model::num_states, 1>;
   Model model_;
-  State s_, next_;
-  std::int64_t k_ = 0;
 };
 
 // ---- grey box --------------------------------------------------------------------------------
