@@ -22,10 +22,12 @@
 ///   value: copy it to branch several scenarios from one point.
 /// - `step` and `reset` allocate nothing, with static sizes and with the Dynamic twins alike
 ///   (sizes are fixed when the stepper is built; tests/nomalloc); construction, copies and
-///   `state()` allocate.
+///   `state()` allocate. (Exception: a run-time grey-box physics whose sub-step count depends on
+///   the run — see `Stepper<GreyBox<P>>`.)
 /// - A non-finite input, or an output or state that leaves the finite numbers, throws
 ///   (`nlid::Error` / `nlid::DivergenceError` naming the sample counted from the last reset);
-///   the state is then left as it was before that step.
+///   the state is then left as it was before that step. (A grey box whose state diverges inside
+///   an interval has already returned that sample's y(t): it refuses the next step.)
 
 #include <cmath>
 #include <cstdint>
