@@ -67,6 +67,17 @@ concept LoadableRegressor = requires(const JsonView& v, std::size_t& next, const
 
 namespace detail {
 
+// Appends r's blocks for a model with these channel names: types whose text depends on the names
+// (a C++ custom regressor, a set holding one) take them, the others do not need them.
+template <class R>
+void save_regressor_blocks(const R& r, Json::Array& a, const std::vector<std::string>& input_names,
+                           const std::string& output_name) {
+  if constexpr (requires { RegressorSerial<R>::save_blocks(r, a, input_names, output_name); })
+    RegressorSerial<R>::save_blocks(r, a, input_names, output_name);
+  else
+    RegressorSerial<R>::save_blocks(r, a);
+}
+
 inline Json output_lags_block(int na) { return Json::object({{"type", "output_lags"}, {"na", na}}); }
 inline Json input_lags_block(int nb, int nk, int channel) {
   return Json::object({{"type", "input_lags"}, {"nb", nb}, {"nk", nk}, {"channel", channel}});
@@ -375,15 +386,7 @@ struct RegressorSerial<RegressorSet<Terms...>> {
   template <std::size_t... I>
   static void save_terms(const RegressorSet<Terms...>& r, Json::Array& a, const std::vector<std::string>& input_names,
                          const std::string& output_name, std::index_sequence<I...>) {
-    (save_term(r.template term<I>(), a, input_names, output_name), ...);
-  }
-  template <class T>
-  static void save_term(const T& t, Json::Array& a, const std::vector<std::string>& input_names,
-                        const std::string& output_name) {
-    if constexpr (requires { RegressorSerial<T>::save_blocks(t, a, input_names, output_name); })
-      RegressorSerial<T>::save_blocks(t, a, input_names, output_name);
-    else
-      RegressorSerial<T>::save_blocks(t, a);
+    (detail::save_regressor_blocks(r.template term<I>(), a, input_names, output_name), ...);
   }
 };
 
@@ -392,10 +395,7 @@ template <SavableRegressor R>
 [[nodiscard]] Json regressors_to_json(const R& r, const std::vector<std::string>& input_names,
                                       const std::string& output_name) {
   Json::Array blocks;
-  if constexpr (requires { RegressorSerial<R>::save_blocks(r, blocks, input_names, output_name); })
-    RegressorSerial<R>::save_blocks(r, blocks, input_names, output_name);
-  else
-    RegressorSerial<R>::save_blocks(r, blocks);
+  detail::save_regressor_blocks(r, blocks, input_names, output_name);
   Json j = Json::object();
   j["blocks"] = Json(std::move(blocks));
   j["names"] = string_list(r.names(input_names, output_name));
