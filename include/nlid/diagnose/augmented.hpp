@@ -529,9 +529,7 @@ int AugmentedModel<P>::substeps(const double* theta, const double* x0, const Eig
   std::vector<double> u0(static_cast<std::size_t>(std::max(nu, 1)), 0.0);
   for (int j = 0; j < nu && u.rows() > 0; ++j) u0[static_cast<std::size_t>(j)] = u(0, j);
   const int sub = std::max(1, substeps(theta, x0, u0.data()));
-  bool known = false;
-  if constexpr (detail::HasSpectralRadius<P>) known = static_cast<double>(phys_.spectral_radius(theta)) >= 0.0;
-  if (known || integ_.substeps > 0 || u.rows() < 2) return sub;
+  if (physics_stiffness_known(phys_, theta) || integ_.substeps > 0 || u.rows() < 2) return sub;
   // The baseline does not know its stiffness: run once at the start's count and take the
   // stiffest baseline state met (the effects' rates do not depend on the state).
   const Eigen::Index n = u.rows();

@@ -24,9 +24,10 @@
 ///
 /// Equilibrium. x̄ with f(x̄, ū, p) = 0 is found by Newton's method with a least-squares step
 /// (column-pivoting QR, so singular directions such as a free position are left at the guess)
-/// and backtracking on ‖f‖; where ∂f/∂x is not finite, a step along the flow f itself. Its parameter sensitivity follows from the implicit function theorem,
-/// ∂x̄/∂p = −(∂f/∂x)⁻¹ ∂f/∂p, which `equilibrium_sensitivity_step` evaluates as one Newton step in
-/// Dual arithmetic from the converged point.
+/// and backtracking on ‖f‖; where ∂f/∂x is not finite, a step along the flow f itself. Its
+/// parameter sensitivity follows from the implicit function theorem, ∂x̄/∂p = −(∂f/∂x)⁻¹ ∂f/∂p,
+/// which `equilibrium_sensitivity_step` evaluates as one Newton step in Dual arithmetic from the
+/// converged point.
 
 #include <algorithm>
 #include <array>
@@ -190,6 +191,20 @@ double physics_spectral_radius(const P& phys, const double* p, const double* x, 
   return detail::gershgorin_bound(phys, x, u, p);
 }
 
+/// True if the physics states its stiffness at p (`spectral_radius(p)` ≥ 0, +inf included): its
+/// sub-step count then follows from p alone, not from the states a run reaches
+/// (`physics_substeps`; a negative value or NaN means "unknown").
+template <Physics P>
+bool physics_stiffness_known(const P& phys, const double* p) {
+  if constexpr (detail::HasSpectralRadius<P>) {
+    return static_cast<double>(phys.spectral_radius(p)) >= 0.0;
+  } else {
+    (void)phys;
+    (void)p;
+    return false;
+  }
+}
+
 /// False if the physics declares itself infinitely stiff at p (`spectral_radius(p)` = +inf),
 /// where `physics_spectral_radius` throws: an estimator rejects such a trial point like a
 /// diverging one instead of ending the search.
@@ -228,13 +243,11 @@ int physics_substeps(const P& phys, const IntegratorOptions& options, const doub
   const int nx = detail::physics_states(phys), nu = detail::physics_inputs(phys);
   Eigen::Matrix<double, NU, 1> uk(nu);
   for (int j = 0; j < nu; ++j) uk[j] = u.rows() > 0 ? u(0, j) : 0.0;
-  if constexpr (detail::HasSpectralRadius<P>) {
+  if (physics_stiffness_known(phys, p)) {
     // +inf lands here too, and physics_spectral_radius throws for it.
-    if (static_cast<double>(phys.spectral_radius(p)) >= 0.0) {
-      const double own = physics_spectral_radius(phys, p, x0, uk.data());
-      if (rho != nullptr) *rho = own;
-      return substeps_for(ts, own, options);
-    }
+    const double own = physics_spectral_radius(phys, p, x0, uk.data());
+    if (rho != nullptr) *rho = own;
+    return substeps_for(ts, own, options);
   }
   double worst = detail::gershgorin_bound(phys, x0, uk.data(), p);
   if (rho != nullptr) *rho = worst;

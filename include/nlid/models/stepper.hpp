@@ -393,10 +393,7 @@ class Stepper<GreyBox<P>> {
     euler_.reserve(model_.state_dimension());
     dopri_.reserve(model_.state_dimension());
     model_.check_relations(p_, "Stepper");  // what simulate refuses, the stepper refuses
-    fixed_count_ = model_.integrator().substeps > 0;
-    if constexpr (detail::HasSpectralRadius<P>) {
-      if (static_cast<double>(model_.physics().spectral_radius(p_.data())) >= 0.0) fixed_count_ = true;
-    }
+    fixed_count_ = model_.integrator().substeps > 0 || physics_stiffness_known(model_.physics(), p_.data());
     reset(x0);
     if (fixed_count_) {
       // The batch run's own rule with its own arguments: one count for every state, so it is
