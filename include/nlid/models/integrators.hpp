@@ -220,11 +220,12 @@ class EulerStepper {
     requires OdeSystem<System, State>
   void step(System& f, State& x, double h) {
     using R = detail::real_of_t<typename State::Scalar>;
-    k1_.resize(x.size());
+    reserve(x.size());
     f(x, k1_);
     x += R(h) * k1_;
   }
-  /// Sizes the stage buffer for states of `n` entries, so that later steps allocate nothing.
+  /// Sizes the stage buffer for states of `n` entries (every step does; a caller that must not
+  /// allocate while stepping does it beforehand).
   void reserve(Eigen::Index n) { k1_.resize(n); }
 
  private:
@@ -256,12 +257,7 @@ class Rk4Stepper {
       State k1, k2, k3, k4, tmp;
       step_with(f, x, h, k1, k2, k3, k4, tmp);
     } else {
-      const Eigen::Index n = x.size();
-      k1_.resize(n);
-      k2_.resize(n);
-      k3_.resize(n);
-      k4_.resize(n);
-      tmp_.resize(n);
+      reserve(x.size());
       step_with(f, x, h, k1_, k2_, k3_, k4_, tmp_);
     }
   }
