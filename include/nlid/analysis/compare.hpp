@@ -189,9 +189,10 @@ CompareResult compare(const M& model, const Dataset& data,
 /// `compare(data, sys, k)`): the model is run k samples from the measured past, so k = 1 scores
 /// the one-step predictor and a k beyond the record the simulation from measured past data. The
 /// first samples, which have no past to predict from, are the measured ones (each model's
-/// `predict`) and count in the fit, which they raise on a short record; models without a noise model (output error, Hammerstein–Wiener) predict by
-/// simulating, whatever k. Result as `compare`, with `horizon` = k (the simulated outputs hold
-/// the predictions). Throws `nlid::Error` naming "k" if k < 1.
+/// `predict`) and count in the fit, which they raise on a short record; models without a noise
+/// model (output error, Hammerstein–Wiener) predict by simulating, whatever k. Result as
+/// `compare`, with `horizon` = k (the simulated outputs hold the predictions). Throws
+/// `nlid::Error` naming "k" if k < 1.
 template <KStepPredictor M>
 CompareResult compare_prediction(const M& model, const Dataset& data, int k) {
   require(k >= 1, "compare_prediction: the horizon k must be >= 1, got " + std::to_string(k), at_parameter("k"));

@@ -660,20 +660,20 @@ class GreyBox {
   /// order; throws naming experiment `index` (if ≥ 0).
   void check_channels(const Experiment& e, long index) const {
     const Location where = index >= 0 ? at_experiment(index) : Location{};
-    const std::string label = "experiment " + (index >= 0 ? std::to_string(index) + " " : std::string()) +
-                              (e.name().empty() ? std::string() : "('" + e.name() + "') ");
+    // "experiment 2 ('data3')", as much of it as is known.
+    const std::string who = "experiment" + (index >= 0 ? " " + std::to_string(index) : std::string()) +
+                            (e.name().empty() ? std::string() : " ('" + e.name() + "')");
     e.validate(true);  // u() and y() are mutable: a record resized through one would be read past its end
     require(e.num_inputs() == input_dimension(),
-            label + "has " + std::to_string(e.num_inputs()) + " input(s), grey-box model '" + name() +
+            who + " has " + std::to_string(e.num_inputs()) + " input(s), grey-box model '" + name() +
                 "' takes " + std::to_string(input_dimension()),
             where);
     require(e.num_outputs() == output_dimension(),
-            label + "has " + std::to_string(e.num_outputs()) + " output(s), grey-box model '" +
+            who + " has " + std::to_string(e.num_outputs()) + " output(s), grey-box model '" +
                 name() + "' gives " + std::to_string(output_dimension()),
             where);
     // The physics reads its inputs and outputs by position: a record carrying the model's channel
     // names in another order would run (or fit) the equations on swapped signals.
-    const std::string who = label.substr(0, label.size() - 1);
     detail::check_channel_order(e.input_names(), input_names_, "input", who, where);
     detail::check_channel_order(e.output_names(), output_names_, "output", who, where);
   }
