@@ -21,6 +21,7 @@
 #include "nlid/nonlinearities/saturation.hpp"
 #include "nlid/nonlinearities/unit_gain.hpp"
 #include "test_inputs.hpp"
+#include "../support/block_models.hpp"
 
 using nlid::Dynamic;
 
@@ -31,13 +32,8 @@ using TfD = nlid::TransferFunctionBlock<Dynamic, Dynamic, Dynamic>;
 using Wh = nlid::WienerHammerstein<Tf220, nlid::Poly1d<3>, Tf210>;
 using WhD = nlid::WienerHammerstein<TfD, nlid::Poly1d<Dynamic>, TfD>;
 
-// Truth of the known-answer tests: G1 = (0.5 q⁻¹ + 0.3 q⁻²)/(1 − 1.2 q⁻¹ + 0.5 q⁻²),
-// N(x) = 0.05 + x + 0.1 x² − 0.15 x³ (mostly odd, like a real amplifier), G2 = (1 + 0.4 q⁻¹)/(1 − 0.6 q⁻¹).
-Eigen::VectorXd wh_theta() {
-  Eigen::VectorXd th(11);
-  th << 0.5, 0.3, -1.2, 0.5, 0.05, 1.0, 0.1, -0.15, 1.0, 0.4, -0.6;
-  return th;
-}
+// Truth of the known-answer tests (tests/support/block_models.hpp).
+using nlid_test::wiener_hammerstein_theta;
 
 Eigen::MatrixXd gaussian_input(int n, unsigned seed, double sd = 0.4) {
   std::mt19937 gen(seed);
@@ -61,7 +57,7 @@ Eigen::VectorXd wh_reference(const Eigen::MatrixXd& u, const Eigen::VectorXd& th
 }
 
 nlid::Experiment simulate_truth(const Eigen::MatrixXd& u, double ts = 0.01) {
-  return nlid::Experiment(u, wh_reference(u, wh_theta()), ts, "wh");
+  return nlid::Experiment(u, wh_reference(u, wiener_hammerstein_theta()), ts, "wh");
 }
 
 template <class T>
@@ -111,9 +107,9 @@ TEST_CASE("series sizes, aliases, roles and names", "[models][series]") {
 
 TEST_CASE("Wiener-Hammerstein simulation equals filter, polynomial, filter", "[models][series]") {
   Wh m;
-  m.set_parameters(wh_theta());
+  m.set_parameters(wiener_hammerstein_theta());
   const Eigen::MatrixXd u = gaussian_input(400, 1);
-  const Eigen::VectorXd ref = wh_reference(u, wh_theta());
+  const Eigen::VectorXd ref = wh_reference(u, wiener_hammerstein_theta());
   std::vector<double> y(400);
   REQUIRE(m.simulate<double>(u, nlid::detail::as_const_span(m.parameters()), {}, std::span<double>(y)));
   for (int t = 0; t < 400; ++t) REQUIRE(y[static_cast<std::size_t>(t)] == Approx(ref(t)).margin(1e-12));
@@ -159,7 +155,7 @@ TEST_CASE("an N-L-N series is the HammersteinWiener model", "[models][series]") 
 
 TEST_CASE("series on double, float and Dual, Jacobian vs central differences", "[models][series]") {
   Wh m;
-  const Eigen::VectorXd th = wh_theta();
+  const Eigen::VectorXd th = wiener_hammerstein_theta();
   const Eigen::MatrixXd u = gaussian_input(120, 3);
   std::vector<double> y(120);
   REQUIRE(m.simulate<double>(u, nlid::detail::as_const_span(th), {}, std::span<double>(y)));
@@ -187,9 +183,9 @@ TEST_CASE("series on double, float and Dual, Jacobian vs central differences", "
 
 TEST_CASE("fixed and Dynamic series simulate identically", "[models][series]") {
   Wh m;
-  m.set_parameters(wh_theta());
+  m.set_parameters(wiener_hammerstein_theta());
   WhD d(TfD(2, 2, 1), nlid::Poly1d<Dynamic>(3), TfD(2, 1, 0));
-  d.set_parameters(wh_theta());
+  d.set_parameters(wiener_hammerstein_theta());
   REQUIRE(d.state_dimension() == 3);
   const Eigen::MatrixXd u = gaussian_input(500, 4);
   const nlid::Experiment e(u, Eigen::MatrixXd::Zero(500, 1), 0.01);
@@ -203,7 +199,7 @@ TEST_CASE("fixed and Dynamic series simulate identically", "[models][series]") {
 TEST_CASE("series initial conditions: equilibrium holds still, estimate recovers, measured is refused",
           "[models][series]") {
   Wh m;
-  m.set_parameters(wh_theta());
+  m.set_parameters(wiener_hammerstein_theta());
   const nlid::Experiment still(Eigen::MatrixXd::Constant(50, 1, 0.7), Eigen::MatrixXd::Zero(50, 1), 0.01);
   const Eigen::MatrixXd y = m.simulate(still, nlid::InitialCondition::equilibrium);
   CHECK((y.array() - y(0, 0)).abs().maxCoeff() < 1e-12);

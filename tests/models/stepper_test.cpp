@@ -25,7 +25,7 @@
 #include "nlid/nonlinearities/sigmoid_network.hpp"
 #include "nlid/regressors.hpp"
 #include "nlid/regressors/expression.hpp"
-#include "../support/pwlinear_hw.hpp"
+#include "../support/block_models.hpp"
 #include "../support/unrated_pendulum.hpp"
 
 namespace {
@@ -145,13 +145,10 @@ TEST_CASE("Stepper: Hammerstein-Wiener steps equal the batch simulation, copies 
 }
 
 TEST_CASE("Stepper: a Wiener-Hammerstein chain steps as its batch simulation", "[models][stepper]") {
-  // G1 = (0.5 q^-1 + 0.3 q^-2)/(1 - 1.2 q^-1 + 0.5 q^-2), N(x) = 0.05 + x + 0.1 x^2 - 0.15 x^3,
-  // G2 = (1 + 0.4 q^-1)/(1 - 0.6 q^-1).
   using Wh = nlid::WienerHammerstein<nlid::TransferFunctionBlock<2, 2, 1>, nlid::Poly1d<3>,
                                      nlid::TransferFunctionBlock<2, 1, 0>>;
   Wh m;
-  Eigen::VectorXd th(11);
-  th << 0.5, 0.3, -1.2, 0.5, 0.05, 1.0, 0.1, -0.15, 1.0, 0.4, -0.6;
+  const Eigen::VectorXd th = nlid_test::wiener_hammerstein_theta();
   m.set_parameters(th);
   const Eigen::MatrixXd u = stepper_input(300) * 0.5;
   const Eigen::VectorXd x0 = m.equilibrium_state<double>(u(0, 0), std::span<const double>(th.data(), 11));

@@ -32,7 +32,7 @@
 #include "nlid/regressors.hpp"
 #include "nlid/regressors/expression.hpp"
 
-#include "../support/pwlinear_hw.hpp"
+#include "../support/block_models.hpp"
 
 #ifndef EIGEN_RUNTIME_NO_MALLOC
 #error "tests/nomalloc must be compiled with EIGEN_RUNTIME_NO_MALLOC"
@@ -195,9 +195,7 @@ TEST_CASE("Steppers of fixed-size models allocate nothing per step or reset", "[
   using Wh = nlid::WienerHammerstein<nlid::TransferFunctionBlock<2, 2, 1>, nlid::Poly1d<3>,
                                      nlid::TransferFunctionBlock<2, 1, 0>>;
   Wh wh;
-  Eigen::VectorXd thw(11);
-  thw << 0.5, 0.3, -1.2, 0.5, 0.05, 1.0, 0.1, -0.15, 1.0, 0.4, -0.6;
-  wh.set_parameters(thw);
+  wh.set_parameters(nlid_test::wiener_hammerstein_theta());
   const Eigen::Vector3d x_wh = Eigen::Vector3d::Constant(0.05);
   nlid::Stepper a(m);
   nlid::Stepper b(hw);
