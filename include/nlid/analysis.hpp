@@ -1,8 +1,8 @@
 #pragma once
 /// @file
 /// Umbrella header of the analysis layer: fit (`fit_percent`), `compare`, residual analysis
-/// (`resid`), linearisation about an operating point, nonlinear distortion analysis of periodic
-/// experiments (`distortion_analysis`).
+/// (`resid`), step and impulse responses, linearisation about an operating point, nonlinear
+/// distortion analysis of periodic experiments (`distortion_analysis`).
 
 #include "nlid/analysis/compare.hpp"
 #include "nlid/analysis/concepts.hpp"

@@ -51,6 +51,59 @@ TEST_CASE("step_response of linear models from rest is the known discrete step",
   CHECK_THROWS_WITH(nlid::step_response(ss, 0), Catch::Contains("number of samples must be >= 1, got 0"));
 }
 
+TEST_CASE("linear step and impulse responses leave out an estimated output offset", "[analysis][step]") {
+  // A y = B u + c: the offset moves the output at rest, not the response (the toolbox's step).
+  const nlid::Arx plain(vec1(-0.8), {vec1(0.5)}, {1}, 0.1);
+  const nlid::Arx with_c(vec1(-0.8), {vec1(0.5)}, {1}, 0.1, 0.7);
+  REQUIRE(with_c.has_offset());
+  const Eigen::MatrixXd y = nlid::step_response(plain, 60);
+  CHECK((nlid::step_response(with_c, 60) - y).cwiseAbs().maxCoeff() < 1e-12);
+  CHECK((nlid::step_response(with_c.to_state_space(), 60) - y).cwiseAbs().maxCoeff() < 1e-12);
+  CHECK((nlid::impulse_response(with_c, 60) - nlid::impulse_response(plain, 60)).cwiseAbs().maxCoeff() < 1e-12);
+  const nlid::OutputError oe({Eigen::Vector2d(1.0, 0.5)}, {vec1(-0.5)}, {2}, 1.0, -3.0);
+  REQUIRE(oe.has_offset());
+  CHECK(nlid::step_response(oe, 30)(29, 0) == Approx(3.0).epsilon(1e-6));
+}
+
+TEST_CASE("impulse_response: Markov parameters, the toolbox's unit-area pulse, sum is the step",
+          "[analysis][impulse]") {
+  // y(t) = 0.8 y(t-1) + 0.5 u(t-1): g(0) = 0, g(k) = 0.5 * 0.8^(k-1).
+  const nlid::Arx arx(vec1(-0.8), {vec1(0.5)}, {1}, 0.1);
+  const Eigen::MatrixXd g = nlid::impulse_response(arx, 40, 0, nlid::ImpulseScaling::unit_pulse);
+  REQUIRE(g.rows() == 40);
+  REQUIRE(g.cols() == 1);
+  CHECK(g(0, 0) == 0.0);
+  for (int k = 1; k < 40; ++k) CHECK(g(k, 0) == Approx(0.5 * std::pow(0.8, k - 1)).margin(1e-14));
+  // The toolbox's impulse: a pulse of height 1/Ts = 10 for one sample.
+  const Eigen::MatrixXd h = nlid::impulse_response(arx, 40);
+  CHECK((h - g / 0.1).cwiseAbs().maxCoeff() < 1e-12);
+  // Superposition: the running sum of g is the step response.
+  const Eigen::MatrixXd s = nlid::step_response(arx, 40);
+  double sum = 0.0;
+  for (int k = 0; k < 40; ++k) {
+    sum += g(k, 0);
+    CHECK(s(k, 0) == Approx(sum).margin(1e-12));
+  }
+  // Two inputs, two outputs: g(0) is D's column, g(k) = C A^(k-1) B's column.
+  Eigen::Matrix2d a, b, c, d;
+  a << 0.5, 0.1, 0.0, 0.25;
+  b << 1.0, 0.0, 0.0, 2.0;
+  c << 1.0, 0.0, 0.5, 1.0;
+  d << 0.0, 0.3, 0.0, 0.0;
+  const nlid::StateSpace ss(a, b, c, d, 0.5);
+  const Eigen::MatrixXd g2 = nlid::impulse_response(ss, 6, 1, nlid::ImpulseScaling::unit_pulse);
+  CHECK(g2.row(0).transpose().isApprox(d.col(1)));
+  Eigen::Matrix2d ak = Eigen::Matrix2d::Identity();
+  for (int k = 1; k < 6; ++k) {
+    const Eigen::Vector2d want = c * ak * b.col(1);
+    CHECK((g2.row(k).transpose() - want).cwiseAbs().maxCoeff() < 1e-14);
+    ak = ak * a;
+  }
+  CHECK((nlid::impulse_response(ss, 6, 1) - g2 / 0.5).cwiseAbs().maxCoeff() < 1e-14);
+  CHECK_THROWS_WITH(nlid::impulse_response(ss, 6, 2), Catch::Contains("impulse_response: input 2 out of range"));
+  CHECK_THROWS_WITH(nlid::impulse_response(ss, 0), Catch::Contains("number of samples must be >= 1, got 0"));
+}
+
 TEST_CASE("step_response about an operating point settles at the new equilibrium", "[analysis][step]") {
   using Net = nlid::SigmoidNet<4, 3>;
   Net net;
