@@ -168,6 +168,11 @@ TEST_CASE("compare_prediction scores k-step-ahead predictions", "[analysis][comp
   CHECK(nlid::compare_prediction(m, d, 1).fit(0, 0) > nlid::compare(m, d, nlid::InitialCondition::estimate).fit(0, 0) + 5.0);
   CHECK_THAT(nlid::compare_prediction(m, d, 5).table(), Catch::Contains("Fit (%) of the 5-step-ahead predicted output"));
   CHECK_THROWS_WITH(nlid::compare_prediction(m, d, 0), Catch::Contains("the horizon k must be >= 1, got 0"));
+  // In a FitTable beside the free run, the prediction row says its horizon.
+  nlid::FitTable t;
+  t.add("arx", nlid::compare(m, d, nlid::InitialCondition::estimate));
+  t.add("arx", nlid::compare_prediction(m, d, 1));
+  CHECK_THAT(t.str(), Catch::Contains("\narx (k = 1) |") && Catch::Contains("\narx         |"));
 }
 
 TEST_CASE("a diverging simulation is a result of compare, other errors are not", "[analysis][compare]") {

@@ -204,12 +204,15 @@ CompareResult compare_prediction(const M& model, const Dataset& data, int k) {
 /// Fit (%) of several models on several experiments, printed as one table (models as rows).
 /// Experiments are columns in order of first appearance (matched by name); a model not
 /// compared on an experiment shows "-". With several outputs, columns are experiment/output.
+/// A row from `compare_prediction` says its horizon after the name ("arx221 (k = 1)"): a
+/// one-step fit beside free-run fits is otherwise read as a far better model.
 class FitTable {
  public:
   /// Adds the results of one model under `model_name`.
   void add(std::string model_name, const CompareResult& r) {
     Row row;
     row.name = std::move(model_name);
+    if (r.horizon > 0) row.name += " (k = " + std::to_string(r.horizon) + ")";
     for (std::size_t e = 0; e < r.experiment_names.size(); ++e)
       for (Eigen::Index j = 0; j < r.fit.cols(); ++j) {
         std::string col = r.experiment_names[e];
