@@ -7,6 +7,7 @@
 
 #include "linear_test_util.hpp"
 #include "nlid/linear/order_selection.hpp"
+#include "nlid/linear/output_error.hpp"
 #include "../support/decimal_comma_locale.hpp"
 
 namespace {
@@ -203,4 +204,48 @@ TEST_CASE("Validation fit scores each record about its own mean", "[linear][orde
   const double pooled = *both.candidates.at(0).validation_fit;
   CHECK(pooled >= std::min(f1, f2) - 1e-9);
   CHECK(pooled <= std::max(f1, f2) + 1e-9);
+}
+
+TEST_CASE("delayest finds the dead time of ARX and output-error systems", "[linear][order][delay]") {
+  // ARX [2 2 7] with equation noise: the delay is 7 samples.
+  const nlid::Arx arx(vec({-1.5, 0.7}), {vec({1.0, 0.5})}, {7}, 0.1);
+  const nlid::Experiment e1 = nlid_test::arx_data(arx, nlid_test::white_noise(2000, 1, 11), 0.3, 12, "arx");
+  const nlid::DelayEstimate d1 = nlid::delayest(e1);
+  CHECK(d1.nk == 7);
+  REQUIRE(d1.candidates.candidates.size() == 21);  // nk = 0 .. 20
+  CHECK(d1.candidates.first_row == 21);            // the largest lag: nk 20 + nb 2 - 1
+  CHECK(d1.candidates.candidates[7].loss < 0.5 * d1.candidates.candidates[6].loss);
+  // An output-error system of another order (one pole, three B terms), slow steps, white noise
+  // on the output: not in the ARX class compared, the delay still shows, 5 samples.
+  const Eigen::MatrixXd u = nlid_test::random_steps(3000, 1, 13, 8);
+  const nlid::OutputError oe({vec({0.2, 0.4, 0.3})}, {vec({-0.85})}, {5}, 0.01);
+  const nlid::Experiment blank(u, Eigen::MatrixXd::Zero(3000, 1), 0.01, "oe");
+  Eigen::MatrixXd y = oe.simulate(blank, nlid::InitialCondition::zero) + nlid_test::white_noise(3000, 1, 14, 0.05);
+  const nlid::Dataset d{nlid::Experiment(u, y, 0.01, "oe")};
+  CHECK(nlid::delayest(d).nk == 5);
+  nlid::DelayestOptions o;
+  o.nk_min = 3;
+  o.nk_max = 9;
+  const nlid::DelayEstimate d2 = nlid::delayest(d, o);
+  CHECK(d2.nk == 5);
+  CHECK(d2.candidates.candidates.size() == 7);
+  CHECK_THAT(d2.candidates.table(), Catch::Contains("[2 2 5]"));
+}
+
+TEST_CASE("delayest refuses bad ranges, several inputs and short records", "[linear][order][delay][errors]") {
+  const nlid::Experiment e(nlid_test::white_noise(200, 1, 21), nlid_test::white_noise(200, 1, 22), 0.1, "short");
+  nlid::DelayestOptions o;
+  o.nk_min = 4;
+  o.nk_max = 2;
+  CHECK_THROWS_WITH(nlid::delayest(e, o), Catch::Contains("0 <= nk_min <= nk_max <= 100000, got 4 .. 2"));
+  o.nk_min = 0;
+  o.nk_max = 1000000000;  // would build a grid of 10^9 delays
+  CHECK_THROWS_WITH(nlid::delayest(e, o), Catch::Contains("nk_max"));
+  o.nk_max = 250;
+  CHECK_THROWS_WITH(nlid::delayest(e, o), Catch::Contains("short"));
+  o = {};
+  o.nb = 0;
+  CHECK_THROWS_WITH(nlid::delayest(e, o), Catch::Contains("na must be >= 0 and nb >= 1, got na = 2, nb = 0"));
+  const nlid::Experiment two(nlid_test::white_noise(200, 2, 23), nlid_test::white_noise(200, 1, 24), 0.1, "two");
+  CHECK_THROWS_WITH(nlid::delayest(two), Catch::Contains("the data have 2 inputs; the delay is estimated for one input"));
 }

@@ -18,6 +18,10 @@
 /// variance 100·V/var(y) in percent, the AIC and MDL choices marked.
 ///
 /// For several inputs, nb and nk of a candidate apply to every input.
+///
+/// `delayest` is the toolbox's function of that name on the same machinery: ARX [na nb nk] for
+/// each delay nk of a range, all on the same rows; equal parameter counts make the smallest loss
+/// also the smallest AIC and MDL, so the delay with the smallest loss is the estimate.
 
 #include <algorithm>
 #include <cmath>
@@ -33,6 +37,7 @@
 
 #include "nlid/core/error.hpp"
 #include "nlid/core/format.hpp"
+#include "nlid/core/sizes.hpp"
 #include "nlid/core/initial_condition.hpp"
 #include "nlid/data/dataset.hpp"
 #include "nlid/linear/arx.hpp"
@@ -336,6 +341,55 @@ inline OrderSelection arx_order_selection(const Dataset& estimation, const Datas
                                           const ArxOrderGrid& grid = {},
                                           const ArxOptions& options = {}) {
   return detail::arx_order_selection_impl(estimation, &validation, grid, options);
+}
+
+/// Search range and model orders of `delayest` (the toolbox's defaults: na = nb = 2, nk from 0
+/// to 20).
+struct DelayestOptions {
+  int na = 2;       ///< poles of the ARX models compared
+  int nb = 2;       ///< B coefficients of the ARX models compared
+  int nk_min = 0;   ///< smallest delay tried (samples)
+  int nk_max = 20;  ///< largest delay tried (samples)
+};
+
+/// Outcome of `delayest`: the delay and the table it was chosen from.
+struct DelayEstimate {
+  int nk = 0;                 ///< estimated input delay in samples (dead time nk · Ts)
+  OrderSelection candidates;  ///< one ARX [na nb nk] row per delay tried; `table()` prints it
+};
+
+/// Input delay (dead time in samples) of single-input data, as the toolbox's `delayest`: the nk
+/// whose ARX [na nb nk] model has the smallest one-step loss over the same rows (file comment).
+/// Throws `nlid::Error` naming the option for a bad range, the data for several inputs (select
+/// one with `select_channels`), and the experiment for a record too short for nk_max.
+inline DelayEstimate delayest(const Dataset& data, const DelayestOptions& options = {}) {
+  require(options.na >= 0 && options.nb >= 1,
+          "delayest: na must be >= 0 and nb >= 1, got na = " + std::to_string(options.na) +
+              ", nb = " + std::to_string(options.nb),
+          at_parameter("na, nb"));
+  require(options.nk_min >= 0 && options.nk_max >= options.nk_min && options.nk_max <= max_model_order,
+          "delayest: the delays tried must satisfy 0 <= nk_min <= nk_max <= " + std::to_string(max_model_order) +
+              ", got " + std::to_string(options.nk_min) + " .. " + std::to_string(options.nk_max),
+          at_parameter("nk_min, nk_max"));
+  require(data.num_inputs() == 1,
+          "delayest: the data have " + std::to_string(data.num_inputs()) +
+              " inputs; the delay is estimated for one input at a time (select it with select_channels)",
+          at_parameter("data"));
+  ArxOrderGrid grid;
+  grid.na = {options.na};
+  grid.nb = {options.nb};
+  grid.nk.clear();
+  for (int nk = options.nk_min; nk <= options.nk_max; ++nk) grid.nk.push_back(nk);
+  DelayEstimate r{0, arx_order_selection(data, grid)};
+  std::size_t best = r.candidates.candidates.size();
+  for (std::size_t k = 0; k < r.candidates.candidates.size(); ++k) {
+    const OrderCandidate& c = r.candidates.candidates[k];
+    if (c.valid && (best == r.candidates.candidates.size() || c.loss < r.candidates.candidates[best].loss)) best = k;
+  }
+  require(best < r.candidates.candidates.size(),
+          "delayest: every ARX model of the range is rank deficient (is the input constant?)", at_parameter("data"));
+  r.nk = r.candidates.candidates[best].orders.nk.at(0);
+  return r;
 }
 
 }  // namespace nlid
