@@ -54,6 +54,31 @@ TEST_CASE("Wiener [2 2 1] + saturation: B, F and the limits are recovered", "[mo
   CHECK(est.report().fit_percent[0] > 99.999);
   CHECK(est.ts() == 0.01);
   CHECK_THAT(est.describe(), Catch::Contains("estimated with simulation focus"));
+
+  // The same records with u in units 1e10 larger and y in units 1e10 smaller: the same model in
+  // those units. (The linear block's least-squares start once judged the input columns zero
+  // beside the output columns, 1e20 apart, and started from B = 0.)
+  const double ku = 1e-10, ky = 1e10;
+  nlid::Dataset scaled;
+  for (const nlid::Experiment& e : data) scaled.add(nlid::Experiment(ku * e.u(), ky * e.y(), e.ts(), e.name()));
+  const Wiener est2 = nlid::estimate(Wiener{}, scaled);
+  Eigen::VectorXd want = wiener_truth();
+  want.head(2) *= ky / ku;
+  want.tail(2) *= ky;
+  INFO(est2.describe());
+  CHECK(((est2.parameters() - want).array() / want.array()).abs().maxCoeff() < 1e-6);
+  CHECK(est2.report().fit_percent[0] > 99.999);
+  // The data-driven start itself (no iterations) is the same start in those units.
+  nlid::EstimateOptions start_only;
+  start_only.linear_iterations = 0;
+  start_only.solver.max_iterations = 0;
+  const Eigen::VectorXd s1 = nlid::estimate(Wiener{}, data, start_only).parameters();
+  Eigen::VectorXd s2 = nlid::estimate(Wiener{}, scaled, start_only).parameters();
+  s2.head(2) *= ku / ky;
+  s2.tail(2) /= ky;
+  CAPTURE(s1.transpose(), s2.transpose());
+  CHECK(s1.cwiseAbs().head(2).minCoeff() > 1e-3);
+  CHECK((s2 - s1).cwiseAbs().maxCoeff() < 1e-9 * s1.cwiseAbs().maxCoeff());
 }
 
 TEST_CASE("HW started from a given linear block with initialize = false", "[models][estimate]") {

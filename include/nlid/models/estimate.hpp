@@ -437,7 +437,19 @@ void arx_initialize(const L& lin, const std::vector<Eigen::VectorXd>& w, const s
       b(i) = y[e](t);
     }
   }
-  const Eigen::VectorXd sol = a.colPivHouseholderQr().solve(b);
+  // Columns in the data's units: lagged w (input units), lagged y (output units) and 1. Their
+  // norms can differ by more than the QR's rank tolerance (1e14 apart, the w columns were judged
+  // zero and B came out 0), so each is scaled to norm about 1 first — by a power of two, which
+  // changes no digit, only the pivot order.
+  Eigen::VectorXd scale = Eigen::VectorXd::Ones(a.cols());
+  for (Eigen::Index j = 0; j < a.cols(); ++j) {
+    const double n = a.col(j).norm();
+    if (n > 0.0 && std::isfinite(n)) {
+      scale(j) = std::ldexp(1.0, -std::ilogb(n));
+      a.col(j) *= scale(j);
+    }
+  }
+  const Eigen::VectorXd sol = a.colPivHouseholderQr().solve(b).cwiseProduct(scale);
   Eigen::VectorXd f(nf + 1);
   f(0) = 1.0;
   f.tail(nf) = sol.segment(nb, nf);
