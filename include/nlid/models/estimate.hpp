@@ -52,6 +52,7 @@
 #include "nlid/data/dataset.hpp"
 #include "nlid/estimation/autodiff.hpp"
 #include "nlid/estimation/levenberg_marquardt.hpp"
+#include "nlid/linear/detail/least_squares.hpp"
 #include "nlid/linear/polynomial.hpp"
 #include "nlid/models/detail/estimation_segment.hpp"
 #include "nlid/models/detail/initial_state.hpp"
@@ -437,19 +438,9 @@ void arx_initialize(const L& lin, const std::vector<Eigen::VectorXd>& w, const s
       b(i) = y[e](t);
     }
   }
-  // Columns in the data's units: lagged w (input units), lagged y (output units) and 1. Their
-  // norms can differ by more than the QR's rank tolerance (1e14 apart, the w columns were judged
-  // zero and B came out 0), so each is scaled to norm about 1 first — by a power of two, which
-  // changes no digit, only the pivot order.
-  Eigen::VectorXd scale = Eigen::VectorXd::Ones(a.cols());
-  for (Eigen::Index j = 0; j < a.cols(); ++j) {
-    const double n = a.col(j).norm();
-    if (n > 0.0 && std::isfinite(n)) {
-      scale(j) = std::ldexp(1.0, -std::ilogb(n));
-      a.col(j) *= scale(j);
-    }
-  }
-  const Eigen::VectorXd sol = a.colPivHouseholderQr().solve(b).cwiseProduct(scale);
+  // Columns in the data's units (lagged w, lagged y, 1) can lie further apart than a plain QR's
+  // rank tolerance (1e14: the w columns were judged zero and B came out 0): equilibrated solve.
+  const Eigen::VectorXd sol = solve_least_squares_qr(a, b).theta;
   Eigen::VectorXd f(nf + 1);
   f(0) = 1.0;
   f.tail(nf) = sol.segment(nb, nf);

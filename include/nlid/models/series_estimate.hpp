@@ -64,6 +64,7 @@
 #include "nlid/core/initial_condition.hpp"
 #include "nlid/data/dataset.hpp"
 #include "nlid/estimation/levenberg_marquardt.hpp"
+#include "nlid/linear/detail/least_squares.hpp"
 #include "nlid/linear/polynomial.hpp"
 #include "nlid/models/detail/model_common.hpp"
 #include "nlid/models/estimate.hpp"
@@ -371,7 +372,8 @@ inline void sk_fit(const std::vector<std::complex<double>>& h, const std::vector
       rhs(2 * k) = wk * hk.real();
       rhs(2 * k + 1) = wk * hk.imag();
     }
-    const Eigen::VectorXd sol = a.colPivHouseholderQr().solve(rhs);
+    // B's columns are unitless, F's carry H's units (y/u): equilibrated, as in arx_initialize.
+    const Eigen::VectorXd sol = solve_least_squares_qr(a, rhs).theta;
     if (!sol.allFinite()) break;
     b = sol.head(nb);
     f.tail(nf) = sol.tail(nf);
