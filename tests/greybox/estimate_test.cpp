@@ -3,6 +3,7 @@
 // driven initialisation and multi-start stand between the defaults and the answer.
 #include <catch2/catch.hpp>
 
+#include <array>
 #include <cmath>
 #include <numbers>
 
@@ -278,6 +279,29 @@ TEST_CASE("Values set by the user survive data-driven initialisation", "[greybox
   CHECK(m.initialized());
 }
 
+TEST_CASE("A held input tells the throttle's initialisation nothing about the gain b", "[greybox][estimate]") {
+  // The recorded angles with the command held at 0.3 (or at 3e-13, far below any absolute
+  // floor): b was range / 1e-12 = 1.9e15 (and 1.9e27), from a floor in absolute units.
+  Dataset d;
+  for (nlid::Experiment e : throttle_data(1.0)) {
+    e.u().setConstant(0.3);
+    d.add(std::move(e));
+  }
+  GreyBox<physics::Throttle> m;
+  const double b0 = m.parameter("b");
+  m.initialize(d);
+  CHECK(m.parameter("b") == b0);
+  CHECK(m.parameters().allFinite());
+  Dataset tiny;
+  for (nlid::Experiment e : throttle_data(1.0)) {
+    e.u() *= 1e-12;
+    tiny.add(std::move(e));
+  }
+  GreyBox<physics::Throttle> t;
+  t.initialize(tiny);
+  CHECK(t.parameter("b") > 1e14);  // an input in tiny units that moves still scales b: 1e12 x degrees
+}
+
 TEST_CASE("A fixed parameter keeps its value through data-driven initialisation, default value included",
           "[greybox][estimate]") {
   const Dataset d = throttle_data(1.0);
@@ -319,6 +343,79 @@ TEST_CASE("Estimation refuses crossed throttle stops at its start, saying what a
     CHECK(e.where().parameter == "lower_stop");
     CHECK_THAT(e.what(), Catch::Contains("grey-box estimation: the start: throttle: lower_stop = 95 must be below upper_stop = 1"));
   }
+}
+
+TEST_CASE("A failed estimation leaves the model as it was, not even initialised", "[greybox][estimate][errors]") {
+  Dataset d;
+  for (nlid::Experiment e : throttle_data(1.0)) {
+    e.set_input_names({"command"});
+    e.set_output_names({"angle"});
+    d.add(std::move(e));
+  }
+  GreyBox<physics::Throttle> m;
+  const Eigen::VectorXd p0 = m.parameters();
+  const std::string text0 = m.describe();
+  // An option refused after the data initialisation had run (it moved b from 100 to 5.6e4).
+  nlid::GreyBoxEstimateOptions o = quick(1, 1);
+  o.multi_start.lm.regularization.lambda = 1.0;
+  o.multi_start.lm.regularization.weights = Eigen::VectorXd::Ones(3);
+  CHECK_THROWS_WITH(estimate(m, d, o), Catch::Contains("regularization.weights has 3 entries; the model has 7 parameters"));
+  CHECK(m.parameters() == p0);
+  CHECK_FALSE(m.initialized());
+  CHECK(m.describe() == text0);
+  CHECK(m.input_names() != std::vector<std::string>{"command"});
+  // A refused data initialisation (crossed stops) takes no channel names from the data either.
+  m.set_parameter("lower_stop", 95.0);
+  CHECK_THROWS(m.initialize(d));
+  CHECK(m.input_names() != std::vector<std::string>{"command"});
+  CHECK_FALSE(m.initialized());
+  // And the estimate that succeeds commits everything.
+  GreyBox<physics::Throttle> ok;
+  (void)estimate(ok, d, quick(1, 1));
+  CHECK(ok.initialized());
+  CHECK(ok.input_names() == std::vector<std::string>{"command"});
+  CHECK(ok.parameters() != p0);
+}
+
+namespace {
+// dx/dt = -a x + b log(u): not defined for u <= 0, so one bad input sample makes every start fail.
+struct LogInputPlant {
+  static constexpr int num_states = 1, num_inputs = 1, num_outputs = 1, num_params = 2;
+  std::array<nlid::ParameterInfo, 2> parameter_info() const {
+    return {{{"a", "1/s", "pole", 5.0, 0.0, INFINITY, 0.5, 50.0, true, false},
+             {"b", "1/s", "gain", 1.0, -INFINITY, INFINITY, 0.2, 5.0, false, false}}};
+  }
+  template <class T>
+  void derivative(const T* x, const T* u, const T* p, T* dx) const {
+    using std::log;
+    dx[0] = -p[0] * x[0] + p[1] * log(u[0]);
+  }
+  template <class T>
+  void output(const T* x, const T*, const T*, T* y) const {
+    y[0] = x[0];
+  }
+};
+}  // namespace
+
+TEST_CASE("When no start can be simulated, estimation names the experiment and the sample", "[greybox][estimate][errors]") {
+  Eigen::MatrixXd u = Eigen::MatrixXd::Constant(200, 1, 2.0);
+  u.bottomRows(100).setConstant(3.0);
+  GreyBox<LogInputPlant> truth;
+  const Eigen::MatrixXd y = truth.simulate(u, 0.01, Eigen::VectorXd::Zero(1));
+  Eigen::MatrixXd u_bad = u;
+  u_bad(150, 0) = -1.0;  // log(-1)
+  const Dataset d{nlid::Experiment(u, y, 0.01, "ok"), nlid::Experiment(u_bad, y, 0.01, "neg")};
+  GreyBox<LogInputPlant> m;
+  const nlid::Error e = nlid_test::error_of([&] { (void)estimate(m, d, quick(4, 2)); });
+  // Was: "multi-start: the problem cannot be evaluated at the initial guess nor at any of 4
+  // candidates; check the model, data and search ranges", with no location.
+  CHECK_THAT(e.what(), Catch::Contains("grey-box estimation: no start can be simulated; at the starting values") &&
+                           Catch::Contains("on 'neg'") && Catch::Contains("at sample 151"));
+  CHECK(e.where().experiment == 1);
+  CHECK_FALSE(m.initialized());
+  // Without the bad sample the same estimation runs.
+  const Dataset good{nlid::Experiment(u, y, 0.01, "ok")};
+  CHECK(estimate(m, good, quick(4, 2)).fit(0, 0) > 99.0);
 }
 
 TEST_CASE("Estimation and uncertainty name a mis-scaled record instead of failing every start", "[greybox][estimate][errors]") {

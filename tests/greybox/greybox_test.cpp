@@ -718,7 +718,9 @@ TEST_CASE("Data errors say what and where", "[greybox][errors]") {
     Dataset d2(Experiment(Eigen::MatrixXd::Zero(4, 1), Eigen::MatrixXd::Zero(4, 1), ts, "four"));
     CHECK_THROWS_WITH((nlid::GreyBoxProblem<physics::Throttle>(m.physics(), m.integrator(), d2,
                                                                InitialCondition::estimate)),
-                      Catch::Contains("data too short: 4 residual(s) for 9 free unknown(s)"));
+                      Catch::Contains("grey-box estimation: the data are too short: 4 residual(s) for 9 free "
+                                      "unknown(s) (the parameters not fixed, and the initial states of every "
+                                      "experiment)"));
   }
   SECTION("missing input names the sample") {
     Eigen::MatrixXd u = Eigen::MatrixXd::Zero(20, 1), y = Eigen::MatrixXd::Zero(20, 1);

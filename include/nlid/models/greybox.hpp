@@ -374,11 +374,6 @@ class GreyBox {
     require(data.size() > 0, "initialize: empty data set");
     check_channels(data);
     const Experiment& e0 = data[0];
-    if (!e0.output_units().empty()) y_unit_ = e0.output_units()[0];
-    if (!e0.input_units().empty()) u_unit_ = e0.input_units()[0];
-    // The data's channel names, so that a saved model simulates the same columns of a new file.
-    if (static_cast<int>(e0.input_names().size()) == input_dimension()) input_names_ = e0.input_names();
-    if (static_cast<int>(e0.output_names().size()) == output_dimension()) output_names_ = e0.output_names();
     if constexpr (detail::HasInitializeHook<P>) {
       const std::vector<ParameterInfo> before = params_;
       std::vector<ParameterInfo> table = params_;
@@ -408,6 +403,12 @@ class GreyBox {
         throw;
       }
     }
+    // Only now, so that a refused initialisation leaves the model as it was.
+    if (!e0.output_units().empty()) y_unit_ = e0.output_units()[0];
+    if (!e0.input_units().empty()) u_unit_ = e0.input_units()[0];
+    // The data's channel names, so that a saved model simulates the same columns of a new file.
+    if (static_cast<int>(e0.input_names().size()) == input_dimension()) input_names_ = e0.input_names();
+    if (static_cast<int>(e0.output_names().size()) == output_dimension()) output_names_ = e0.output_names();
     initialized_ = true;
   }
   /// True once `initialize` has run (estimate calls it automatically otherwise).

@@ -254,12 +254,11 @@ ParameterUncertainty parameter_uncertainty(const GreyBox<P>& model, const Datase
   return detail::greybox_uncertainty(model, problem, data, theta, options.uncertainty);
 }
 
-/// Estimates the free parameters of `model` (and initial states) from `data` by simulation
-/// error; updates the model and returns the report. Throws `nlid::Error` on a channel mismatch,
-/// too little data, an inapplicable initial condition, or if no start can be simulated.
+namespace detail {
+// The estimation proper; works on the model it is given, which it changes as it goes (the data
+// initialisation first), so the public `estimate` hands it a copy.
 template <Physics P>
-GreyBoxEstimate estimate(GreyBox<P>& model, const Dataset& data,
-                         const GreyBoxEstimateOptions& options = {}) {
+GreyBoxEstimate estimate_in_place(GreyBox<P>& model, const Dataset& data, const GreyBoxEstimateOptions& options) {
   const auto t0 = std::chrono::steady_clock::now();
   require(data.size() > 0, "grey-box estimation: empty data set");
   model.check_channels(data);
@@ -351,6 +350,7 @@ GreyBoxEstimate estimate(GreyBox<P>& model, const Dataset& data,
     problem.refresh_initial_states(t);
     th = t.cwiseQuotient(scale);
   };
+  const Eigen::VectorXd start = theta;  // in the model's units, initial-state guesses included
   theta = theta.cwiseQuotient(scale);
 
   GreyBoxEstimate out;
@@ -384,6 +384,22 @@ GreyBoxEstimate estimate(GreyBox<P>& model, const Dataset& data,
                         " is not unique (df/dx is singular there: the model integrates, e.g. a rigid body's "
                         "position, so a whole family of states is at rest) and the start cannot follow the "
                         "parameters; use InitialCondition::estimate or zero",
+                    where);
+      }
+    }
+    // The solver knows only that no evaluation succeeded; the model's own simulation from the
+    // start each experiment began at names the experiment and sample where it fails.
+    for (std::size_t e = 0; e < data.size(); ++e) {
+      try {
+        if (problem.state_column(e) >= 0) {
+          (void)model.simulate(data[e], Eigen::VectorXd(start.segment(problem.state_column(e), nx)));
+        } else if (options.initial_condition != InitialCondition::equilibrium) {
+          (void)model.simulate(data[e], options.initial_condition);
+        }
+      } catch (const Error& why) {
+        Location where = why.where();
+        if (where.experiment < 0) where.experiment = static_cast<long>(e);
+        throw Error("grey-box estimation: no start can be simulated; at the starting values: " + why.message(),
                     where);
       }
     }
@@ -453,6 +469,19 @@ GreyBoxEstimate estimate(GreyBox<P>& model, const Dataset& data,
     out.uncertainty.caveat = std::string("no uncertainty: ") + err.what();
   }
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return out;
+}
+}  // namespace detail
+
+/// Estimates the free parameters of `model` (and initial states) from `data` by simulation
+/// error; updates the model and returns the report. Throws `nlid::Error` on a channel mismatch,
+/// too little data, an inapplicable initial condition, a bad option, or if no start can be
+/// simulated — and then leaves `model` as it was (not even initialised from the data).
+template <Physics P>
+GreyBoxEstimate estimate(GreyBox<P>& model, const Dataset& data, const GreyBoxEstimateOptions& options = {}) {
+  GreyBox<P> work = model;
+  GreyBoxEstimate out = detail::estimate_in_place(work, data, options);
+  model = std::move(work);
   return out;
 }
 

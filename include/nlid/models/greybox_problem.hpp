@@ -162,8 +162,11 @@ class GreyBoxProblem {
     }
     int free = states_only_ ? 0 : static_cast<int>(std::count(fixed_.begin(), fixed_.end(), false));
     if (ic_ == InitialCondition::estimate) free += nx_ * static_cast<int>(data.size());
-    require(!check_count || rows_ >= free, "data too short: " + std::to_string(rows_) + " residual(s) for " +
-                                               std::to_string(free) + " free unknown(s)");
+    require(!check_count || rows_ >= free,
+            "grey-box estimation: the data are too short: " + std::to_string(rows_) + " residual(s) for " +
+                std::to_string(free) + " free unknown(s) (the parameters not fixed" +
+                (ic_ == InitialCondition::estimate ? ", and the initial states of every experiment)" : ")"),
+            at_parameter("data"));
   }
 
  public:

@@ -45,6 +45,7 @@
 /// rest position from a second-order ARX fit on the samples between the stops (`fit_second_order`);
 /// K = 100·k (contact much stiffer than the spring). Multi-start explores a decade either side of
 /// c and k, K in [10, 10⁴]·k, b within a factor 5, stops ±5 % and rest ±50 % of the output range.
+/// An input that does not move leaves b (and its range) as it was: the data say nothing about it.
 
 #include <algorithm>
 #include <array>
@@ -150,7 +151,11 @@ struct Throttle {
     if (y.size() < 10 || u.size() < 10) return;
     const double ylo = quantile(y, 0.005), yhi = quantile(y, 0.995);
     const double range = yhi - ylo > 0.0 ? yhi - ylo : std::max(1.0, std::abs(yhi));
-    const double urange = std::max(quantile(u, 0.995) - quantile(u, 0.005), 1e-12);
+    const double ulo = quantile(u, 0.005), uhi = quantile(u, 0.995);
+    const double urange = uhi - ulo;
+    // An input that does not move says nothing about the gain b (range / urange was 1e15 for a
+    // held command, from a floor in absolute units): b keeps its value then.
+    const bool input_moves = urange > 1e-9 * std::max(std::abs(ulo), std::abs(uhi));
     const StopEstimate lo = detect_stop(data, 0, 0, false), hi = detect_stop(data, 0, 0, true);
     const double band = 0.05 * range;
     const LinearResponse fit = fit_second_order(data, 0, 0, lo.position + band, hi.position - band);
@@ -166,14 +171,14 @@ struct Throttle {
       const double w = 0.05 / ts;
       c = 2.0 * w;
       k = w * w;
-      gain = range / urange;
+      gain = input_moves ? range / urange : 0.0;
       rest = lo.position;
     }
     const double b = gain * k;
     set_start(p[0], c, c / 10.0, c * 10.0, true);
     set_start(p[1], k, k / 10.0, k * 10.0, true);
     set_start(p[2], 100.0 * k, 10.0 * k, 1e4 * k, true);
-    set_start(p[3], b, b / 5.0, b * 5.0, true);
+    if (fit.ok || input_moves) set_start(p[3], b, b / 5.0, b * 5.0, true);
     set_start(p[4], lo.position, lo.position - band, lo.position + band, false);
     set_start(p[5], hi.position, hi.position - band, hi.position + band, false);
     set_start(p[6], rest, rest - 10.0 * band, rest + 10.0 * band, false);
