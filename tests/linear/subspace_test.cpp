@@ -8,7 +8,9 @@
 #include <vector>
 
 #include "linear_test_util.hpp"
+#include "nlid/linear/ssest.hpp"
 #include "nlid/linear/subspace.hpp"
+#include "../support/error_of.hpp"
 
 using nlid::Experiment;
 using nlid::InitialCondition;
@@ -154,6 +156,20 @@ TEST_CASE("MOESP rejects bad orders and short data", "[linear][subspace]") {
   // A mis-scaled channel is named (its squares overflow in the block Hankel products).
   const Experiment big(1e150 * u, e.y(), 1.0, "big");
   CHECK_THROWS_WITH(nlid::moesp(nlid::Dataset{e, big}, 3), Catch::Contains("experiment 'big', input 'u1'") && Catch::Contains("beyond 1e100"));
+  // A constant output (here all zero) is named, not reported as an unstable A at |z| = -nan.
+  Experiment flat(u, Eigen::MatrixXd::Zero(200, 2), 1.0, "flat");
+  flat.set_output_names({"speed", "angle"});
+  const nlid::Error z = nlid_test::error_of([&] { (void)nlid::moesp(flat, 2); });
+  CHECK_THAT(z.what(), Catch::Contains("moesp: output 'speed' is 0 in every sample of every experiment"));
+  CHECK(z.where().column_name == "speed");
+  CHECK_THROWS_WITH(nlid::ssest(flat, 2), Catch::Contains("output 'speed' is 0 in every sample"));
+  // One output constant, the other not: that output is named; a constant in one record only is data.
+  Experiment half = e;
+  half.y().col(1).setConstant(15.0);
+  CHECK_THROWS_WITH(nlid::moesp(half, 2), Catch::Contains("output 'y2' is 15 in every sample"));
+  Experiment rest = e;
+  rest.y().col(1).setConstant(15.0);
+  CHECK_NOTHROW(nlid::moesp(nlid::Dataset{e, rest}, 3));
 }
 
 TEST_CASE("MOESP refuses an unstable A whose response overflows, instead of NaN", "[linear][subspace][errors]") {

@@ -86,6 +86,19 @@ inline void check_subspace_data(const Dataset& data, const std::string& who) {
                      who, true);
     data[e].require_estimable_scale(who, static_cast<long>(e));
   }
+  // A constant output has no response to identify; left to the solver, its all-zero Hankel
+  // matrix gave a NaN A and a message about instability.
+  for (int j = 0; j < data.num_outputs(); ++j) {
+    const double first = data[0].y()(0, j);
+    bool constant = true;
+    for (const Experiment& e : data) constant = constant && (e.y().col(j).array() == first).all();
+    if (!constant) continue;
+    Location where;
+    where.column_name = data[0].output_names().at(static_cast<std::size_t>(j));
+    throw Error(who + ": output '" + where.column_name + "' is " + detail::format_g(first, 6) +
+                    " in every sample of every experiment: no response to identify",
+                where);
+  }
 }
 
 inline int choose_horizon(const Dataset& data, int n, int requested, const std::string& who) {
@@ -342,6 +355,11 @@ inline StateSpace moesp_as(const Dataset& data, int order, const SubspaceOptions
   Eigen::MatrixXd c = svd.y_scale.asDiagonal() * gamma.topRows(p);
   const Eigen::Index sh = (s - 1) * p;
   Eigen::MatrixXd a = gamma.topRows(sh).colPivHouseholderQr().solve(gamma.bottomRows(sh));
+  // Not an unstable A (the message further on) but none: say so before B and D are fitted to it.
+  require(a.allFinite() && c.allFinite(),
+          who + ": the subspace step gave a non-finite A or C for order " + std::to_string(order) +
+              " (the data's response has fewer directions than that); choose a lower order",
+          at_parameter("order"));
   if (options.enforce_stability) a = detail::stabilize_matrix(a);
   const detail::BdFit fit = detail::fit_b_d(data, a, c, options, who);
   StateSpace model(a, fit.b, c, fit.d, data.ts());
