@@ -170,6 +170,18 @@ TEST_CASE("MOESP rejects bad orders and short data", "[linear][subspace]") {
   Experiment rest = e;
   rest.y().col(1).setConstant(15.0);
   CHECK_NOTHROW(nlid::moesp(nlid::Dataset{e, rest}, 3));
+  // With offset, each record's mean is removed: levels held within every record are constant.
+  Experiment at3 = e, at5 = e;
+  at3.y().setConstant(3.0);
+  at5.y().setConstant(5.0);
+  nlid::SubspaceOptions with_offset;
+  with_offset.offset = true;
+  CHECK_THROWS_WITH(nlid::moesp(nlid::Dataset{at3, at5}, 1, with_offset),
+                    Catch::Contains("output 'y1' is constant within every experiment (offset removes each experiment's mean)"));
+  CHECK_NOTHROW(nlid::moesp(nlid::Dataset{at3, at5}, 1));  // without offset the step between them is data
+  // An empty first record is the length check's to report (the constant check read its row 0).
+  const Experiment empty(Eigen::MatrixXd(0, 2), Eigen::MatrixXd(0, 2), 1.0, "empty");
+  CHECK_THROWS_WITH(nlid::moesp(nlid::Dataset{empty, e}, 3), Catch::Contains("experiment 0 ('empty') has 0 samples"));
 }
 
 TEST_CASE("MOESP refuses an unstable A whose response overflows, instead of NaN", "[linear][subspace][errors]") {

@@ -78,7 +78,7 @@ struct MoespSvd {
   int horizon = 0;
 };
 
-inline void check_subspace_data(const Dataset& data, const std::string& who) {
+inline void check_subspace_data(const Dataset& data, const std::string& who, bool remove_means) {
   require(data.size() > 0, who + ": the data set is empty", at_parameter("data"));
   require(data.num_outputs() >= 1, who + ": the data have no output", at_parameter("data"));
   for (std::size_t e = 0; e < data.size(); ++e) {
@@ -87,16 +87,27 @@ inline void check_subspace_data(const Dataset& data, const std::string& who) {
     data[e].require_estimable_scale(who, static_cast<long>(e));
   }
   // A constant output has no response to identify; left to the solver, its all-zero Hankel
-  // matrix gave a NaN A and a message about instability.
+  // matrix gave a NaN A and a message about instability. With the means removed per record
+  // (`offset`), a level held within every record is constant too. Empty records are left to the
+  // length checks.
   for (int j = 0; j < data.num_outputs(); ++j) {
-    const double first = data[0].y()(0, j);
-    bool constant = true;
-    for (const Experiment& e : data) constant = constant && (e.y().col(j).array() == first).all();
-    if (!constant) continue;
+    bool constant = true, any = false;
+    double level = 0.0;
+    for (const Experiment& e : data) {
+      if (e.size() == 0) continue;
+      const double first = e.y()(0, j);
+      if (!any || remove_means) level = first;
+      any = true;
+      constant = constant && (e.y().col(j).array() == level).all();
+    }
+    if (!any || !constant) continue;
     Location where;
     where.column_name = data[0].output_names().at(static_cast<std::size_t>(j));
-    throw Error(who + ": output '" + where.column_name + "' is " + detail::format_g(first, 6) +
-                    " in every sample of every experiment: no response to identify",
+    throw Error(who + ": output '" + where.column_name + "' is " +
+                    (remove_means && data.size() > 1 ? std::string("constant within every experiment (offset removes "
+                                                                   "each experiment's mean)")
+                                                     : detail::format_g(level, 6) + " in every sample of every experiment") +
+                    ": no response to identify",
                 where);
   }
 }
@@ -315,7 +326,7 @@ inline BdFit fit_b_d(const Dataset& data, const Eigen::MatrixXd& a, const Eigen:
 /// with `SubspaceOptions::offset`. Throws like `moesp`.
 inline Eigen::VectorXd subspace_singular_values(const Dataset& data, int horizon,
                                                 bool remove_means = false) {
-  detail::check_subspace_data(data, "subspace_singular_values");
+  detail::check_subspace_data(data, "subspace_singular_values", remove_means);
   require(horizon >= 1, "subspace_singular_values: horizon must be >= 1",
           at_parameter("horizon"));
   return detail::moesp_svd(data, horizon, remove_means, "subspace_singular_values").sigma;
@@ -327,7 +338,7 @@ namespace detail {
 // users should not read about a function they never called.
 inline StateSpace moesp_as(const Dataset& data, int order, const SubspaceOptions& options,
                            const std::string& who) {
-  detail::check_subspace_data(data, who);
+  detail::check_subspace_data(data, who, options.offset);
   require(order >= 1, who + ": order must be >= 1, got " + std::to_string(order),
           at_parameter("order"));
   require(order <= max_model_order,
@@ -358,7 +369,8 @@ inline StateSpace moesp_as(const Dataset& data, int order, const SubspaceOptions
   // Not an unstable A (the message further on) but none: say so before B and D are fitted to it.
   require(a.allFinite() && c.allFinite(),
           who + ": the subspace step gave a non-finite A or C for order " + std::to_string(order) +
-              " (the data's response has fewer directions than that); choose a lower order",
+              " (the data's response has fewer directions than that" +
+              (order > 1 ? std::string("); choose a lower order") : std::string(": is the output moved by the input?)")),
           at_parameter("order"));
   if (options.enforce_stability) a = detail::stabilize_matrix(a);
   const detail::BdFit fit = detail::fit_b_d(data, a, c, options, who);
