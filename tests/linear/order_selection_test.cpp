@@ -232,6 +232,22 @@ TEST_CASE("delayest finds the dead time of ARX and output-error systems", "[line
   CHECK_THAT(d2.candidates.table(), Catch::Contains("[2 2 5]"));
 }
 
+TEST_CASE("delayest finds the delay of noise-free data of a lower order than the models compared",
+          "[linear][order][delay]") {
+  // y(t) = 0.7 y(t-1) + u(t-nk), no noise: ARX [2 2 nk] fits exactly, and so rank-deficiently,
+  // at the true delay only; that candidate is the answer (it was skipped: 0 -> 6, 3 -> 2).
+  for (const int nk : {0, 3, 10}) {
+    CAPTURE(nk);
+    const nlid::Arx truth(vec({-0.7}), {vec({1.0})}, {nk}, 0.1);
+    const nlid::Experiment e = nlid_test::arx_data(truth, nlid_test::white_noise(600, 1, 31), 0.0, 0, "exact");
+    const nlid::DelayEstimate d = nlid::delayest(e);
+    CHECK(d.nk == nk);
+    CHECK_FALSE(d.candidates.candidates[static_cast<std::size_t>(nk)].valid);
+    CHECK(d.candidates.candidates[static_cast<std::size_t>(nk)].loss < 1e-20);
+    CHECK_THAT(d.candidates.table(), Catch::Contains("(rank deficient: not identifiable)"));
+  }
+}
+
 TEST_CASE("delayest refuses bad ranges, several inputs and short records", "[linear][order][delay][errors]") {
   const nlid::Experiment e(nlid_test::white_noise(200, 1, 21), nlid_test::white_noise(200, 1, 22), 0.1, "short");
   nlid::DelayestOptions o;
@@ -242,10 +258,20 @@ TEST_CASE("delayest refuses bad ranges, several inputs and short records", "[lin
   o.nk_max = 1000000000;  // would build a grid of 10^9 delays
   CHECK_THROWS_WITH(nlid::delayest(e, o), Catch::Contains("nk_max"));
   o.nk_max = 250;
-  CHECK_THROWS_WITH(nlid::delayest(e, o), Catch::Contains("short"));
+  CHECK_THROWS_WITH(nlid::delayest(e, o), Catch::Contains("delayest: 0 sample(s) follow the lag window of the largest "
+                                                          "delay tried (nk_max + nb - 1 = 251)") &&
+                                              Catch::Contains("lower nk_max or use longer records"));
+  o.nk_max = 194;  // 200 - 195 = 5 rows for 4 parameters: enough, if only just
+  CHECK_NOTHROW(nlid::delayest(e, o));
+  o.nk_max = 195;
+  CHECK_THROWS_WITH(nlid::delayest(e, o), Catch::Contains("4 sample(s) follow"));
+  const nlid::Experiment held(Eigen::MatrixXd::Constant(200, 1, 0.3), nlid_test::white_noise(200, 1, 25), 0.1, "held");
+  CHECK_THROWS_WITH(nlid::delayest(held), Catch::Contains("the data say nothing about the delay (is the input constant?)"));
   o = {};
   o.nb = 0;
   CHECK_THROWS_WITH(nlid::delayest(e, o), Catch::Contains("na must be >= 0 and nb >= 1, got na = 2, nb = 0"));
   const nlid::Experiment two(nlid_test::white_noise(200, 2, 23), nlid_test::white_noise(200, 1, 24), 0.1, "two");
   CHECK_THROWS_WITH(nlid::delayest(two), Catch::Contains("the data have 2 inputs; the delay is estimated for one input"));
+  const nlid::Experiment two_out(nlid_test::white_noise(200, 1, 26), nlid_test::white_noise(200, 2, 27), 0.1, "two out");
+  CHECK_THROWS_WITH(nlid::delayest(two_out), Catch::Contains("delayest: the data have 2 outputs"));
 }

@@ -573,7 +573,8 @@ namespace detail {
 
 // Estimation on the rows starting at max(largest lag, `min_start`): the order search passes a
 // common start so every candidate is scored on the same samples. A rank-deficient regression
-// throws, unless `rank_deficient` is given: then it is set and an empty model returned.
+// throws, unless `rank_deficient` is given: then it is set and an empty model returned whose
+// report still holds N and the loss (a basic solution reaches the least-squares minimum).
 inline Arx arx_estimate(const Dataset& data, const ArxOrders& o, const ArxOptions& opt,
                         int min_start, const std::string& who, bool* rank_deficient) {
   if (rank_deficient) *rank_deficient = false;
@@ -598,7 +599,10 @@ inline Arx arx_estimate(const Dataset& data, const ArxOrders& o, const ArxOption
   const LeastSquaresSolution sol = solve_least_squares_qr(reg.phi, reg.y);
   if (sol.rank < d && rank_deficient) {
     *rank_deficient = true;
-    return Arx();
+    Arx none;
+    none.report_.num_samples = reg.phi.rows();
+    none.report_.loss = sol.residual_norm * sol.residual_norm / static_cast<double>(reg.phi.rows());
+    return none;
   }
   if (sol.rank < d)
     throw Error(who + ": the regression matrix has rank " + std::to_string(sol.rank) + " < " +

@@ -76,7 +76,9 @@ struct OrderCandidate {
   ArxOrders orders;                       ///< [na nb nk]
   int num_parameters = 0;                 ///< d
   bool valid = true;                      ///< false if the regression was rank deficient
-  double loss = 0.0;                      ///< V on the estimation data
+  /// V on the estimation data; also for a rank-deficient candidate (a basic solution reaches the
+  /// least-squares minimum), where the criteria below are not computed.
+  double loss = 0.0;
   double aic = 0.0;                       ///< N log V + 2d
   double mdl = 0.0;                       ///< N log V + d log N
   std::optional<double> validation_loss;  ///< one-step V on the validation data
@@ -145,9 +147,9 @@ struct OrderSelection {
     for (std::size_t k = 0; k < candidates.size(); ++k) {
       const OrderCandidate& x = candidates[k];
       if (!x.valid) {
-        std::snprintf(line, sizeof line, "%-16s %3d   (rank deficient: not identifiable)\n",
-                      x.orders.str().c_str(), x.num_parameters);
-        os << line;
+        std::snprintf(line, sizeof line, "%-16s %3d", x.orders.str().c_str(), x.num_parameters);
+        os << line << ' ' << detail::right_aligned(detail::format_g(x.loss, 5), 12)
+           << "   (rank deficient: not identifiable)\n";
         continue;
       }
       std::snprintf(line, sizeof line, "%-16s %3d", x.orders.str().c_str(), x.num_parameters);
@@ -272,6 +274,8 @@ inline OrderSelection arx_order_selection_impl(const Dataset& est, const Dataset
         const Arx model = arx_estimate(est, c.orders, opt, start, who, &deficient);
         if (deficient) {
           c.valid = false;
+          c.loss = model.report().loss;
+          sel.num_samples = model.report().num_samples;
           sel.candidates.push_back(c);
           continue;
         }
@@ -360,8 +364,8 @@ struct DelayEstimate {
 
 /// Input delay (dead time in samples) of single-input data, as the toolbox's `delayest`: the nk
 /// whose ARX [na nb nk] model has the smallest one-step loss over the same rows (file comment).
-/// Throws `nlid::Error` naming the option for a bad range, the data for several inputs (select
-/// one with `select_channels`), and the experiment for a record too short for nk_max.
+/// Throws `nlid::Error` naming the option for a bad range or records too short for nk_max, and
+/// the data for several inputs or outputs (select one with `select_channels`) or a held input.
 inline DelayEstimate delayest(const Dataset& data, const DelayestOptions& options = {}) {
   require(options.na >= 0 && options.nb >= 1,
           "delayest: na must be >= 0 and nb >= 1, got na = " + std::to_string(options.na) +
@@ -371,23 +375,52 @@ inline DelayEstimate delayest(const Dataset& data, const DelayestOptions& option
           "delayest: the delays tried must satisfy 0 <= nk_min <= nk_max <= " + std::to_string(max_model_order) +
               ", got " + std::to_string(options.nk_min) + " .. " + std::to_string(options.nk_max),
           at_parameter("nk_min, nk_max"));
+  require(data.num_outputs() == 1,
+          "delayest: the data have " + std::to_string(data.num_outputs()) +
+              " outputs; the delay is estimated for one output at a time (select it with select_channels)",
+          at_parameter("data"));
   require(data.num_inputs() == 1,
           "delayest: the data have " + std::to_string(data.num_inputs()) +
               " inputs; the delay is estimated for one input at a time (select it with select_channels)",
           at_parameter("data"));
+  // Every delay's rows start after the largest lag of the range; say so here, where the message
+  // can name nk_max, rather than in the order selection's "regression rows" check.
+  const int window = std::max(options.na, options.nk_max + options.nb - 1);
+  Eigen::Index rows = 0;
+  for (const Experiment& e : data) rows += std::max<Eigen::Index>(0, e.size() - window);
+  require(rows > options.na + options.nb,
+          "delayest: " + std::to_string(rows) + " sample(s) follow the lag window of the largest delay tried (nk_max + nb - 1 = " +
+              std::to_string(window) + ") in the data; more than na + nb = " + std::to_string(options.na + options.nb) +
+              " are needed: lower nk_max or use longer records",
+          at_parameter("nk_max"));
   ArxOrderGrid grid;
   grid.na = {options.na};
   grid.nb = {options.nb};
   grid.nk.clear();
   for (int nk = options.nk_min; nk <= options.nk_max; ++nk) grid.nk.push_back(nk);
   DelayEstimate r{0, arx_order_selection(data, grid)};
-  std::size_t best = r.candidates.candidates.size();
-  for (std::size_t k = 0; k < r.candidates.candidates.size(); ++k) {
-    const OrderCandidate& c = r.candidates.candidates[k];
-    if (c.valid && (best == r.candidates.candidates.size() || c.loss < r.candidates.candidates[best].loss)) best = k;
+  // The smallest loss, rank-deficient candidates included: noise-free data of a lower order than
+  // [na nb] fit exactly, and so rank-deficiently, at the true delay. Exact fits also come at
+  // smaller delays whose B ends in the true one's first coefficient (b = [0 … 0 b_nk …]): of the
+  // delays that fit to rounding, the largest is the one the data need. If every candidate is
+  // deficient and none fits better, the data say nothing about the delay (a held input).
+  const auto& cs = r.candidates.candidates;
+  bool any_valid = false;
+  double lo = cs[0].loss, hi = cs[0].loss;
+  for (const OrderCandidate& c : cs) {
+    any_valid = any_valid || c.valid;
+    lo = std::min(lo, c.loss);
+    hi = std::max(hi, c.loss);
   }
-  require(best < r.candidates.candidates.size(),
-          "delayest: every ARX model of the range is rank deficient (is the input constant?)", at_parameter("data"));
+  const bool exact = lo <= 1e-20 * r.candidates.output_variance;
+  std::size_t best = 0;
+  for (std::size_t k = 0; k < cs.size(); ++k) {
+    if (exact ? cs[k].loss <= 1e-20 * r.candidates.output_variance : cs[k].loss < cs[best].loss) best = k;
+  }
+  require(cs.size() == 1 || any_valid || hi > lo * (1.0 + 1e-9),
+          "delayest: every ARX model of the range is rank deficient and fits equally well: the data say nothing "
+          "about the delay (is the input constant?)",
+          at_parameter("data"));
   r.nk = r.candidates.candidates[best].orders.nk.at(0);
   return r;
 }
