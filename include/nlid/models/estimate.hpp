@@ -440,7 +440,7 @@ void arx_initialize(const L& lin, const std::vector<Eigen::VectorXd>& w, const s
   }
   // Columns in the data's units (lagged w, lagged y, 1) can lie further apart than a plain QR's
   // rank tolerance (1e14: the w columns were judged zero and B came out 0): equilibrated solve.
-  const Eigen::VectorXd sol = solve_least_squares_qr(a, b).theta;
+  const Eigen::VectorXd sol = solve_equilibrated(std::move(a), b);
   Eigen::VectorXd f(nf + 1);
   f(0) = 1.0;
   f.tail(nf) = sol.segment(nb, nf);

@@ -373,7 +373,7 @@ inline void sk_fit(const std::vector<std::complex<double>>& h, const std::vector
       rhs(2 * k + 1) = wk * hk.imag();
     }
     // B's columns are unitless, F's carry H's units (y/u): equilibrated, as in arx_initialize.
-    const Eigen::VectorXd sol = solve_least_squares_qr(a, rhs).theta;
+    const Eigen::VectorXd sol = solve_equilibrated(a, rhs);
     if (!sol.allFinite()) break;
     b = sol.head(nb);
     f.tail(nf) = sol.tail(nf);

@@ -83,6 +83,22 @@ inline LeastSquaresSolution solve_least_squares_qr(const Eigen::MatrixXd& phi,
   return s;
 }
 
+// min ‖Aθ − b‖ for a start or an inner iteration, where only θ is needed: the columns are scaled
+// to norm ≈ 1 by powers of two (exact, so where the plain QR's column order stays, the numbers
+// stay too) and solved with the QR's default rank tolerance. Without the scaling, columns in
+// different units (a lagged input beside a lagged output) 1e14 apart are judged zero.
+inline Eigen::VectorXd solve_equilibrated(Eigen::MatrixXd a, const Eigen::VectorXd& b) {
+  Eigen::VectorXd scale = Eigen::VectorXd::Ones(a.cols());
+  for (Eigen::Index j = 0; j < a.cols(); ++j) {
+    const double n = a.col(j).norm();
+    if (n > 0.0 && std::isfinite(n)) {
+      scale(j) = std::ldexp(1.0, -std::ilogb(n));
+      a.col(j) *= scale(j);
+    }
+  }
+  return a.colPivHouseholderQr().solve(b).cwiseProduct(scale);
+}
+
 // Standard deviations √(σ² vᵢ) from unscaled variances v: +∞ (not identifiable) stays +∞ even
 // when σ² = 0, where the product would be NaN.
 inline Eigen::VectorXd stddev_from_variance(double sigma2, const Eigen::VectorXd& v) {
