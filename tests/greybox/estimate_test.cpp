@@ -292,6 +292,15 @@ TEST_CASE("A held input tells the throttle's initialisation nothing about the ga
   m.initialize(d);
   CHECK(m.parameter("b") == b0);
   CHECK(m.parameters().allFinite());
+  // Held, with the rounding of a command stored to 6 significant digits (3.7e10 before).
+  Dataset rounded;
+  for (nlid::Experiment e : d) {
+    for (Eigen::Index t = 0; t < e.size(); ++t) e.u()(t, 0) += (t % 3 - 1) * 5e-7;
+    rounded.add(std::move(e));
+  }
+  GreyBox<physics::Throttle> r;
+  r.initialize(rounded);
+  CHECK(r.parameter("b") == b0);
   Dataset tiny;
   for (nlid::Experiment e : throttle_data(1.0)) {
     e.u() *= 1e-12;
@@ -413,6 +422,16 @@ TEST_CASE("When no start can be simulated, estimation names the experiment and t
                            Catch::Contains("on 'neg'") && Catch::Contains("at sample 151"));
   CHECK(e.where().experiment == 1);
   CHECK_FALSE(m.initialized());
+  // From an equilibrium start too (the steady state exists; the record fails later).
+  nlid::GreyBoxEstimateOptions eq = quick(4, 2);
+  eq.initial_condition = InitialCondition::equilibrium;
+  const nlid::Error e_eq = nlid_test::error_of([&] { (void)estimate(m, d, eq); });
+  CHECK_THAT(e_eq.what(), Catch::Contains("no start can be simulated") && Catch::Contains("at sample 151"));
+  CHECK(e_eq.where().experiment == 1);
+  // A refused option is reported as itself, bad data or not.
+  nlid::GreyBoxEstimateOptions zero_starts = quick(4, 2);
+  zero_starts.multi_start.num_starts = 0;
+  CHECK_THROWS_WITH(estimate(m, d, zero_starts), Catch::Contains("num_starts must be >= 1"));
   // Without the bad sample the same estimation runs.
   const Dataset good{nlid::Experiment(u, y, 0.01, "ok")};
   CHECK(estimate(m, good, quick(4, 2)).fit(0, 0) > 99.0);

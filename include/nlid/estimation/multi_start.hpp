@@ -64,6 +64,13 @@
 
 namespace nlid {
 
+/// Thrown by `multi_start` when neither the initial guess nor any candidate can be evaluated, as
+/// opposed to a refused option: a caller that knows the model can then say where it fails.
+class UnevaluableStartsError : public Error {
+ public:
+  using Error::Error;
+};
+
 /// Low-discrepancy sequence used to spread the candidates.
 enum class StartSequence {
   automatic,  ///< Halton up to 12 sampled dimensions, Kronecker beyond
@@ -338,8 +345,8 @@ MultiStartSummary multi_start(const P& problem, Eigen::Matrix<double, P::num_par
   sum.sequence = seq == StartSequence::halton ? "halton" : "kronecker";
   for (double c : cost) sum.num_evaluable += std::isfinite(c) ? 1 : 0;
   if (sum.num_evaluable == 0) {
-    throw Error("multi-start: the problem cannot be evaluated at the initial guess nor at any of " +
-                std::to_string(m) + " candidates; check the model, data and search ranges");
+    throw UnevaluableStartsError("multi-start: the problem cannot be evaluated at the initial guess nor at any of " +
+                                 std::to_string(m) + " candidates; check the model, data and search ranges");
   }
 
   // 3. Refinement from the best candidates (stable order: ties keep candidate order).

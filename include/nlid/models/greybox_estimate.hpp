@@ -356,7 +356,7 @@ GreyBoxEstimate estimate_in_place(GreyBox<P>& model, const Dataset& data, const 
   GreyBoxEstimate out;
   try {
     out.multi_start = multi_start(scaled, theta, ms);
-  } catch (const Error& err) {
+  } catch (const UnevaluableStartsError&) {
     // Every start failed, and the solver can only say "evaluate() returned false". With an
     // equilibrium start the usual cause is structural (a model with an integrator, such as a
     // rigid body's position, has no steady state under a non-zero input): the model's own
@@ -387,13 +387,13 @@ GreyBoxEstimate estimate_in_place(GreyBox<P>& model, const Dataset& data, const 
                     where);
       }
     }
-    // The solver knows only that no evaluation succeeded; the model's own simulation from the
-    // start each experiment began at names the experiment and sample where it fails.
+    // The model's own simulation from the start each experiment began at names the experiment
+    // and sample where it fails. (A refused option is another error and passes as it is.)
     for (std::size_t e = 0; e < data.size(); ++e) {
       try {
         if (problem.state_column(e) >= 0) {
           (void)model.simulate(data[e], Eigen::VectorXd(start.segment(problem.state_column(e), nx)));
-        } else if (options.initial_condition != InitialCondition::equilibrium) {
+        } else {
           (void)model.simulate(data[e], options.initial_condition);
         }
       } catch (const Error& why) {

@@ -154,8 +154,10 @@ struct Throttle {
     const double ulo = quantile(u, 0.005), uhi = quantile(u, 0.995);
     const double urange = uhi - ulo;
     // An input that does not move says nothing about the gain b (range / urange was 1e15 for a
-    // held command, from a floor in absolute units): b keeps its value then.
-    const bool input_moves = urange > 1e-9 * std::max(std::abs(ulo), std::abs(uhi));
+    // held command, from a floor in absolute units): b keeps its value then. "Held" includes the
+    // rounding a stored command carries (a CSV's 6 significant digits, a float's 7): 1e-5 of
+    // its level.
+    const bool input_moves = urange > 1e-5 * std::max(std::abs(ulo), std::abs(uhi));
     const StopEstimate lo = detect_stop(data, 0, 0, false), hi = detect_stop(data, 0, 0, true);
     const double band = 0.05 * range;
     const LinearResponse fit = fit_second_order(data, 0, 0, lo.position + band, hi.position - band);
