@@ -173,6 +173,10 @@ TEST_CASE("compare_prediction scores k-step-ahead predictions", "[analysis][comp
   t.add("arx", nlid::compare(m, d, nlid::InitialCondition::estimate));
   t.add("arx", nlid::compare_prediction(m, d, 1));
   CHECK_THAT(t.str(), Catch::Contains("\narx (k = 1) |") && Catch::Contains("\narx         |"));
+  const nlid::CompareResult far = nlid::compare_prediction(m, d, nlid::infinite_horizon);
+  t.add("arx", far);
+  CHECK_THAT(t.str(), Catch::Contains("\narx (k = inf) |"));
+  CHECK_THAT(far.table(), Catch::Contains("predicted infinitely many steps ahead"));
 }
 
 TEST_CASE("a diverging simulation is a result of compare, other errors are not", "[analysis][compare]") {

@@ -8,6 +8,7 @@
 #include "nlid/linear/arx.hpp"
 #include "nlid/linear/output_error.hpp"
 #include "nlid/linear/state_space.hpp"
+#include "nlid/models/any_model.hpp"
 #include "nlid/models/equilibrium.hpp"
 #include "nlid/models/physics/catalogue.hpp"
 #include "nlid/nonlinearities/sigmoid_network.hpp"
@@ -63,6 +64,15 @@ TEST_CASE("linear step and impulse responses leave out an estimated output offse
   const nlid::OutputError oe({Eigen::Vector2d(1.0, 0.5)}, {vec1(-0.5)}, {2}, 1.0, -3.0);
   REQUIRE(oe.has_offset());
   CHECK(nlid::step_response(oe, 30)(29, 0) == Approx(3.0).epsilon(1e-6));
+  // Behind an AnyModel (a model file's linear model): the same responses.
+  const nlid::AnyModel any(with_c);
+  CHECK((nlid::step_response(any, 60) - y).cwiseAbs().maxCoeff() < 1e-12);
+  CHECK((nlid::impulse_response(any, 60) - nlid::impulse_response(plain, 60)).cwiseAbs().maxCoeff() < 1e-12);
+  // Unstable, with an offset: the step overflows to inf as without one, not to inf - inf = NaN.
+  const nlid::Arx unstable(vec1(-1.5), {vec1(1.0)}, {1}, 1.0, 0.7);
+  const Eigen::MatrixXd yu = nlid::step_response(unstable, 3000);
+  CHECK(std::isinf(yu(2999, 0)));
+  CHECK_FALSE(yu.array().isNaN().any());
 }
 
 TEST_CASE("impulse_response: Markov parameters, the toolbox's unit-area pulse, sum is the step",
@@ -128,6 +138,8 @@ TEST_CASE("step_response about an operating point settles at the new equilibrium
   CHECK(y.col(0) == yb);
   CHECK_THROWS_WITH(nlid::step_response(m, op, Eigen::Vector2d(0.1, 0.1), 10),
                     Catch::Contains("one finite value per input (1), got 2"));
+  // A nonlinear model behind an AnyModel has no impulse response (a pulse of 1/Ts says little).
+  CHECK_THROWS_WITH(nlid::impulse_response(nlid::AnyModel(m), 10), Catch::Contains("impulse_response: the model is not linear"));
 
   // The throttle grey box between two held commands: from the rest of 0.3 to that of 0.5.
   nlid::GreyBox<nlid::physics::Throttle> g;

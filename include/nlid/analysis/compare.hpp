@@ -39,6 +39,7 @@
 #include "nlid/core/format.hpp"
 #include "nlid/core/initial_condition.hpp"
 #include "nlid/data/dataset.hpp"
+#include "nlid/linear/concepts.hpp"
 
 namespace nlid {
 
@@ -84,7 +85,9 @@ struct CompareResult {
     std::ostringstream os;
     os.imbue(std::locale::classic());  // a global locale's grouping or decimal comma must not reach the text
     char buf[128];
-    if (horizon > 0) {
+    if (horizon == infinite_horizon) {
+      os << "Fit (%) of the output predicted infinitely many steps ahead (simulated from measured past data)\n";
+    } else if (horizon > 0) {
       os << "Fit (%) of the " << horizon << "-step-ahead predicted output\n";
     } else {
       os << "Fit (%) of the simulated output, initial condition '"
@@ -212,7 +215,8 @@ class FitTable {
   void add(std::string model_name, const CompareResult& r) {
     Row row;
     row.name = std::move(model_name);
-    if (r.horizon > 0) row.name += " (k = " + std::to_string(r.horizon) + ")";
+    if (r.horizon > 0)
+      row.name += " (k = " + (r.horizon == infinite_horizon ? std::string("inf") : std::to_string(r.horizon)) + ")";
     for (std::size_t e = 0; e < r.experiment_names.size(); ++e)
       for (Eigen::Index j = 0; j < r.fit.cols(); ++j) {
         std::string col = r.experiment_names[e];

@@ -14,7 +14,8 @@
 /// for a linear model the toolbox's discrete step response (y(0) is the feed-through term; a
 /// delay nk shows as nk leading zeros). A linear model's estimated output offset is not part of
 /// its step or impulse response (the toolbox's responses show the dynamics G(q) alone), so it is
-/// removed; a nonlinear model's output at rest is part of its response and stays. About an
+/// removed (also behind an AnyModel); a nonlinear model's output at rest is part of its
+/// response and stays. About an
 /// operating point: the model starts at the
 /// equilibrium x̄ of ū = op.u and sees ū + δ from t = 0, so y(0) = ȳ (plus any feed-through of
 /// δ) and the response settles at the equilibrium of ū + δ, if there is one; the result is the
@@ -54,16 +55,40 @@ concept StepResponseModel = SimulationModel<M> && requires(const M& m) {
 };
 
 namespace detail {
+// A model erased behind a kind name (AnyModel).
+template <class M>
+concept HasKindName = requires(const M& m) {
+  { m.kind() } -> std::convertible_to<std::string>;
+};
+
+// True for the linear models, also behind an AnyModel (by the model file kinds).
+template <class M>
+bool is_linear_model(const M& m) {
+  if constexpr (LinearModel<M>) {
+    (void)m;
+    return true;
+  } else if constexpr (HasKindName<M>) {
+    const std::string k = m.kind();
+    return k == "arx" || k == "output_error" || k == "state_space";
+  } else {
+    (void)m;
+    return false;
+  }
+}
+
 // Free run of `u` from rest; for a linear model less its run at zero input, which is the
-// response to an estimated output offset alone (superposition).
+// response to an estimated output offset alone (superposition). Where the run overflows (an
+// unstable model) its inf stays, rather than inf − inf = NaN.
 template <StepResponseModel M>
 Eigen::MatrixXd response_from_rest(const M& model, const Eigen::MatrixXd& u, const char* name) {
   const double ts = model.ts() > 0.0 ? model.ts() : 1.0;
   const Eigen::MatrixXd no_y = Eigen::MatrixXd::Zero(u.rows(), model.num_outputs());
   Eigen::MatrixXd y = model.simulate(Experiment(u, no_y, ts, name), InitialCondition::zero);
-  if constexpr (LinearModel<M>) {
-    y -= model.simulate(Experiment(Eigen::MatrixXd::Zero(u.rows(), u.cols()), no_y, ts, "rest"),
-                        InitialCondition::zero);
+  if (is_linear_model(model)) {
+    const Eigen::MatrixXd rest =
+        model.simulate(Experiment(Eigen::MatrixXd::Zero(u.rows(), u.cols()), no_y, ts, "rest"), InitialCondition::zero);
+    for (Eigen::Index i = 0; i < y.size(); ++i)
+      if (std::isfinite(rest.data()[i])) y.data()[i] -= rest.data()[i];
   }
   return y;
 }
@@ -97,11 +122,16 @@ enum class ImpulseScaling {
   unit_pulse,  ///< u(0) = 1: the Markov parameters g(k)
 };
 
-/// Response (n × n_y) of a linear model to a pulse on input `input` at t = 0, from rest, scaled
-/// by `scaling` (default: the toolbox's `impulse`). Throws `nlid::Error` naming "n" or "input".
-template <LinearModel M>
+/// Response (n × n_y) of a linear model (also one held by an `AnyModel`) to a pulse on input
+/// `input` at t = 0, from rest, scaled by `scaling` (default: the toolbox's `impulse`). Throws
+/// `nlid::Error` naming "n" or "input", or "model" for an AnyModel that holds a nonlinear model.
+template <StepResponseModel M>
+  requires LinearModel<M> || detail::HasKindName<M>
 [[nodiscard]] Eigen::MatrixXd impulse_response(const M& model, Eigen::Index n, int input = 0,
                                                ImpulseScaling scaling = ImpulseScaling::unit_area) {
+  require(detail::is_linear_model(model),
+          "impulse_response: the model is not linear; use step_response about an operating point, or linearize",
+          at_parameter("model"));
   detail::check_response_arguments("impulse_response", model, n, input);
   Eigen::MatrixXd u = Eigen::MatrixXd::Zero(n, model.num_inputs());
   u(0, input) = scaling == ImpulseScaling::unit_area ? 1.0 / model.ts() : 1.0;
