@@ -420,6 +420,10 @@ TEST_CASE("When no start can be simulated, estimation names the experiment and t
   // candidates; check the model, data and search ranges", with no location.
   CHECK_THAT(e.what(), Catch::Contains("grey-box estimation: no start can be simulated; at the starting values") &&
                            Catch::Contains("on 'neg'") && Catch::Contains("at sample 151"));
+  // The physics is not defined there; more sub-steps would not help, and the message says so.
+  CHECK_THAT(e.what(), Catch::Contains("the physics' derivative is not finite at the state of sample 150 and its input "
+                                       "(u = -1): the model is not defined there"));
+  CHECK_THAT(e.what(), !Catch::Contains("sub-step"));
   CHECK(e.where().experiment == 1);
   CHECK_FALSE(m.initialized());
   // From an equilibrium start too (the steady state exists; the record fails later).
