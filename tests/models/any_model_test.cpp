@@ -179,6 +179,7 @@ TEST_CASE("AnyModel has value semantics and reaches the held model") {
   CHECK(a.target<decltype(hw)>() != nullptr);
   CHECK(a.target<DynamicHammersteinWiener>() == nullptr);
   CHECK(a.kind() == "hammerstein_wiener");
+  CHECK_FALSE(a.is_linear());
   const Experiment e = record();
   CHECK(bit_equal(a.predict(e, 1), hw.predict(e, 1)));  // the held model's own predictor
   AnyModel moved = std::move(b);
@@ -210,6 +211,9 @@ TEST_CASE("AnyModel: linear models take parameter vectors, state space explains 
   CHECK(s.parameters().size() == 4);
   CHECK(s.parameter_names()[0] == "A(1,1)");
   CHECK_THROWS_WITH(s.set_parameters(s.parameters()), Catch::Contains("state_space model cannot take a parameter vector"));
+  CHECK(a.is_linear());
+  CHECK(o.is_linear());
+  CHECK(s.is_linear());
 }
 
 TEST_CASE("model kinds: the built-in list and registering a new kind") {

@@ -55,21 +55,20 @@ concept StepResponseModel = SimulationModel<M> && requires(const M& m) {
 };
 
 namespace detail {
-// A model erased behind a kind name (AnyModel).
+// A model that says whether what it holds is linear (AnyModel).
 template <class M>
-concept HasKindName = requires(const M& m) {
-  { m.kind() } -> std::convertible_to<std::string>;
+concept SaysIfLinear = requires(const M& m) {
+  { m.is_linear() } -> std::convertible_to<bool>;
 };
 
-// True for the linear models, also behind an AnyModel (by the model file kinds).
+// True for the linear models, also behind an AnyModel.
 template <class M>
 bool is_linear_model(const M& m) {
   if constexpr (LinearModel<M>) {
     (void)m;
     return true;
-  } else if constexpr (HasKindName<M>) {
-    const std::string k = m.kind();
-    return k == "arx" || k == "output_error" || k == "state_space";
+  } else if constexpr (SaysIfLinear<M>) {
+    return m.is_linear();
   } else {
     (void)m;
     return false;
@@ -93,10 +92,14 @@ Eigen::MatrixXd response_from_rest(const M& model, const Eigen::MatrixXd& u, con
   return y;
 }
 
-template <class M>
-void check_response_arguments(const char* who, const M& model, Eigen::Index n, int input) {
+inline void check_sample_count(const char* who, Eigen::Index n) {
   require(n >= 1, std::string(who) + ": the number of samples must be >= 1, got " + std::to_string(n),
           at_parameter("n"));
+}
+
+template <class M>
+void check_response_arguments(const char* who, const M& model, Eigen::Index n, int input) {
+  check_sample_count(who, n);
   require(input >= 0 && input < model.num_inputs(),
           std::string(who) + ": input " + std::to_string(input) + " out of range, the model has " +
               std::to_string(model.num_inputs()) + " input(s)",
@@ -126,7 +129,7 @@ enum class ImpulseScaling {
 /// `input` at t = 0, from rest, scaled by `scaling` (default: the toolbox's `impulse`). Throws
 /// `nlid::Error` naming "n" or "input", or "model" for an AnyModel that holds a nonlinear model.
 template <StepResponseModel M>
-  requires LinearModel<M> || detail::HasKindName<M>
+  requires LinearModel<M> || detail::SaysIfLinear<M>
 [[nodiscard]] Eigen::MatrixXd impulse_response(const M& model, Eigen::Index n, int input = 0,
                                                ImpulseScaling scaling = ImpulseScaling::unit_area) {
   require(detail::is_linear_model(model),
@@ -142,7 +145,7 @@ namespace detail {
 template <class S>
 Eigen::MatrixXd step_from(S& run, const OperatingPoint& op, const Eigen::VectorXd& delta, Eigen::Index n,
                           int ny) {
-  require(n >= 1, "step_response: the number of samples must be >= 1, got " + std::to_string(n), at_parameter("n"));
+  check_sample_count("step_response", n);
   require(delta.size() == op.u.size() && delta.allFinite(),
           "step_response: the step must have one finite value per input (" + std::to_string(op.u.size()) + "), got " +
               std::to_string(delta.size()),

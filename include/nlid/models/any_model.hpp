@@ -47,6 +47,7 @@
 #include "nlid/core/initial_condition.hpp"
 #include "nlid/data/experiment.hpp"
 #include "nlid/io/model_file.hpp"
+#include "nlid/linear/concepts.hpp"
 #include "nlid/models/concepts.hpp"
 #include "nlid/models/greybox_dynamic.hpp"
 #include "nlid/models/hammerstein_wiener.hpp"
@@ -121,6 +122,9 @@ class AnyModel {
   /// initial condition (a grey box, a registered kind without `predict`). `resid` uses it to
   /// take simulation residuals with its own initial condition instead.
   [[nodiscard]] bool has_predictor() const { return get().has_predictor(); }
+  /// True if the held model is linear (the `LinearModel` concept: ARX, output error, state
+  /// space): `step_response` leaves out its output offset and `impulse_response` takes it.
+  [[nodiscard]] bool is_linear() const { return get().is_linear(); }
   /// Leading samples that `predict` (and a simulation from `InitialCondition::measured`) copy
   /// from the data instead of computing: n₀ of a nonlinear ARX model, the largest lag of an ARX
   /// model, 0 otherwise. Their residuals are exactly zero; `resid` skips them.
@@ -191,6 +195,7 @@ class AnyModel {
     [[nodiscard]] virtual Eigen::MatrixXd simulate(const Experiment& e, InitialCondition ic) const = 0;
     [[nodiscard]] virtual Eigen::MatrixXd predict(const Experiment& e, int k, InitialCondition ic) const = 0;
     [[nodiscard]] virtual bool has_predictor() const = 0;
+    [[nodiscard]] virtual bool is_linear() const = 0;
     [[nodiscard]] virtual int history_length() const = 0;
     [[nodiscard]] virtual double ts() const = 0;
     [[nodiscard]] virtual std::string describe() const = 0;
@@ -223,6 +228,7 @@ class AnyModel {
       }
     }
     bool has_predictor() const override { return requires(const Experiment& e) { m.predict(e, 1); }; }
+    bool is_linear() const override { return LinearModel<M>; }
     int history_length() const override {
       if constexpr (requires { { m.history_length() } -> std::convertible_to<int>; }) {
         return m.history_length();
