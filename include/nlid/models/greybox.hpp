@@ -484,37 +484,6 @@ class GreyBox {
     return y;
   }
 
-  /// Why a run failed when the physics itself is not defined there (the log of a negative
-  /// command): replays the run to the last sample delivered and evaluates the physics at that
-  /// state and input. Empty when it is finite there (a step too long, an unstable model), so the
-  /// sub-step advice is given only where it can help.
-  [[nodiscard]] std::string undefined_physics_note(const Eigen::MatrixXd& u, double ts,
-                                                   const Eigen::Ref<const Eigen::VectorXd>& x0,
-                                                   const ParameterVector& p, int sub, Eigen::Index got) const {
-    StateVector x = x0;
-    const Eigen::Index k = got > 0 ? got - 1 : 0;
-    if (got > 0) {
-      const auto ignore = [](Eigen::Index, const double*) {};
-      const Eigen::MatrixXd head = u.topRows(got);
-      if (simulate_physics<double>(physics_, integrator_, sub, head, ts, p.data(), x.data(), ignore) != got) return {};
-    }
-    const Eigen::VectorXd uk = u.row(k).transpose();
-    std::string us;
-    for (Eigen::Index j = 0; j < uk.size(); ++j) us += (j > 0 ? ", " : "") + detail::format_g(uk[j]);
-    if (got == 0) {
-      Eigen::VectorXd y0(output_dimension());
-      physics_.output(x.data(), uk.data(), p.data(), y0.data());
-      if (y0.allFinite()) return {};
-      return ": the physics' output is not finite at the initial state and the input of sample 0 (u = " + us +
-             "): the model is not defined there; check the input and the initial state";
-    }
-    StateVector dx = x;
-    physics_.derivative(x.data(), uk.data(), p.data(), dx.data());
-    if (dx.allFinite()) return {};
-    return ": the physics' derivative is not finite at the state of sample " + std::to_string(k) +
-           " and its input (u = " + us + "): the model is not defined there; check the input or the model's domain";
-  }
-
   /// Why a fixed-step run may have diverged although the physics is fine: the automatic rule
   /// wanted more sub-steps than its ceiling, and the capped step is beyond the method's
   /// stability limit (h·ρ ≈ 2.78 for RK4, 2 for Euler). Empty otherwise.
@@ -719,6 +688,37 @@ class GreyBox {
   // ---- Implementation details below ----------------------------------------------------------
 
  private:
+  /// Why a run failed when the physics itself is not defined there (the log of a negative
+  /// command): replays the run to the last sample delivered and evaluates the physics at that
+  /// state and input. Empty when it is finite there (a step too long, an unstable model), so the
+  /// sub-step advice is given only where it can help.
+  [[nodiscard]] std::string undefined_physics_note(const Eigen::MatrixXd& u, double ts,
+                                                   const Eigen::Ref<const Eigen::VectorXd>& x0,
+                                                   const ParameterVector& p, int sub, Eigen::Index got) const {
+    StateVector x = x0;
+    const Eigen::Index k = got > 0 ? got - 1 : 0;
+    if (got > 0) {
+      const auto ignore = [](Eigen::Index, const double*) {};
+      const Eigen::MatrixXd head = u.topRows(got);
+      if (simulate_physics<double>(physics_, integrator_, sub, head, ts, p.data(), x.data(), ignore) != got) return {};
+    }
+    const Eigen::VectorXd uk = u.row(k).transpose();
+    std::string us;
+    for (Eigen::Index j = 0; j < uk.size(); ++j) us += (j > 0 ? ", " : "") + detail::format_g(uk[j]);
+    if (got == 0) {
+      Eigen::VectorXd y0(output_dimension());
+      physics_.output(x.data(), uk.data(), p.data(), y0.data());
+      if (y0.allFinite()) return {};
+      return ": the physics' output is not finite at the initial state and the input of sample 0 (u = " + us +
+             "): the model is not defined there; check the input and the initial state";
+    }
+    StateVector dx = x;
+    physics_.derivative(x.data(), uk.data(), p.data(), dx.data());
+    if (dx.allFinite()) return {};
+    return ": the physics' derivative is not finite at the state of sample " + std::to_string(k) +
+           " and its input (u = " + us + "): the model is not defined there; check the input or the model's domain";
+  }
+
   template <class>
   friend class Stepper;  // checks the relations as simulate does
 
